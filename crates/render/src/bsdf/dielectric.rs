@@ -1,0 +1,57 @@
+//! Smooth dielectric interface: delta reflection and refraction weighted by the exact Fresnel
+//! reflectance, with total internal reflection. `eta` is the IOR inside (opposite the normal)
+//! over outside; η = 1 makes the interface invisible.
+
+use glam::{Vec2, Vec3A};
+
+use super::{fresnel, Bsdf, BsdfFlags, BsdfSample, TransportMode};
+use crate::spectrum::Spectrum;
+
+#[derive(Debug, Clone)]
+pub struct SmoothDielectric {
+    eta: f32,
+}
+
+impl SmoothDielectric {
+    pub fn new(eta: f32) -> Self {
+        SmoothDielectric { eta }
+    }
+}
+
+impl Bsdf for SmoothDielectric {
+    fn flags(&self) -> BsdfFlags {
+        BsdfFlags { reflection: self.eta != 1.0, transmission: true, specular: true, smooth: false }
+    }
+
+    fn eval(&self, _: Vec3A, _: Vec3A, _: TransportMode) -> Spectrum {
+        Spectrum::ZERO
+    }
+
+    fn sample(&self, wo: Vec3A, u_lobe: f32, _: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+        if wo.z == 0.0 {
+            return None;
+        }
+        let r = fresnel::dielectric(wo.z, self.eta);
+        if u_lobe < r {
+            let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
+            return Some(BsdfSample { wi, f: Spectrum::splat(r / wi.z.abs()), pdf: r, specular: true, transmission: false, eta: 1.0 });
+        }
+        // Relative IOR seen from wo's side, and the normal on wo's side.
+        let (etap, n) = if wo.z > 0.0 { (self.eta, Vec3A::Z) } else { (1.0 / self.eta, -Vec3A::Z) };
+        let wi = fresnel::refract(wo, n, etap)?;
+        let t = 1.0 - r;
+        let mut f = t / wi.z.abs();
+        if mode == TransportMode::Radiance {
+            f /= etap * etap;
+        }
+        Some(BsdfSample { wi, f: Spectrum::splat(f), pdf: t, specular: true, transmission: true, eta: etap })
+    }
+
+    fn pdf(&self, _: Vec3A, _: Vec3A, _: TransportMode) -> f32 {
+        0.0
+    }
+
+    fn albedo(&self) -> Spectrum {
+        Spectrum::ONE
+    }
+}

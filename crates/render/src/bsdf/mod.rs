@@ -1,0 +1,129 @@
+//! Bidirectional scattering distribution functions, one per file, behind one trait.
+//!
+//! Conventions (pbrt-v4 / Mitsuba): directions are unit vectors in the local shading frame
+//! with the normal along +z, both pointing away from the surface; `wo` is toward the viewer
+//! (where light leaves), `wi` toward where light arrives from. `eval` returns f(wo, wi) in
+//! sr⁻¹ without the cosine. Reflection-only BSDFs are defined for wo.z > 0; the material
+//! flips the frame for the back face (two-sided). Delta (specular) lobes have `eval` and
+//! `pdf` zero and are reached only through `sample`, which returns f/pdf ratios consistent
+//! with a discrete probability.
+
+mod blinn_phong;
+mod conductor;
+mod dielectric;
+pub mod fresnel;
+mod glossy;
+mod lambert;
+pub mod microfacet;
+mod mirror;
+mod oren_nayar;
+mod phong;
+mod rough_dielectric;
+mod ward;
+
+#[cfg(test)]
+mod tests;
+
+use glam::{Vec2, Vec3A};
+use tessera_scene::{MaterialKind, Roughness};
+
+use crate::spectrum::Spectrum;
+
+pub use blinn_phong::{BlinnPhong, BlinnPhongLobe};
+pub use conductor::Conductor;
+pub use dielectric::SmoothDielectric;
+pub use lambert::Lambert;
+pub use microfacet::Microfacet;
+pub use mirror::Mirror;
+pub use oren_nayar::OrenNayar;
+pub use phong::{Phong, PhongLobe};
+pub use rough_dielectric::RoughDielectric;
+pub use glossy::{GlossyLobe, WithDiffuse};
+pub use ward::{Ward, WardLobe};
+
+/// Whether the path carries radiance (from the camera) or importance (from a light): BTDFs
+/// scale by 1/η² only for radiance (Veach's thesis §5.2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TransportMode {
+    Radiance,
+    Importance,
+}
+
+/// What kinds of scattering a BSDF has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct BsdfFlags {
+    pub reflection: bool,
+    pub transmission: bool,
+    /// Has a delta (perfectly specular) component.
+    pub specular: bool,
+    /// Has a component with a density (diffuse or glossy).
+    pub smooth: bool,
+}
+
+/// A direction sampled from a BSDF.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BsdfSample {
+    pub wi: Vec3A,
+    /// f(wo, wi); for delta lobes, the lobe's weight divided by |cos θi|.
+    pub f: Spectrum,
+    /// Solid-angle density, or the discrete probability of a delta lobe.
+    pub pdf: f32,
+    pub specular: bool,
+    pub transmission: bool,
+    /// Relative IOR across the interface crossed (1 for reflection).
+    pub eta: f32,
+}
+
+impl BsdfSample {
+    /// The throughput weight f·|cos θi| / pdf.
+    #[inline]
+    pub fn weight(&self) -> Spectrum {
+        self.f * (self.wi.z.abs() / self.pdf)
+    }
+}
+
+/// A BSDF in the local shading frame.
+pub trait Bsdf: Send + Sync + std::fmt::Debug {
+    fn flags(&self) -> BsdfFlags;
+    /// f(wo, wi), zero for delta components.
+    fn eval(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> Spectrum;
+    /// Samples wi given wo; `u_lobe` picks a lobe, `u` the direction within it.
+    fn sample(&self, wo: Vec3A, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample>;
+    /// Density with which `sample` produces wi (zero for delta components).
+    fn pdf(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> f32;
+    /// A representative reflectance (for the albedo AOV).
+    fn albedo(&self) -> Spectrum;
+}
+
+/// Builds the BSDF of a material description.
+pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
+    let v = |c: glam::Vec3| Vec3A::from(c);
+    match *kind {
+        MaterialKind::Diffuse { albedo } => Box::new(Lambert::new(v(albedo))),
+        MaterialKind::OrenNayar { albedo, sigma } => Box::new(OrenNayar::new(v(albedo), sigma)),
+        MaterialKind::Phong { diffuse, specular, exponent } => {
+            Box::new(Phong::new(v(diffuse), v(specular), PhongLobe::new(exponent)))
+        }
+        MaterialKind::BlinnPhong { diffuse, specular, exponent } => {
+            Box::new(BlinnPhong::new(v(diffuse), v(specular), BlinnPhongLobe::new(exponent)))
+        }
+        MaterialKind::Ward { diffuse, specular, alpha_x, alpha_y } => {
+            Box::new(Ward::new(v(diffuse), v(specular), WardLobe::new(alpha_x, alpha_y)))
+        }
+        MaterialKind::Conductor { eta, k, specular, roughness } => {
+            Box::new(Conductor::new(v(eta), v(k), v(specular), microfacet_of(&roughness)))
+        }
+        MaterialKind::Dielectric { eta, roughness } => {
+            if roughness.is_smooth() || eta == 1.0 {
+                Box::new(SmoothDielectric::new(eta))
+            } else {
+                Box::new(RoughDielectric::new(eta, microfacet_of(&roughness).expect("rough")))
+            }
+        }
+        MaterialKind::Mirror { reflectance } => Box::new(Mirror::new(v(reflectance))),
+    }
+}
+
+fn microfacet_of(r: &Roughness) -> Option<Microfacet> {
+    (!r.is_smooth()).then(|| Microfacet::new(r.distribution, r.alpha_u, r.alpha_v))
+}

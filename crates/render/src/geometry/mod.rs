@@ -1,0 +1,7 @@
+//! Geometry: primitive intersection and the acceleration structure.
+
+pub mod accel;
+pub mod sphere;
+pub mod triangle;
+
+pub use accel::{Accel, Prim, PrimHit};

@@ -1,0 +1,184 @@
+//! The validated scene, in canonical units, ready for the renderer to build from.
+//!
+//! Units (DESIGN invariant 2): lengths in scene units (`metres_per_unit` converts);
+//! radiometry in SI with RGB in linear Rec.709: radiance in W·sr⁻¹·m⁻², intensity in W·sr⁻¹,
+//! irradiance in W·m⁻². "W" here is luminous-equivalent: luminance Y (0.2126 R + 0.7152 G +
+//! 0.0722 B) times 683 lm/W is the photometric value (cd/m², cd, lux). Emitters given as power
+//! were converted to radiance/intensity once, at load. Instances are flattened: every mesh
+//! and sphere is in world space.
+
+use glam::{Mat3, Vec3};
+
+pub use crate::file::{Distribution, FovAxis, SamplerType};
+
+/// A scene ready to render.
+#[derive(Debug, Clone)]
+pub struct SceneDesc {
+    /// Human-readable name (the `name` field, or the file name).
+    pub name: String,
+    pub metres_per_unit: f64,
+    pub camera: CameraDesc,
+    pub film: FilmDesc,
+    pub integrator: IntegratorDesc,
+    pub materials: Vec<MaterialDesc>,
+    pub meshes: Vec<MeshDesc>,
+    pub spheres: Vec<SphereDesc>,
+    pub lights: Vec<LightDesc>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraDesc {
+    pub position: Vec3,
+    pub look_at: Vec3,
+    pub up: Vec3,
+    /// Full vertical field of view, radians.
+    pub fov_y: f32,
+    pub lens: Lens,
+    /// Multiplier from radiance to pixel value (1 without a physical exposure).
+    pub exposure_scale: f32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Lens {
+    Pinhole,
+    /// Thin lens with aperture radius and focus distance, both in scene units.
+    Thin { aperture_radius: f32, focus_distance: f32 },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FilmDesc {
+    pub width: u32,
+    pub height: u32,
+    pub filter: FilterDesc,
+}
+
+/// Pixel reconstruction filter; radii in pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FilterDesc {
+    Box { radius: f32 },
+    Gaussian { radius: f32, sigma: f32 },
+    Mitchell { radius: f32, b: f32, c: f32 },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IntegratorKind {
+    /// Unidirectional path tracing with next-event estimation, MIS and Russian roulette.
+    Path,
+    /// Emitted plus directly reflected light (specular chains are followed).
+    Direct,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct IntegratorDesc {
+    pub kind: IntegratorKind,
+    pub spp: u32,
+    /// Longest path, in scattering events.
+    pub max_depth: u32,
+    /// Depth from which Russian roulette may end paths.
+    pub rr_depth: u32,
+    pub seed: u64,
+    pub sampler: SamplerType,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct MaterialDesc {
+    pub name: String,
+    pub kind: MaterialKind,
+}
+
+/// Microfacet roughness: distribution and widths along the tangent and bitangent.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Roughness {
+    pub distribution: Distribution,
+    pub alpha_u: f32,
+    pub alpha_v: f32,
+}
+
+impl Roughness {
+    /// α = 0: a perfectly smooth (specular, delta) interface.
+    pub fn is_smooth(&self) -> bool {
+        self.alpha_u == 0.0 && self.alpha_v == 0.0
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum MaterialKind {
+    Diffuse { albedo: Vec3 },
+    OrenNayar { albedo: Vec3, sigma: f32 },
+    Phong { diffuse: Vec3, specular: Vec3, exponent: f32 },
+    BlinnPhong { diffuse: Vec3, specular: Vec3, exponent: f32 },
+    Ward { diffuse: Vec3, specular: Vec3, alpha_x: f32, alpha_y: f32 },
+    /// Conductor with complex index of refraction η + ik per channel.
+    Conductor { eta: Vec3, k: Vec3, specular: Vec3, roughness: Roughness },
+    /// Dielectric interface: `eta` = interior IOR / exterior IOR.
+    Dielectric { eta: f32, roughness: Roughness },
+    Mirror { reflectance: Vec3 },
+}
+
+/// An area emitter's radiance, constant over its surface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EmissionDesc {
+    pub radiance: Vec3,
+    pub two_sided: bool,
+}
+
+/// A triangle mesh in world space.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshDesc {
+    /// Where it came from, for messages (`shapes[2] (floor.obj)`).
+    pub origin: String,
+    pub positions: Vec<Vec3>,
+    /// Per-vertex shading normals (unit length), if the mesh has them and they are wanted.
+    pub normals: Option<Vec<Vec3>>,
+    pub triangles: Vec<[u32; 3]>,
+    pub material: u32,
+    pub emission: Option<EmissionDesc>,
+}
+
+impl MeshDesc {
+    /// Total surface area, in scene units squared (degenerate triangles count zero).
+    pub fn area(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.positions[i as usize].as_dvec3());
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum()
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct SphereDesc {
+    /// Where it came from, for messages (`shapes[4]`).
+    pub origin: String,
+    pub center: Vec3,
+    pub radius: f32,
+    pub material: u32,
+    pub emission: Option<EmissionDesc>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum LightDesc {
+    /// Intensity already divided by metres-per-unit², so irradiance = intensity / d² with d in
+    /// scene units.
+    Point { position: Vec3, intensity: Vec3 },
+    Spot {
+        position: Vec3,
+        direction: Vec3,
+        intensity: Vec3,
+        cos_falloff_start: f32,
+        cos_cone: f32,
+    },
+    /// `direction` is where the light travels; irradiance on a surface facing it.
+    Directional { direction: Vec3, irradiance: Vec3 },
+    Environment { image: Option<EnvImage>, scale: Vec3, to_world: Mat3 },
+}
+
+/// A latitude–longitude environment image, rows top (+Y, up) to bottom.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnvImage {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<Vec3>,
+}

@@ -1,0 +1,41 @@
+//! Reading float RGB images (OpenEXR) — environment maps and reference images.
+
+use glam::Vec3;
+
+/// A float RGB image, rows from top to bottom.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Vec3>,
+}
+
+impl RgbImage {
+    pub fn get(&self, x: u32, y: u32) -> Vec3 {
+        self.pixels[(y * self.width + x) as usize]
+    }
+}
+
+/// Decodes the first RGB(A) layer of an OpenEXR file. Alpha is ignored.
+pub fn read_exr_rgb(bytes: &[u8]) -> Result<RgbImage, String> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |resolution, _| RgbImage {
+                width: resolution.width() as u32,
+                height: resolution.height() as u32,
+                pixels: vec![Vec3::ZERO; resolution.width() * resolution.height()],
+            },
+            |img: &mut RgbImage, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let i = pos.y() * img.width as usize + pos.x();
+                img.pixels[i] = Vec3::new(r, g, b);
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| format!("expected an OpenEXR image with R, G and B channels: {e}"))?;
+    Ok(image.layer_data.channel_data.pixels)
+}

@@ -1,0 +1,85 @@
+//! Where scene files come from: a folder on disk today, an uploaded bundle on the farm.
+//! Every path a scene names is relative to the scene's folder and may not leave it.
+
+use std::path::{Component, Path, PathBuf};
+
+/// Read access to the files of one scene, addressed by paths relative to the scene folder.
+pub trait SceneSource {
+    /// Reads a file given by a confined relative path (see [`confine`]).
+    fn read(&self, relative: &Path) -> std::io::Result<Vec<u8>>;
+    /// How to show `relative` to a user (e.g. the full path on disk).
+    fn display_path(&self, relative: &Path) -> PathBuf;
+}
+
+/// A scene folder on the local file system.
+#[derive(Debug, Clone)]
+pub struct DirSource {
+    root: PathBuf,
+}
+
+impl DirSource {
+    pub fn new(root: impl Into<PathBuf>) -> Self {
+        DirSource { root: root.into() }
+    }
+}
+
+impl SceneSource for DirSource {
+    fn read(&self, relative: &Path) -> std::io::Result<Vec<u8>> {
+        std::fs::read(self.root.join(relative))
+    }
+    fn display_path(&self, relative: &Path) -> PathBuf {
+        self.root.join(relative)
+    }
+}
+
+/// Normalises a path given in a scene file and checks that it stays inside the scene folder:
+/// no absolute paths, no drive prefixes, no `..` that climbs above the folder.
+/// Returns the normalised relative path, or what was expected.
+pub fn confine(path: &str) -> Result<PathBuf, String> {
+    if path.is_empty() {
+        return Err("expected a file path relative to the scene folder, got an empty string".into());
+    }
+    let mut out = PathBuf::new();
+    for component in Path::new(path).components() {
+        match component {
+            Component::Normal(c) => out.push(c),
+            Component::CurDir => {}
+            Component::ParentDir => {
+                if !out.pop() {
+                    return Err(format!(
+                        "expected a path inside the scene folder, but \"{path}\" leaves it"
+                    ));
+                }
+            }
+            Component::RootDir | Component::Prefix(_) => {
+                return Err(format!(
+                    "expected a path relative to the scene folder, got the absolute path \"{path}\""
+                ));
+            }
+        }
+    }
+    if out.as_os_str().is_empty() {
+        return Err(format!("expected a file path, \"{path}\" names the scene folder itself"));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn confine_accepts_relative_paths_and_normalises() {
+        assert_eq!(confine("meshes/a.obj").unwrap(), PathBuf::from("meshes/a.obj"));
+        assert_eq!(confine("./meshes/../a.obj").unwrap(), PathBuf::from("a.obj"));
+    }
+
+    #[test]
+    fn confine_rejects_escapes_and_absolute_paths() {
+        assert!(confine("../other/a.obj").unwrap_err().contains("leaves it"));
+        assert!(confine("meshes/../../a.obj").unwrap_err().contains("leaves it"));
+        assert!(confine("/etc/passwd").unwrap_err().contains("absolute"));
+        assert!(confine("").is_err());
+        assert!(confine("meshes/..").is_err());
+    }
+}
