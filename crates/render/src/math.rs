@@ -58,7 +58,11 @@ pub fn offset_ray_origin(p: Vec3A, p_error: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A 
             v
         }
     };
-    Vec3A::new(round(po.x, offset.x), round(po.y, offset.y), round(po.z, offset.z))
+    Vec3A::new(
+        round(po.x, offset.x),
+        round(po.y, offset.y),
+        round(po.z, offset.z),
+    )
 }
 
 #[inline]
@@ -81,13 +85,21 @@ impl Frame {
     pub fn from_normal(n: Vec3A) -> Frame {
         let axis = if n.x.abs() < 0.9 { Vec3A::X } else { Vec3A::Z };
         let s = (axis - n * n.dot(axis)).normalize();
-        Frame { s, t: n.cross(s), n }
+        Frame {
+            s,
+            t: n.cross(s),
+            n,
+        }
     }
 
     /// The same frame seen from the other side (normal flipped, still right-handed).
     #[inline]
     pub fn flipped(&self) -> Frame {
-        Frame { s: self.s, t: -self.t, n: -self.n }
+        Frame {
+            s: self.s,
+            t: -self.t,
+            n: -self.n,
+        }
     }
 
     #[inline]
@@ -121,7 +133,12 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal_and_round_trips() {
-        for n in [Vec3A::X, -Vec3A::Z, Vec3A::new(0.3, -0.8, 0.52).normalize(), Vec3A::new(0.95, 0.1, 0.1).normalize()] {
+        for n in [
+            Vec3A::X,
+            -Vec3A::Z,
+            Vec3A::new(0.3, -0.8, 0.52).normalize(),
+            Vec3A::new(0.95, 0.1, 0.1).normalize(),
+        ] {
             let f = Frame::from_normal(n);
             assert!((f.s.length() - 1.0).abs() < 1e-6 && (f.t.length() - 1.0).abs() < 1e-6);
             assert!(f.s.dot(f.t).abs() < 1e-6 && f.s.dot(n).abs() < 1e-6);

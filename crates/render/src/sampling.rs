@@ -3,7 +3,7 @@
 
 use glam::{Vec2, Vec3A};
 
-use crate::math::{safe_sqrt, INV_4PI, INV_PI, PI};
+use crate::math::{INV_4PI, INV_PI, PI, safe_sqrt};
 
 /// Concentric map of the square to the unit disk (Shirley & Chiu 1997): area-preserving.
 #[inline]
@@ -116,7 +116,11 @@ impl Distribution1D {
             }
         }
         cdf[n] = 1.0;
-        Distribution1D { func, cdf, integral }
+        Distribution1D {
+            func,
+            cdf,
+            integral,
+        }
     }
 
     pub fn len(&self) -> usize {
@@ -155,7 +159,11 @@ impl Distribution1D {
         let i = self.find(u);
         let (c0, c1) = (self.cdf[i], self.cdf[i + 1]);
         let p = c1 - c0;
-        let remapped = if p > 0.0 { ((u - c0) / p).min(1.0 - f32::EPSILON / 2.0) } else { 0.0 };
+        let remapped = if p > 0.0 {
+            ((u - c0) / p).min(1.0 - f32::EPSILON / 2.0)
+        } else {
+            0.0
+        };
         (i, p, remapped)
     }
 
@@ -168,7 +176,11 @@ impl Distribution1D {
     /// Density of continuous sampling anywhere in bin `i`.
     #[inline]
     pub fn pdf_bin(&self, i: usize) -> f32 {
-        if self.integral > 0.0 { self.func[i] / self.integral } else { 1.0 }
+        if self.integral > 0.0 {
+            self.func[i] / self.integral
+        } else {
+            1.0
+        }
     }
 }
 
@@ -182,10 +194,16 @@ pub struct Distribution2D {
 impl Distribution2D {
     /// `values` in row-major order, `width` columns (u) by `height` rows (v).
     pub fn new(values: &[f32], width: usize, height: usize) -> Self {
-        let conditional: Vec<Distribution1D> =
-            values.chunks_exact(width).take(height).map(Distribution1D::new).collect();
+        let conditional: Vec<Distribution1D> = values
+            .chunks_exact(width)
+            .take(height)
+            .map(Distribution1D::new)
+            .collect();
         let row_integrals: Vec<f32> = conditional.iter().map(|d| d.integral()).collect();
-        Distribution2D { marginal: Distribution1D::new(&row_integrals), conditional }
+        Distribution2D {
+            marginal: Distribution1D::new(&row_integrals),
+            conditional,
+        }
     }
 
     /// A point (u, v) and its density with respect to area in [0, 1)².

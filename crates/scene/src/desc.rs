@@ -42,7 +42,10 @@ pub struct CameraDesc {
 pub enum Lens {
     Pinhole,
     /// Thin lens with aperture radius and focus distance, both in scene units.
-    Thin { aperture_radius: f32, focus_distance: f32 },
+    Thin {
+        aperture_radius: f32,
+        focus_distance: f32,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -103,16 +106,44 @@ impl Roughness {
 
 #[derive(Debug, Clone, PartialEq)]
 pub enum MaterialKind {
-    Diffuse { albedo: Vec3 },
-    OrenNayar { albedo: Vec3, sigma: f32 },
-    Phong { diffuse: Vec3, specular: Vec3, exponent: f32 },
-    BlinnPhong { diffuse: Vec3, specular: Vec3, exponent: f32 },
-    Ward { diffuse: Vec3, specular: Vec3, alpha_x: f32, alpha_y: f32 },
+    Diffuse {
+        albedo: Vec3,
+    },
+    OrenNayar {
+        albedo: Vec3,
+        sigma: f32,
+    },
+    Phong {
+        diffuse: Vec3,
+        specular: Vec3,
+        exponent: f32,
+    },
+    BlinnPhong {
+        diffuse: Vec3,
+        specular: Vec3,
+        exponent: f32,
+    },
+    Ward {
+        diffuse: Vec3,
+        specular: Vec3,
+        alpha_x: f32,
+        alpha_y: f32,
+    },
     /// Conductor with complex index of refraction η + ik per channel.
-    Conductor { eta: Vec3, k: Vec3, specular: Vec3, roughness: Roughness },
+    Conductor {
+        eta: Vec3,
+        k: Vec3,
+        specular: Vec3,
+        roughness: Roughness,
+    },
     /// Dielectric interface: `eta` = interior IOR / exterior IOR.
-    Dielectric { eta: f32, roughness: Roughness },
-    Mirror { reflectance: Vec3 },
+    Dielectric {
+        eta: f32,
+        roughness: Roughness,
+    },
+    Mirror {
+        reflectance: Vec3,
+    },
 }
 
 /// An area emitter's radiance, constant over its surface.
@@ -172,7 +203,11 @@ pub enum LightDesc {
     },
     /// `direction` is where the light travels; irradiance on a surface facing it.
     Directional { direction: Vec3, irradiance: Vec3 },
-    Environment { image: Option<EnvImage>, scale: Vec3, to_world: Mat3 },
+    Environment {
+        image: Option<EnvImage>,
+        scale: Vec3,
+        to_world: Mat3,
+    },
 }
 
 /// A latitude–longitude environment image, rows top (+Y, up) to bottom.

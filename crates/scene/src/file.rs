@@ -7,8 +7,8 @@
 
 use std::collections::BTreeMap;
 
-use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
+use serde::de::{self, Deserializer, SeqAccess, Visitor};
 
 /// The top level of `scene.json`.
 #[derive(Debug, Deserialize)]
@@ -155,7 +155,9 @@ impl<'de> Deserialize<'de> for Seconds {
                     Some((n, d)) => parse(n).zip(parse(d)).map(|(n, d)| n / d),
                     None => parse(s),
                 };
-                value.map(Seconds).ok_or_else(|| E::invalid_value(de::Unexpected::Str(s), &self))
+                value
+                    .map(Seconds)
+                    .ok_or_else(|| E::invalid_value(de::Unexpected::Str(s), &self))
             }
         }
         d.deserialize_any(V)
@@ -297,7 +299,9 @@ impl<'de, const N: usize> Deserialize<'de> for NumOrArray<N> {
             fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Self::Value, A::Error> {
                 let mut a = [0.0f32; N];
                 for (i, slot) in a.iter_mut().enumerate() {
-                    *slot = seq.next_element::<f32>()?.ok_or_else(|| de::Error::invalid_length(i, &self))?;
+                    *slot = seq
+                        .next_element::<f32>()?
+                        .ok_or_else(|| de::Error::invalid_length(i, &self))?;
                 }
                 if seq.next_element::<de::IgnoredAny>()?.is_some() {
                     return Err(de::Error::invalid_length(N + 1, &self));
@@ -315,7 +319,10 @@ impl<'de, const N: usize> Deserialize<'de> for NumOrArray<N> {
 pub enum TransformStep {
     Translate([f32; 3]),
     /// Rotation by `angle_deg` degrees about `axis` (right-handed).
-    Rotate { axis: [f32; 3], angle_deg: f32 },
+    Rotate {
+        axis: [f32; 3],
+        angle_deg: f32,
+    },
     /// Uniform (one number) or per-axis scale.
     Scale(NumOrArray<3>),
     /// A 4×4 matrix in row-major order, applied to column vectors.

@@ -73,7 +73,9 @@ pub fn blackbody_xyz(kelvin: f64) -> DVec3 {
 /// Linear Rec.709 colour of a black body at `kelvin`, with luminance 1. Components outside
 /// the Rec.709 gamut (very low or high temperatures) are clipped to zero before normalising.
 pub fn blackbody_rgb(kelvin: f64) -> Vec3 {
-    let rgb = xyz_to_rec709(blackbody_xyz(kelvin)).max(DVec3::ZERO).as_vec3();
+    let rgb = xyz_to_rec709(blackbody_xyz(kelvin))
+        .max(DVec3::ZERO)
+        .as_vec3();
     rgb / luminance(rgb)
 }
 
@@ -106,17 +108,26 @@ mod tests {
     #[test]
     fn equal_energy_white_is_near_one_third() {
         let (x, y) = chromaticity(integrate_band(cie_xyz_bar));
-        assert!((x - 1.0 / 3.0).abs() < 0.005 && (y - 1.0 / 3.0).abs() < 0.005, "{x} {y}");
+        assert!(
+            (x - 1.0 / 3.0).abs() < 0.005 && (y - 1.0 / 3.0).abs() < 0.005,
+            "{x} {y}"
+        );
     }
 
     #[test]
     fn blackbody_chromaticities_match_cie_illuminant_a_and_planckian_locus() {
         // CIE illuminant A is a 2856 K black body: x = 0.44757, y = 0.40745.
         let (x, y) = chromaticity(blackbody_xyz(2856.0));
-        assert!((x - 0.44757).abs() < 0.004 && (y - 0.40745).abs() < 0.004, "{x} {y}");
+        assert!(
+            (x - 0.44757).abs() < 0.004 && (y - 0.40745).abs() < 0.004,
+            "{x} {y}"
+        );
         // 6500 K on the Planckian locus: x ≈ 0.3135, y ≈ 0.3237.
         let (x, y) = chromaticity(blackbody_xyz(6500.0));
-        assert!((x - 0.3135).abs() < 0.004 && (y - 0.3237).abs() < 0.004, "{x} {y}");
+        assert!(
+            (x - 0.3135).abs() < 0.004 && (y - 0.3237).abs() < 0.004,
+            "{x} {y}"
+        );
     }
 
     #[test]
@@ -135,7 +146,10 @@ mod tests {
     fn efficacy_is_below_the_maximum_and_peaks_near_daylight() {
         let e2856 = blackbody_efficacy(2856.0);
         let e6500 = blackbody_efficacy(6500.0);
-        assert!(e2856 > 100.0 && e2856 < e6500 && e6500 < 0.5 * K_M, "{e2856} {e6500}");
+        assert!(
+            e2856 > 100.0 && e2856 < e6500 && e6500 < 0.5 * K_M,
+            "{e2856} {e6500}"
+        );
     }
 
     #[test]

@@ -15,7 +15,7 @@ use crate::error::{Problem, SceneError};
 use crate::file::*;
 use crate::mesh::{self, RawMesh};
 use crate::photometry::{self, K_M};
-use crate::source::{confine, SceneSource};
+use crate::source::{SceneSource, confine};
 use crate::transform;
 
 /// Deepest nesting of `instance` shapes.
@@ -26,7 +26,10 @@ pub const MAX_FILM_SIDE: u32 = 1 << 15;
 /// Parses and validates the scene file `name` (relative to `source`).
 pub fn load(source: &dyn SceneSource, name: &Path) -> Result<SceneDesc, SceneError> {
     let file = source.display_path(name);
-    let bytes = source.read(name).map_err(|e| SceneError::Io { file: file.clone(), source: e })?;
+    let bytes = source.read(name).map_err(|e| SceneError::Io {
+        file: file.clone(),
+        source: e,
+    })?;
     let de = &mut serde_json::Deserializer::from_slice(&bytes);
     let parsed: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
         let path = e.path().to_string();
@@ -36,8 +39,16 @@ pub fn load(source: &dyn SceneSource, name: &Path) -> Result<SceneDesc, SceneErr
             message: e.into_inner().to_string(),
         }])
     })?;
-    let default_name = name.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let mut ctx = Ctx { source, file, problems: Vec::new(), meshes: HashMap::new() };
+    let default_name = name
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let mut ctx = Ctx {
+        source,
+        file,
+        problems: Vec::new(),
+        meshes: HashMap::new(),
+    };
     let desc = ctx.scene(parsed, default_name);
     if ctx.problems.is_empty() {
         Ok(desc)
@@ -67,7 +78,11 @@ struct Strength<'a> {
 
 impl Ctx<'_> {
     fn problem(&mut self, path: impl Into<String>, message: impl Into<String>) {
-        self.problems.push(Problem { file: self.file.clone(), path: path.into(), message: message.into() });
+        self.problems.push(Problem {
+            file: self.file.clone(),
+            path: path.into(),
+            message: message.into(),
+        });
     }
 
     /// Parses the body of a tagged object, reporting errors under `path`.
@@ -77,7 +92,11 @@ impl Ctx<'_> {
             Ok(v) => Some(v),
             Err(e) => {
                 let inner = e.path().to_string();
-                let full = if inner == "." { path.to_string() } else { format!("{path}.{inner}") };
+                let full = if inner == "." {
+                    path.to_string()
+                } else {
+                    format!("{path}.{inner}")
+                };
                 self.problem(full, e.into_inner().to_string());
                 None
             }
@@ -87,7 +106,10 @@ impl Ctx<'_> {
     fn unknown_type(&mut self, path: &str, what: &str, kind: &str, expected: &[&str]) {
         self.problem(
             format!("{path}.type"),
-            format!("unknown {what} type \"{kind}\"; expected one of: {}", expected.join(", ")),
+            format!(
+                "unknown {what} type \"{kind}\"; expected one of: {}",
+                expected.join(", ")
+            ),
         );
     }
 
@@ -118,7 +140,10 @@ impl Ctx<'_> {
     fn albedo(&mut self, path: &str, c: Color) -> Vec3 {
         let v = Vec3::from(c.expand());
         if !(v.min_element() >= 0.0 && v.max_element() <= 1.0) {
-            self.problem(path, format!("expected a reflectance with components in [0, 1], got {v}"));
+            self.problem(
+                path,
+                format!("expected a reflectance with components in [0, 1], got {v}"),
+            );
         }
         v
     }
@@ -126,7 +151,10 @@ impl Ctx<'_> {
     fn non_negative3(&mut self, path: &str, c: [f32; 3]) -> Vec3 {
         let v = Vec3::from(c);
         if !(v.min_element() >= 0.0 && v.is_finite()) {
-            self.problem(path, format!("expected finite, non-negative numbers, got {v}"));
+            self.problem(
+                path,
+                format!("expected finite, non-negative numbers, got {v}"),
+            );
         }
         v
     }
@@ -143,8 +171,12 @@ impl Ctx<'_> {
         let film = self.film(&f.film);
         let camera = self.camera(&f.camera, &film);
         let integrator = self.integrator(&f.integrator);
-        let material_index: BTreeMap<String, u32> =
-            f.materials.keys().enumerate().map(|(i, k)| (k.clone(), i as u32)).collect();
+        let material_index: BTreeMap<String, u32> = f
+            .materials
+            .keys()
+            .enumerate()
+            .map(|(i, k)| (k.clone(), i as u32))
+            .collect();
         let materials = f
             .materials
             .iter()
@@ -155,17 +187,34 @@ impl Ctx<'_> {
                     .unwrap_or(MaterialKind::Diffuse { albedo: Vec3::ZERO }),
             })
             .collect();
-        let mut out = Shapes { meshes: Vec::new(), spheres: Vec::new(), metres_per_unit };
-        let env = ShapeEnv { materials: &material_index, objects: &f.objects };
+        let mut out = Shapes {
+            meshes: Vec::new(),
+            spheres: Vec::new(),
+            metres_per_unit,
+        };
+        let env = ShapeEnv {
+            materials: &material_index,
+            objects: &f.objects,
+        };
         let mut stack = Vec::new();
-        self.shapes(&f.shapes, "shapes", Affine3A::IDENTITY, &env, &mut stack, &mut out);
+        self.shapes(
+            &f.shapes,
+            "shapes",
+            Affine3A::IDENTITY,
+            &env,
+            &mut stack,
+            &mut out,
+        );
         let lights: Vec<LightDesc> = f
             .lights
             .iter()
             .enumerate()
             .filter_map(|(i, t)| self.light(&format!("lights[{i}]"), t, metres_per_unit))
             .collect();
-        if lights.is_empty() && out.meshes.iter().all(|m| m.emission.is_none()) && out.spheres.iter().all(|s| s.emission.is_none()) {
+        if lights.is_empty()
+            && out.meshes.iter().all(|m| m.emission.is_none())
+            && out.spheres.iter().all(|s| s.emission.is_none())
+        {
             tracing::warn!(scene = %self.file.display(), "the scene has no emitters and will render black");
         }
         SceneDesc {
@@ -184,32 +233,50 @@ impl Ctx<'_> {
     fn film(&mut self, f: &FilmFile) -> FilmDesc {
         for (name, v) in [("film.width", f.width), ("film.height", f.height)] {
             if v == 0 || v > MAX_FILM_SIDE {
-                self.problem(name, format!("expected a size from 1 to {MAX_FILM_SIDE} pixels, got {v}"));
+                self.problem(
+                    name,
+                    format!("expected a size from 1 to {MAX_FILM_SIDE} pixels, got {v}"),
+                );
             }
         }
         let filter = match &f.filter {
             None => FilterDesc::Box { radius: 0.5 },
             Some(fl) => self.filter(fl),
         };
-        FilmDesc { width: f.width, height: f.height, filter }
+        FilmDesc {
+            width: f.width,
+            height: f.height,
+            filter,
+        }
     }
 
     fn filter(&mut self, f: &FilterFile) -> FilterDesc {
         let not_for = |s: &mut Self, field: &str, present: bool| {
             if present {
-                s.problem(format!("film.filter.{field}"), format!("not a parameter of the {:?} filter", f.kind));
+                s.problem(
+                    format!("film.filter.{field}"),
+                    format!("not a parameter of the {:?} filter", f.kind),
+                );
             }
         };
         let radius = |s: &mut Self, default: f32| {
             let r = f.radius.unwrap_or(default);
-            s.range("film.filter.radius", r, 0.5, 16.0, "a radius from 0.5 to 16 pixels")
+            s.range(
+                "film.filter.radius",
+                r,
+                0.5,
+                16.0,
+                "a radius from 0.5 to 16 pixels",
+            )
         };
         match f.kind {
             FilterType::Box => {
                 not_for(self, "sigma", f.sigma.is_some());
                 not_for(self, "b", f.b.is_some());
                 not_for(self, "c", f.c.is_some());
-                FilterDesc::Box { radius: radius(self, 0.5) }
+                FilterDesc::Box {
+                    radius: radius(self, 0.5),
+                }
             }
             FilterType::Gaussian => {
                 not_for(self, "b", f.b.is_some());
@@ -221,8 +288,20 @@ impl Ctx<'_> {
             FilterType::Mitchell => {
                 not_for(self, "sigma", f.sigma.is_some());
                 let radius = radius(self, 2.0);
-                let b = self.range("film.filter.b", f.b.unwrap_or(1.0 / 3.0), 0.0, 1.0, "B in [0, 1]");
-                let c = self.range("film.filter.c", f.c.unwrap_or(1.0 / 3.0), 0.0, 1.0, "C in [0, 1]");
+                let b = self.range(
+                    "film.filter.b",
+                    f.b.unwrap_or(1.0 / 3.0),
+                    0.0,
+                    1.0,
+                    "B in [0, 1]",
+                );
+                let c = self.range(
+                    "film.filter.c",
+                    f.c.unwrap_or(1.0 / 3.0),
+                    0.0,
+                    1.0,
+                    "C in [0, 1]",
+                );
                 FilterDesc::Mitchell { radius, b, c }
             }
         }
@@ -234,11 +313,28 @@ impl Ctx<'_> {
         let up = self.finite3("camera.up", c.up);
         let forward = look_at - position;
         if forward.length_squared() == 0.0 {
-            self.problem("camera.look_at", "expected a point different from camera.position");
-        } else if forward.normalize().cross(up.normalize_or_zero()).length_squared() < 1e-8 {
-            self.problem("camera.up", "expected an up vector that is not parallel to the view direction");
+            self.problem(
+                "camera.look_at",
+                "expected a point different from camera.position",
+            );
+        } else if forward
+            .normalize()
+            .cross(up.normalize_or_zero())
+            .length_squared()
+            < 1e-8
+        {
+            self.problem(
+                "camera.up",
+                "expected an up vector that is not parallel to the view direction",
+            );
         }
-        let fov = self.range("camera.fov_deg", c.fov_deg, f32::MIN_POSITIVE, 179.0, "a field of view in (0, 179] degrees");
+        let fov = self.range(
+            "camera.fov_deg",
+            c.fov_deg,
+            f32::MIN_POSITIVE,
+            179.0,
+            "a field of view in (0, 179] degrees",
+        );
         let aspect = film.width.max(1) as f32 / film.height.max(1) as f32;
         let half = (fov.to_radians() * 0.5).tan();
         let fov_y = match c.fov_axis {
@@ -247,29 +343,50 @@ impl Ctx<'_> {
         };
         let lens = match c.kind {
             CameraType::Pinhole => {
-                for (field, given) in [("aperture_radius", c.aperture_radius.is_some()), ("focus_distance", c.focus_distance.is_some())] {
+                for (field, given) in [
+                    ("aperture_radius", c.aperture_radius.is_some()),
+                    ("focus_distance", c.focus_distance.is_some()),
+                ] {
                     if given {
-                        self.problem(format!("camera.{field}"), "only a thin_lens camera has this; the camera type is pinhole");
+                        self.problem(
+                            format!("camera.{field}"),
+                            "only a thin_lens camera has this; the camera type is pinhole",
+                        );
                     }
                 }
                 Lens::Pinhole
             }
             CameraType::ThinLens => {
                 let aperture_radius = match c.aperture_radius {
-                    Some(r) => self.range("camera.aperture_radius", r, 0.0, f32::MAX, "a non-negative radius in scene units"),
+                    Some(r) => self.range(
+                        "camera.aperture_radius",
+                        r,
+                        0.0,
+                        f32::MAX,
+                        "a non-negative radius in scene units",
+                    ),
                     None => {
-                        self.problem("camera.aperture_radius", "missing: a thin_lens camera needs an aperture radius in scene units");
+                        self.problem(
+                            "camera.aperture_radius",
+                            "missing: a thin_lens camera needs an aperture radius in scene units",
+                        );
                         0.0
                     }
                 };
                 let focus_distance = match c.focus_distance {
                     Some(d) => self.positive("camera.focus_distance", d),
                     None => {
-                        self.problem("camera.focus_distance", "missing: a thin_lens camera needs a focus distance in scene units");
+                        self.problem(
+                            "camera.focus_distance",
+                            "missing: a thin_lens camera needs a focus distance in scene units",
+                        );
                         1.0
                     }
                 };
-                Lens::Thin { aperture_radius, focus_distance }
+                Lens::Thin {
+                    aperture_radius,
+                    focus_distance,
+                }
             }
         };
         let exposure_scale = match &c.exposure {
@@ -281,12 +398,22 @@ impl Ctx<'_> {
                 photometry::exposure_scale(iso as f64, t as f64, n as f64) as f32
             }
         };
-        CameraDesc { position, look_at, up, fov_y, lens, exposure_scale }
+        CameraDesc {
+            position,
+            look_at,
+            up,
+            fov_y,
+            lens,
+            exposure_scale,
+        }
     }
 
     fn integrator(&mut self, i: &IntegratorFile) -> IntegratorDesc {
         if i.spp == 0 {
-            self.problem("integrator.spp", "expected at least 1 sample per pixel, got 0");
+            self.problem(
+                "integrator.spp",
+                "expected at least 1 sample per pixel, got 0",
+            );
         }
         IntegratorDesc {
             kind: match i.kind {
@@ -301,15 +428,33 @@ impl Ctx<'_> {
         }
     }
 
-    fn roughness(&mut self, path: &str, alpha: Option<Alpha>, distribution: Distribution) -> Roughness {
+    fn roughness(
+        &mut self,
+        path: &str,
+        alpha: Option<Alpha>,
+        distribution: Distribution,
+    ) -> Roughness {
         let [alpha_u, alpha_v] = alpha.map(|a| a.expand()).unwrap_or([0.0, 0.0]);
         for a in [alpha_u, alpha_v] {
-            self.range(&format!("{path}.alpha"), a, 0.0, 4.0, "a microfacet width α in [0, 4]");
+            self.range(
+                &format!("{path}.alpha"),
+                a,
+                0.0,
+                4.0,
+                "a microfacet width α in [0, 4]",
+            );
         }
         if (alpha_u == 0.0) != (alpha_v == 0.0) {
-            self.problem(format!("{path}.alpha"), "expected both widths zero (smooth) or both positive");
+            self.problem(
+                format!("{path}.alpha"),
+                "expected both widths zero (smooth) or both positive",
+            );
         }
-        Roughness { distribution, alpha_u, alpha_v }
+        Roughness {
+            distribution,
+            alpha_u,
+            alpha_v,
+        }
     }
 
     /// Diffuse + specular must not reflect more than arrives (per channel).
@@ -327,33 +472,81 @@ impl Ctx<'_> {
         Some(match t.kind.as_str() {
             "diffuse" => {
                 let m: DiffuseMaterial = self.body(path, t)?;
-                MaterialKind::Diffuse { albedo: self.albedo(&format!("{path}.albedo"), m.albedo) }
+                MaterialKind::Diffuse {
+                    albedo: self.albedo(&format!("{path}.albedo"), m.albedo),
+                }
             }
             "oren_nayar" => {
                 let m: OrenNayarMaterial = self.body(path, t)?;
-                let sigma = self.range(&format!("{path}.sigma_deg"), m.sigma_deg, 0.0, 90.0, "an angle in [0, 90] degrees");
-                MaterialKind::OrenNayar { albedo: self.albedo(&format!("{path}.albedo"), m.albedo), sigma: sigma.to_radians() }
+                let sigma = self.range(
+                    &format!("{path}.sigma_deg"),
+                    m.sigma_deg,
+                    0.0,
+                    90.0,
+                    "an angle in [0, 90] degrees",
+                );
+                MaterialKind::OrenNayar {
+                    albedo: self.albedo(&format!("{path}.albedo"), m.albedo),
+                    sigma: sigma.to_radians(),
+                }
             }
             "phong" | "blinn_phong" => {
                 let m: PhongMaterial = self.body(path, t)?;
-                let diffuse = self.albedo(&format!("{path}.diffuse"), m.diffuse.unwrap_or(NumOrArray::One(0.0)));
+                let diffuse = self.albedo(
+                    &format!("{path}.diffuse"),
+                    m.diffuse.unwrap_or(NumOrArray::One(0.0)),
+                );
                 let specular = self.albedo(&format!("{path}.specular"), m.specular);
                 self.energy(path, diffuse, specular);
-                let exponent = self.range(&format!("{path}.exponent"), m.exponent, 0.0, 1e6, "an exponent in [0, 1e6]");
+                let exponent = self.range(
+                    &format!("{path}.exponent"),
+                    m.exponent,
+                    0.0,
+                    1e6,
+                    "an exponent in [0, 1e6]",
+                );
                 if t.kind == "phong" {
-                    MaterialKind::Phong { diffuse, specular, exponent }
+                    MaterialKind::Phong {
+                        diffuse,
+                        specular,
+                        exponent,
+                    }
                 } else {
-                    MaterialKind::BlinnPhong { diffuse, specular, exponent }
+                    MaterialKind::BlinnPhong {
+                        diffuse,
+                        specular,
+                        exponent,
+                    }
                 }
             }
             "ward" => {
                 let m: WardMaterial = self.body(path, t)?;
-                let diffuse = self.albedo(&format!("{path}.diffuse"), m.diffuse.unwrap_or(NumOrArray::One(0.0)));
+                let diffuse = self.albedo(
+                    &format!("{path}.diffuse"),
+                    m.diffuse.unwrap_or(NumOrArray::One(0.0)),
+                );
                 let specular = self.albedo(&format!("{path}.specular"), m.specular);
                 self.energy(path, diffuse, specular);
-                let alpha_x = self.range(&format!("{path}.alpha_x"), m.alpha_x, 1e-4, 4.0, "a width in [1e-4, 4]");
-                let alpha_y = self.range(&format!("{path}.alpha_y"), m.alpha_y, 1e-4, 4.0, "a width in [1e-4, 4]");
-                MaterialKind::Ward { diffuse, specular, alpha_x, alpha_y }
+                let alpha_x = self.range(
+                    &format!("{path}.alpha_x"),
+                    m.alpha_x,
+                    1e-4,
+                    4.0,
+                    "a width in [1e-4, 4]",
+                );
+                let alpha_y = self.range(
+                    &format!("{path}.alpha_y"),
+                    m.alpha_y,
+                    1e-4,
+                    4.0,
+                    "a width in [1e-4, 4]",
+                );
+                MaterialKind::Ward {
+                    diffuse,
+                    specular,
+                    alpha_x,
+                    alpha_y,
+                }
             }
             "conductor" => {
                 let m: ConductorMaterial = self.body(path, t)?;
@@ -363,7 +556,10 @@ impl Ctx<'_> {
                         None => {
                             self.problem(
                                 format!("{path}.metal"),
-                                format!("unknown metal \"{name}\"; expected one of: {}", METALS.map(|m| m.0).join(", ")),
+                                format!(
+                                    "unknown metal \"{name}\"; expected one of: {}",
+                                    METALS.map(|m| m.0).join(", ")
+                                ),
                             );
                             (Vec3::ONE, Vec3::ZERO)
                         }
@@ -371,32 +567,80 @@ impl Ctx<'_> {
                     (None, Some(eta), Some(k)) => {
                         let eta = self.non_negative3(&format!("{path}.eta"), eta.expand());
                         if eta.min_element() <= 0.0 {
-                            self.problem(format!("{path}.eta"), "expected positive indices of refraction");
+                            self.problem(
+                                format!("{path}.eta"),
+                                "expected positive indices of refraction",
+                            );
                         }
                         (eta, self.non_negative3(&format!("{path}.k"), k.expand()))
                     }
                     _ => {
-                        self.problem(path.to_string(), "expected either `metal` or both `eta` and `k`");
+                        self.problem(
+                            path.to_string(),
+                            "expected either `metal` or both `eta` and `k`",
+                        );
                         (Vec3::ONE, Vec3::ZERO)
                     }
                 };
-                let specular = self.albedo(&format!("{path}.specular"), m.specular.unwrap_or(NumOrArray::One(1.0)));
+                let specular = self.albedo(
+                    &format!("{path}.specular"),
+                    m.specular.unwrap_or(NumOrArray::One(1.0)),
+                );
                 let roughness = self.roughness(path, m.alpha, m.distribution);
-                MaterialKind::Conductor { eta, k, specular, roughness }
+                MaterialKind::Conductor {
+                    eta,
+                    k,
+                    specular,
+                    roughness,
+                }
             }
             "dielectric" => {
                 let m: DielectricMaterial = self.body(path, t)?;
-                let int = self.range(&format!("{path}.ior"), m.ior, 0.01, 100.0, "an index of refraction in [0.01, 100]");
-                let ext = self.range(&format!("{path}.ext_ior"), m.ext_ior.unwrap_or(1.0), 0.01, 100.0, "an index of refraction in [0.01, 100]");
+                let int = self.range(
+                    &format!("{path}.ior"),
+                    m.ior,
+                    0.01,
+                    100.0,
+                    "an index of refraction in [0.01, 100]",
+                );
+                let ext = self.range(
+                    &format!("{path}.ext_ior"),
+                    m.ext_ior.unwrap_or(1.0),
+                    0.01,
+                    100.0,
+                    "an index of refraction in [0.01, 100]",
+                );
                 let roughness = self.roughness(path, m.alpha, m.distribution);
-                MaterialKind::Dielectric { eta: int / ext, roughness }
+                MaterialKind::Dielectric {
+                    eta: int / ext,
+                    roughness,
+                }
             }
             "mirror" => {
                 let m: MirrorMaterial = self.body(path, t)?;
-                MaterialKind::Mirror { reflectance: self.albedo(&format!("{path}.reflectance"), m.reflectance.unwrap_or(NumOrArray::One(1.0))) }
+                MaterialKind::Mirror {
+                    reflectance: self.albedo(
+                        &format!("{path}.reflectance"),
+                        m.reflectance.unwrap_or(NumOrArray::One(1.0)),
+                    ),
+                }
             }
             other => {
-                self.unknown_type(path, "material", other, &["diffuse", "oren_nayar", "phong", "blinn_phong", "ward", "conductor", "dielectric", "mirror"]);
+                self.unknown_type(
+                    path,
+                    "material",
+                    other,
+                    &[
+                        "diffuse",
+                        "oren_nayar",
+                        "phong",
+                        "blinn_phong",
+                        "ward",
+                        "conductor",
+                        "dielectric",
+                        "mirror",
+                    ],
+                );
                 return None;
             }
         })
@@ -409,53 +653,114 @@ impl Ctx<'_> {
                 let known: Vec<&str> = env.materials.keys().map(String::as_str).collect();
                 self.problem(
                     format!("{path}.material"),
-                    format!("unknown material \"{name}\"; expected one of the scene's materials: {}", known.join(", ")),
+                    format!(
+                        "unknown material \"{name}\"; expected one of the scene's materials: {}",
+                        known.join(", ")
+                    ),
                 );
                 0
             }
         }
     }
 
-    fn shapes(&mut self, list: &[Tagged], base: &str, parent: Affine3A, env: &ShapeEnv, stack: &mut Vec<String>, out: &mut Shapes) {
+    fn shapes(
+        &mut self,
+        list: &[Tagged],
+        base: &str,
+        parent: Affine3A,
+        env: &ShapeEnv,
+        stack: &mut Vec<String>,
+        out: &mut Shapes,
+    ) {
         for (i, t) in list.iter().enumerate() {
             let path = format!("{base}[{i}]");
             match t.kind.as_str() {
                 "mesh" => {
-                    let Some(s) = self.body::<MeshShape>(&path, t) else { continue };
+                    let Some(s) = self.body::<MeshShape>(&path, t) else {
+                        continue;
+                    };
                     let m = parent * self.transform(&path, &s.transform);
                     let material = self.material_ref(&path, &s.material, env);
-                    let Some(raw) = self.mesh_file(&format!("{path}.file"), &s.file) else { continue };
-                    let normals = if s.smooth_normals { raw.normals.as_deref() } else { None };
+                    let Some(raw) = self.mesh_file(&format!("{path}.file"), &s.file) else {
+                        continue;
+                    };
+                    let normals = if s.smooth_normals {
+                        raw.normals.as_deref()
+                    } else {
+                        None
+                    };
                     let origin = format!("{path} ({})", s.file);
-                    self.push_mesh(&path, origin, &raw.positions, normals, &raw.triangles, m, material, s.emission.as_ref(), out);
+                    self.push_mesh(
+                        &path,
+                        origin,
+                        &raw.positions,
+                        normals,
+                        &raw.triangles,
+                        m,
+                        material,
+                        s.emission.as_ref(),
+                        out,
+                    );
                 }
                 "quad" => {
-                    let Some(s) = self.body::<QuadShape>(&path, t) else { continue };
+                    let Some(s) = self.body::<QuadShape>(&path, t) else {
+                        continue;
+                    };
                     let m = parent * self.transform(&path, &s.transform);
                     let material = self.material_ref(&path, &s.material, env);
                     let o = self.finite3(&format!("{path}.origin"), s.origin);
                     let u = self.finite3(&format!("{path}.edge_u"), s.edge_u);
                     let v = self.finite3(&format!("{path}.edge_v"), s.edge_v);
                     if u.cross(v).length_squared() == 0.0 {
-                        self.problem(format!("{path}.edge_v"), "expected two edges that are not parallel and not zero");
+                        self.problem(
+                            format!("{path}.edge_v"),
+                            "expected two edges that are not parallel and not zero",
+                        );
                     }
                     let positions = [o, o + u, o + u + v, o + v];
-                    self.push_mesh(&path, path.clone(), &positions, None, &[[0, 1, 2], [0, 2, 3]], m, material, s.emission.as_ref(), out);
+                    self.push_mesh(
+                        &path,
+                        path.clone(),
+                        &positions,
+                        None,
+                        &[[0, 1, 2], [0, 2, 3]],
+                        m,
+                        material,
+                        s.emission.as_ref(),
+                        out,
+                    );
                 }
                 "box" => {
-                    let Some(s) = self.body::<BoxShape>(&path, t) else { continue };
+                    let Some(s) = self.body::<BoxShape>(&path, t) else {
+                        continue;
+                    };
                     let m = parent * self.transform(&path, &s.transform);
                     let material = self.material_ref(&path, &s.material, env);
                     let lo = self.finite3(&format!("{path}.min"), s.min);
                     let hi = self.finite3(&format!("{path}.max"), s.max);
                     if !lo.cmplt(hi).all() {
-                        self.problem(format!("{path}.max"), format!("expected max > min on every axis, got min {lo} and max {hi}"));
+                        self.problem(
+                            format!("{path}.max"),
+                            format!("expected max > min on every axis, got min {lo} and max {hi}"),
+                        );
                     }
                     let (positions, triangles) = box_mesh(lo, hi);
-                    self.push_mesh(&path, path.clone(), &positions, None, &triangles, m, material, s.emission.as_ref(), out);
+                    self.push_mesh(
+                        &path,
+                        path.clone(),
+                        &positions,
+                        None,
+                        &triangles,
+                        m,
+                        material,
+                        s.emission.as_ref(),
+                        out,
+                    );
                 }
                 "sphere" => {
-                    let Some(s) = self.body::<SphereShape>(&path, t) else { continue };
+                    let Some(s) = self.body::<SphereShape>(&path, t) else {
+                        continue;
+                    };
                     let m = parent * self.transform(&path, &s.transform);
                     let material = self.material_ref(&path, &s.material, env);
                     let center = self.finite3(&format!("{path}.center"), s.center);
@@ -465,16 +770,35 @@ impl Ctx<'_> {
                         continue;
                     };
                     let radius = radius * scale;
-                    let area_m2 = 4.0 * std::f64::consts::PI * (radius as f64 * out.metres_per_unit).powi(2);
-                    let emission = s.emission.as_ref().and_then(|e| self.emission(&format!("{path}.emission"), e, area_m2));
-                    out.spheres.push(SphereDesc { origin: path.clone(), center: m.transform_point3(center), radius, material, emission });
+                    let area_m2 =
+                        4.0 * std::f64::consts::PI * (radius as f64 * out.metres_per_unit).powi(2);
+                    let emission = s
+                        .emission
+                        .as_ref()
+                        .and_then(|e| self.emission(&format!("{path}.emission"), e, area_m2));
+                    out.spheres.push(SphereDesc {
+                        origin: path.clone(),
+                        center: m.transform_point3(center),
+                        radius,
+                        material,
+                        emission,
+                    });
                 }
                 "instance" => {
-                    let Some(s) = self.body::<InstanceShape>(&path, t) else { continue };
+                    let Some(s) = self.body::<InstanceShape>(&path, t) else {
+                        continue;
+                    };
                     let m = parent * self.transform(&path, &s.transform);
                     let Some(shapes) = env.objects.get(&s.object) else {
                         let known: Vec<&str> = env.objects.keys().map(String::as_str).collect();
-                        self.problem(format!("{path}.object"), format!("unknown object \"{}\"; expected one of the scene's objects: {}", s.object, known.join(", ")));
+                        self.problem(
+                            format!("{path}.object"),
+                            format!(
+                                "unknown object \"{}\"; expected one of the scene's objects: {}",
+                                s.object,
+                                known.join(", ")
+                            ),
+                        );
                         continue;
                     };
                     if stack.contains(&s.object) || stack.len() >= MAX_INSTANCE_DEPTH {
@@ -485,7 +809,12 @@ impl Ctx<'_> {
                     self.shapes(shapes, &format!("objects.{}", s.object), m, env, stack, out);
                     stack.pop();
                 }
-                other => self.unknown_type(&path, "shape", other, &["mesh", "quad", "box", "sphere", "instance"]),
+                other => self.unknown_type(
+                    &path,
+                    "shape",
+                    other,
+                    &["mesh", "quad", "box", "sphere", "instance"],
+                ),
             }
         }
     }
@@ -505,15 +834,25 @@ impl Ctx<'_> {
         let shown = self.source.display_path(&rel);
         let loaded = match self.source.read(&rel) {
             Err(e) => {
-                self.problem(path, format!("cannot read mesh file {}: {e}", shown.display()));
+                self.problem(
+                    path,
+                    format!("cannot read mesh file {}: {e}", shown.display()),
+                );
                 None
             }
             Ok(bytes) => {
-                let ext = rel.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_default();
+                let ext = rel
+                    .extension()
+                    .map(|e| e.to_string_lossy().into_owned())
+                    .unwrap_or_default();
                 match mesh::parse(&bytes, &ext) {
                     Ok(m) => Some(Arc::new(m)),
                     Err(e) => {
-                        self.problems.push(Problem { file: shown, path: e.location, message: format!("{} (referenced by {path})", e.message) });
+                        self.problems.push(Problem {
+                            file: shown,
+                            path: e.location,
+                            message: format!("{} (referenced by {path})", e.message),
+                        });
                         None
                     }
                 }
@@ -541,10 +880,17 @@ impl Ctx<'_> {
         let mesh = MeshDesc {
             origin,
             positions: positions.iter().map(|&p| m.transform_point3(p)).collect(),
-            normals: normals.map(|ns| ns.iter().map(|&n| Vec3::from(nm * glam::Vec3A::from(n)).normalize_or_zero()).collect()),
+            normals: normals.map(|ns| {
+                ns.iter()
+                    .map(|&n| Vec3::from(nm * glam::Vec3A::from(n)).normalize_or_zero())
+                    .collect()
+            }),
             // A mirroring transform flips the winding; swap it back so the front face stays
             // on the side the (transformed) normals point to.
-            triangles: triangles.iter().map(|&[a, b, c]| if mirrored { [a, c, b] } else { [a, b, c] }).collect(),
+            triangles: triangles
+                .iter()
+                .map(|&[a, b, c]| if mirrored { [a, c, b] } else { [a, b, c] })
+                .collect(),
             material,
             emission: None,
         };
@@ -557,14 +903,27 @@ impl Ctx<'_> {
 
     fn emission(&mut self, path: &str, e: &EmissionFile, area_m2: f64) -> Option<EmissionDesc> {
         if area_m2 <= 0.0 && e.power.is_some() {
-            self.problem(format!("{path}.power"), "expected an emitter with a positive area to spread the power over");
+            self.problem(
+                format!("{path}.power"),
+                "expected an emitter with a positive area to spread the power over",
+            );
             return None;
         }
         let sides = if e.two_sided { 2.0 } else { 1.0 };
-        let strength = Strength { value: e.radiance, field: "radiance", power: e.power.as_ref(), color: e.color, temperature_k: e.temperature_k };
+        let strength = Strength {
+            value: e.radiance,
+            field: "radiance",
+            power: e.power.as_ref(),
+            color: e.color,
+            temperature_k: e.temperature_k,
+        };
         // Φ = π A L for a Lambertian emitter, per side.
-        let radiance = self.strength(path, strength, Some(std::f64::consts::PI * area_m2 * sides))?;
-        Some(EmissionDesc { radiance, two_sided: e.two_sided })
+        let radiance =
+            self.strength(path, strength, Some(std::f64::consts::PI * area_m2 * sides))?;
+        Some(EmissionDesc {
+            radiance,
+            two_sided: e.two_sided,
+        })
     }
 
     /// Resolves an emitter's brightness and colour to an RGB value in luminous-equivalent
@@ -574,18 +933,30 @@ impl Ctx<'_> {
         let field = s.field;
         let chroma = match (s.color, s.temperature_k) {
             (Some(_), Some(_)) => {
-                self.problem(format!("{path}.color"), "expected `color` or `temperature_k`, not both");
+                self.problem(
+                    format!("{path}.color"),
+                    "expected `color` or `temperature_k`, not both",
+                );
                 return None;
             }
             (None, Some(t)) => {
-                let t = self.range(&format!("{path}.temperature_k"), t, 500.0, 50_000.0, "a colour temperature in [500, 50000] K");
+                let t = self.range(
+                    &format!("{path}.temperature_k"),
+                    t,
+                    500.0,
+                    50_000.0,
+                    "a colour temperature in [500, 50000] K",
+                );
                 photometry::blackbody_rgb(t as f64)
             }
             (Some(c), None) => {
                 let c = self.non_negative3(&format!("{path}.color"), c.expand());
                 let y = photometry::luminance(c);
                 if y <= 0.0 {
-                    self.problem(format!("{path}.color"), "expected a colour with positive luminance");
+                    self.problem(
+                        format!("{path}.color"),
+                        "expected a colour with positive luminance",
+                    );
                     return None;
                 }
                 c / y
@@ -600,23 +971,38 @@ impl Ctx<'_> {
                 Some(self.non_negative3(&format!("{path}.{field}"), rgb))
             }
             (Some(NumOrArray::One(v)), None) => {
-                let v = self.range(&format!("{path}.{field}"), v, 0.0, f32::MAX, "a finite, non-negative number");
+                let v = self.range(
+                    &format!("{path}.{field}"),
+                    v,
+                    0.0,
+                    f32::MAX,
+                    "a finite, non-negative number",
+                );
                 Some(chroma * v)
             }
             (None, Some(p)) => {
                 let Some(divisor) = power_divisor else {
-                    self.problem(format!("{path}.power"), "this kind of light cannot be given a power");
+                    self.problem(
+                        format!("{path}.power"),
+                        "this kind of light cannot be given a power",
+                    );
                     return None;
                 };
                 let watts = self.power(&format!("{path}.power"), p, s.temperature_k)?;
                 Some(chroma * (watts / divisor) as f32)
             }
             (Some(_), Some(_)) => {
-                self.problem(path.to_string(), format!("expected `{field}` or `power`, not both"));
+                self.problem(
+                    path.to_string(),
+                    format!("expected `{field}` or `power`, not both"),
+                );
                 None
             }
             (None, None) => {
-                self.problem(path.to_string(), format!("missing: expected `{field}` or `power`"));
+                self.problem(
+                    path.to_string(),
+                    format!("missing: expected `{field}` or `power`"),
+                );
                 None
             }
         }
@@ -627,10 +1013,14 @@ impl Ctx<'_> {
         let lumens = match (p.lumens, p.watts, p.efficacy_lm_per_w) {
             (Some(lm), None, None) => self.positive(&format!("{path}.lumens"), lm) as f64,
             (None, Some(w), Some(eff)) => {
-                self.positive(&format!("{path}.watts"), w) as f64 * self.positive(&format!("{path}.efficacy_lm_per_w"), eff) as f64
+                self.positive(&format!("{path}.watts"), w) as f64
+                    * self.positive(&format!("{path}.efficacy_lm_per_w"), eff) as f64
             }
             (None, Some(w), None) => match temperature_k {
-                Some(t) => self.positive(&format!("{path}.watts"), w) as f64 * photometry::blackbody_efficacy(t.clamp(500.0, 50_000.0) as f64),
+                Some(t) => {
+                    self.positive(&format!("{path}.watts"), w) as f64
+                        * photometry::blackbody_efficacy(t.clamp(500.0, 50_000.0) as f64)
+                }
                 None => {
                     self.problem(
                         format!("{path}.efficacy_lm_per_w"),
@@ -640,7 +1030,10 @@ impl Ctx<'_> {
                 }
             },
             _ => {
-                self.problem(path.to_string(), "expected `lumens`, or `watts` (optionally with `efficacy_lm_per_w`)");
+                self.problem(
+                    path.to_string(),
+                    "expected `lumens`, or `watts` (optionally with `efficacy_lm_per_w`)",
+                );
                 return None;
             }
         };
@@ -653,9 +1046,18 @@ impl Ctx<'_> {
             "point" => {
                 let l: PointLight = self.body(path, t)?;
                 let position = self.finite3(&format!("{path}.position"), l.position);
-                let s = Strength { value: l.intensity, field: "intensity", power: l.power.as_ref(), color: l.color, temperature_k: l.temperature_k };
+                let s = Strength {
+                    value: l.intensity,
+                    field: "intensity",
+                    power: l.power.as_ref(),
+                    color: l.color,
+                    temperature_k: l.temperature_k,
+                };
                 let intensity = self.strength(path, s, Some(4.0 * std::f64::consts::PI))?;
-                LightDesc::Point { position, intensity: intensity / m2 }
+                LightDesc::Point {
+                    position,
+                    intensity: intensity / m2,
+                }
             }
             "spot" => {
                 let l: SpotLight = self.body(path, t)?;
@@ -663,51 +1065,112 @@ impl Ctx<'_> {
                 let target = self.finite3(&format!("{path}.look_at"), l.look_at);
                 let direction = (target - position).normalize_or_zero();
                 if direction == Vec3::ZERO {
-                    self.problem(format!("{path}.look_at"), "expected a point different from the light's position");
+                    self.problem(
+                        format!("{path}.look_at"),
+                        "expected a point different from the light's position",
+                    );
                 }
-                let cone = self.range(&format!("{path}.cone_angle_deg"), l.cone_angle_deg, 0.01, 180.0, "a half-angle in (0, 180] degrees");
+                let cone = self.range(
+                    &format!("{path}.cone_angle_deg"),
+                    l.cone_angle_deg,
+                    0.01,
+                    180.0,
+                    "a half-angle in (0, 180] degrees",
+                );
                 let start = l.falloff_start_deg.unwrap_or(cone);
-                let start = self.range(&format!("{path}.falloff_start_deg"), start, 0.0, cone, "a half-angle from 0 up to cone_angle_deg");
+                let start = self.range(
+                    &format!("{path}.falloff_start_deg"),
+                    start,
+                    0.0,
+                    cone,
+                    "a half-angle from 0 up to cone_angle_deg",
+                );
                 let (cos_start, cos_cone) = (start.to_radians().cos(), cone.to_radians().cos());
                 // Power of a spot with a smooth fall-off (pbrt-v4, SpotLight::Phi):
                 // Φ = 2π I (1 − (cos θ_start + cos θ_cone) / 2).
-                let solid = 2.0 * std::f64::consts::PI * (1.0 - 0.5 * (cos_start as f64 + cos_cone as f64));
-                let s = Strength { value: l.intensity, field: "intensity", power: l.power.as_ref(), color: l.color, temperature_k: l.temperature_k };
+                let solid =
+                    2.0 * std::f64::consts::PI * (1.0 - 0.5 * (cos_start as f64 + cos_cone as f64));
+                let s = Strength {
+                    value: l.intensity,
+                    field: "intensity",
+                    power: l.power.as_ref(),
+                    color: l.color,
+                    temperature_k: l.temperature_k,
+                };
                 let intensity = self.strength(path, s, Some(solid))?;
-                LightDesc::Spot { position, direction, intensity: intensity / m2, cos_falloff_start: cos_start, cos_cone }
+                LightDesc::Spot {
+                    position,
+                    direction,
+                    intensity: intensity / m2,
+                    cos_falloff_start: cos_start,
+                    cos_cone,
+                }
             }
             "directional" => {
                 let l: DirectionalLight = self.body(path, t)?;
-                let direction = self.finite3(&format!("{path}.direction"), l.direction).normalize_or_zero();
+                let direction = self
+                    .finite3(&format!("{path}.direction"), l.direction)
+                    .normalize_or_zero();
                 if direction == Vec3::ZERO {
                     self.problem(format!("{path}.direction"), "expected a non-zero direction");
                 }
                 let value = match (l.irradiance, l.illuminance_lux) {
                     (Some(_), Some(_)) => {
-                        self.problem(path.to_string(), "expected `irradiance` or `illuminance_lux`, not both");
+                        self.problem(
+                            path.to_string(),
+                            "expected `irradiance` or `illuminance_lux`, not both",
+                        );
                         return None;
                     }
-                    (None, Some(lux)) => Some(NumOrArray::One(self.positive(&format!("{path}.illuminance_lux"), lux) / K_M as f32)),
+                    (None, Some(lux)) => Some(NumOrArray::One(
+                        self.positive(&format!("{path}.illuminance_lux"), lux) / K_M as f32,
+                    )),
                     (v, None) => v,
                 };
-                let s = Strength { value, field: "irradiance", power: None, color: l.color, temperature_k: l.temperature_k };
-                LightDesc::Directional { direction, irradiance: self.strength(path, s, None)? }
+                let s = Strength {
+                    value,
+                    field: "irradiance",
+                    power: None,
+                    color: l.color,
+                    temperature_k: l.temperature_k,
+                };
+                LightDesc::Directional {
+                    direction,
+                    irradiance: self.strength(path, s, None)?,
+                }
             }
             "environment" => {
                 let l: EnvironmentLight = self.body(path, t)?;
                 let m = self.transform(path, &l.transform);
-                if transform::uniform_scale(&m).is_none_or(|s| (s - 1.0).abs() > 1e-4) || m.translation != glam::Vec3A::ZERO {
-                    self.problem(format!("{path}.transform"), "expected rotations only for an environment");
+                if transform::uniform_scale(&m).is_none_or(|s| (s - 1.0).abs() > 1e-4)
+                    || m.translation != glam::Vec3A::ZERO
+                {
+                    self.problem(
+                        format!("{path}.transform"),
+                        "expected rotations only for an environment",
+                    );
                 }
-                let scale = self.non_negative3(&format!("{path}.radiance"), l.radiance.unwrap_or(NumOrArray::One(1.0)).expand());
+                let scale = self.non_negative3(
+                    &format!("{path}.radiance"),
+                    l.radiance.unwrap_or(NumOrArray::One(1.0)).expand(),
+                );
                 let image = match &l.file {
                     None => None,
                     Some(f) => Some(self.env_image(&format!("{path}.file"), f)?),
                 };
-                LightDesc::Environment { image, scale, to_world: Mat3::from(m.matrix3) }
+                LightDesc::Environment {
+                    image,
+                    scale,
+                    to_world: Mat3::from(m.matrix3),
+                }
             }
             other => {
-                self.unknown_type(path, "light", other, &["point", "spot", "directional", "environment"]);
+                self.unknown_type(
+                    path,
+                    "light",
+                    other,
+                    &["point", "spot", "directional", "environment"],
+                );
                 return None;
             }
         })
@@ -719,31 +1182,52 @@ impl Ctx<'_> {
         let bytes = match self.source.read(&rel) {
             Ok(b) => b,
             Err(e) => {
-                self.problem(path, format!("cannot read environment image {}: {e}", shown.display()));
+                self.problem(
+                    path,
+                    format!("cannot read environment image {}: {e}", shown.display()),
+                );
                 return None;
             }
         };
         let img = match crate::image::read_exr_rgb(&bytes) {
             Ok(img) => img,
             Err(msg) => {
-                self.problems.push(Problem { file: shown, path: String::new(), message: format!("{msg} (referenced by {path})") });
+                self.problems.push(Problem {
+                    file: shown,
+                    path: String::new(),
+                    message: format!("{msg} (referenced by {path})"),
+                });
                 return None;
             }
         };
-        if let Some(i) = img.pixels.iter().position(|p| !(p.is_finite() && p.min_element() >= 0.0)) {
+        if let Some(i) = img
+            .pixels
+            .iter()
+            .position(|p| !(p.is_finite() && p.min_element() >= 0.0))
+        {
             let (x, y) = (i as u32 % img.width, i as u32 / img.width);
             self.problems.push(Problem {
                 file: shown,
                 path: format!("pixel ({x}, {y})"),
-                message: format!("expected finite, non-negative radiance, got {}", img.pixels[i]),
+                message: format!(
+                    "expected finite, non-negative radiance, got {}",
+                    img.pixels[i]
+                ),
             });
             return None;
         }
         if img.width < 2 || img.height < 1 {
-            self.problem(path, "expected a latitude-longitude image at least 2 pixels wide");
+            self.problem(
+                path,
+                "expected a latitude-longitude image at least 2 pixels wide",
+            );
             return None;
         }
-        Some(EnvImage { width: img.width, height: img.height, texels: img.pixels })
+        Some(EnvImage {
+            width: img.width,
+            height: img.height,
+            texels: img.pixels,
+        })
     }
 }
 
@@ -760,11 +1244,27 @@ struct Shapes {
 
 /// An axis-aligned box as 12 triangles wound so that normals point outwards.
 fn box_mesh(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let corner = |i: u32| Vec3::new(if i & 1 != 0 { hi.x } else { lo.x }, if i & 2 != 0 { hi.y } else { lo.y }, if i & 4 != 0 { hi.z } else { lo.z });
+    let corner = |i: u32| {
+        Vec3::new(
+            if i & 1 != 0 { hi.x } else { lo.x },
+            if i & 2 != 0 { hi.y } else { lo.y },
+            if i & 4 != 0 { hi.z } else { lo.z },
+        )
+    };
     let positions = (0..8).map(corner).collect();
     // Faces as quads (counter-clockwise seen from outside): -x, +x, -y, +y, -z, +z.
-    let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
-    let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+    let quads = [
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+    ];
+    let triangles = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
     (positions, triangles)
 }
 
@@ -777,8 +1277,15 @@ const METALS: [(&str, [f32; 3], [f32; 3]); 4] = [
 ];
 
 fn metal(name: &str) -> Option<(Vec3, Vec3)> {
-    let name = if name == "aluminum" { "aluminium" } else { name };
-    METALS.iter().find(|m| m.0 == name).map(|m| (Vec3::from(m.1), Vec3::from(m.2)))
+    let name = if name == "aluminum" {
+        "aluminium"
+    } else {
+        name
+    };
+    METALS
+        .iter()
+        .find(|m| m.0 == name)
+        .map(|m| (Vec3::from(m.1), Vec3::from(m.2)))
 }
 
 #[cfg(test)]

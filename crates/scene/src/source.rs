@@ -37,7 +37,9 @@ impl SceneSource for DirSource {
 /// Returns the normalised relative path, or what was expected.
 pub fn confine(path: &str) -> Result<PathBuf, String> {
     if path.is_empty() {
-        return Err("expected a file path relative to the scene folder, got an empty string".into());
+        return Err(
+            "expected a file path relative to the scene folder, got an empty string".into(),
+        );
     }
     let mut out = PathBuf::new();
     for component in Path::new(path).components() {
@@ -59,7 +61,9 @@ pub fn confine(path: &str) -> Result<PathBuf, String> {
         }
     }
     if out.as_os_str().is_empty() {
-        return Err(format!("expected a file path, \"{path}\" names the scene folder itself"));
+        return Err(format!(
+            "expected a file path, \"{path}\" names the scene folder itself"
+        ));
     }
     Ok(out)
 }
@@ -70,14 +74,24 @@ mod tests {
 
     #[test]
     fn confine_accepts_relative_paths_and_normalises() {
-        assert_eq!(confine("meshes/a.obj").unwrap(), PathBuf::from("meshes/a.obj"));
-        assert_eq!(confine("./meshes/../a.obj").unwrap(), PathBuf::from("a.obj"));
+        assert_eq!(
+            confine("meshes/a.obj").unwrap(),
+            PathBuf::from("meshes/a.obj")
+        );
+        assert_eq!(
+            confine("./meshes/../a.obj").unwrap(),
+            PathBuf::from("a.obj")
+        );
     }
 
     #[test]
     fn confine_rejects_escapes_and_absolute_paths() {
         assert!(confine("../other/a.obj").unwrap_err().contains("leaves it"));
-        assert!(confine("meshes/../../a.obj").unwrap_err().contains("leaves it"));
+        assert!(
+            confine("meshes/../../a.obj")
+                .unwrap_err()
+                .contains("leaves it")
+        );
         assert!(confine("/etc/passwd").unwrap_err().contains("absolute"));
         assert!(confine("").is_err());
         assert!(confine("meshes/..").is_err());

@@ -14,7 +14,10 @@ pub fn compose(steps: &[TransformStep]) -> Result<Affine3A, (usize, String)> {
             TransformStep::Rotate { axis, angle_deg } => {
                 let axis = Vec3::from(*axis);
                 if !axis.is_finite() || axis.length_squared() == 0.0 || !angle_deg.is_finite() {
-                    return Err((i, "expected a finite, non-zero rotation axis and a finite angle".into()));
+                    return Err((
+                        i,
+                        "expected a finite, non-zero rotation axis and a finite angle".into(),
+                    ));
                 }
                 Affine3A::from_axis_angle(axis.normalize(), angle_deg.to_radians())
             }
@@ -22,7 +25,10 @@ pub fn compose(steps: &[TransformStep]) -> Result<Affine3A, (usize, String)> {
             TransformStep::Matrix(rows) => {
                 let m4 = Mat4::from_cols_array(rows).transpose();
                 if m4.row(3) != glam::Vec4::W {
-                    return Err((i, "expected an affine matrix: the last row must be [0, 0, 0, 1]".into()));
+                    return Err((
+                        i,
+                        "expected an affine matrix: the last row must be [0, 0, 0, 1]".into(),
+                    ));
                 }
                 Affine3A::from_mat4(m4)
             }
@@ -31,7 +37,10 @@ pub fn compose(steps: &[TransformStep]) -> Result<Affine3A, (usize, String)> {
     }
     let det = m.matrix3.determinant();
     if !m.is_finite() || !det.is_finite() || det == 0.0 {
-        return Err((steps.len().saturating_sub(1), "expected a finite, invertible transform".into()));
+        return Err((
+            steps.len().saturating_sub(1),
+            "expected a finite, invertible transform".into(),
+        ));
     }
     Ok(m)
 }
@@ -71,7 +80,11 @@ mod tests {
 
     #[test]
     fn rotation_is_right_handed_in_degrees() {
-        let m = compose(&[TransformStep::Rotate { axis: [0.0, 0.0, 1.0], angle_deg: 90.0 }]).unwrap();
+        let m = compose(&[TransformStep::Rotate {
+            axis: [0.0, 0.0, 1.0],
+            angle_deg: 90.0,
+        }])
+        .unwrap();
         assert!((m.transform_vector3(Vec3::X) - Vec3::Y).length() < 1e-6);
     }
 
@@ -83,13 +96,21 @@ mod tests {
         rows[5] = 1.0;
         rows[10] = 1.0;
         rows[14] = 1.0; // row 3, column 2: projective
-        assert!(compose(&[TransformStep::Matrix(rows)]).unwrap_err().1.contains("affine"));
+        assert!(
+            compose(&[TransformStep::Matrix(rows)])
+                .unwrap_err()
+                .1
+                .contains("affine")
+        );
     }
 
     #[test]
     fn similarity_detection() {
         let sim = compose(&[
-            TransformStep::Rotate { axis: [1.0, 2.0, 3.0], angle_deg: 33.0 },
+            TransformStep::Rotate {
+                axis: [1.0, 2.0, 3.0],
+                angle_deg: 33.0,
+            },
             TransformStep::Scale(NumOrArray::One(3.0)),
         ])
         .unwrap();

@@ -7,7 +7,7 @@
 use glam::{Vec2, Vec3A};
 
 use super::glossy::{GlossyLobe, WithDiffuse};
-use crate::math::{reflect, safe_sqrt, INV_2PI, PI};
+use crate::math::{INV_2PI, PI, reflect, safe_sqrt};
 
 pub type BlinnPhong = WithDiffuse<BlinnPhongLobe>;
 
@@ -44,6 +44,10 @@ impl GlossyLobe for BlinnPhongLobe {
     fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
         let h = (wo + wi).normalize();
         let d = wo.dot(h);
-        if d <= 0.0 { 0.0 } else { self.pdf_h(h.z) / (4.0 * d) }
+        if d <= 0.0 {
+            0.0
+        } else {
+            self.pdf_h(h.z) / (4.0 * d)
+        }
     }
 }

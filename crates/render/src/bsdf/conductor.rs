@@ -5,7 +5,7 @@
 use glam::{Vec2, Vec3A};
 
 use super::microfacet::Microfacet;
-use super::{fresnel, Bsdf, BsdfFlags, BsdfSample, TransportMode};
+use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode, fresnel};
 use crate::math::reflect;
 use crate::spectrum::Spectrum;
 
@@ -19,8 +19,18 @@ pub struct Conductor {
 }
 
 impl Conductor {
-    pub fn new(eta: Spectrum, k: Spectrum, specular: Spectrum, microfacet: Option<Microfacet>) -> Self {
-        Conductor { eta, k, specular, microfacet }
+    pub fn new(
+        eta: Spectrum,
+        k: Spectrum,
+        specular: Spectrum,
+        microfacet: Option<Microfacet>,
+    ) -> Self {
+        Conductor {
+            eta,
+            k,
+            specular,
+            microfacet,
+        }
     }
 
     #[inline]
@@ -32,11 +42,18 @@ impl Conductor {
 impl Bsdf for Conductor {
     fn flags(&self) -> BsdfFlags {
         let smooth = self.microfacet.is_some();
-        BsdfFlags { reflection: true, specular: !smooth, smooth, ..Default::default() }
+        BsdfFlags {
+            reflection: true,
+            specular: !smooth,
+            smooth,
+            ..Default::default()
+        }
     }
 
     fn eval(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> Spectrum {
-        let Some(mf) = &self.microfacet else { return Spectrum::ZERO };
+        let Some(mf) = &self.microfacet else {
+            return Spectrum::ZERO;
+        };
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return Spectrum::ZERO;
         }
@@ -50,7 +67,14 @@ impl Bsdf for Conductor {
         }
         let Some(mf) = &self.microfacet else {
             let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
-            return Some(BsdfSample { wi, f: self.fresnel(wo.z) / wi.z, pdf: 1.0, specular: true, transmission: false, eta: 1.0 });
+            return Some(BsdfSample {
+                wi,
+                f: self.fresnel(wo.z) / wi.z,
+                pdf: 1.0,
+                specular: true,
+                transmission: false,
+                eta: 1.0,
+            });
         };
         let m = mf.sample_m(wo, u);
         if wo.dot(m) <= 0.0 {
@@ -61,17 +85,30 @@ impl Bsdf for Conductor {
             return None;
         }
         let pdf = self.pdf(wo, wi, mode);
-        (pdf > 0.0).then(|| BsdfSample { wi, f: self.eval(wo, wi, mode), pdf, specular: false, transmission: false, eta: 1.0 })
+        (pdf > 0.0).then(|| BsdfSample {
+            wi,
+            f: self.eval(wo, wi, mode),
+            pdf,
+            specular: false,
+            transmission: false,
+            eta: 1.0,
+        })
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> f32 {
-        let Some(mf) = &self.microfacet else { return 0.0 };
+        let Some(mf) = &self.microfacet else {
+            return 0.0;
+        };
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
         let h = (wo + wi).normalize();
         let d = wo.dot(h);
-        if d <= 0.0 { 0.0 } else { mf.pdf_m(wo, h) / (4.0 * d) }
+        if d <= 0.0 {
+            0.0
+        } else {
+            mf.pdf_m(wo, h) / (4.0 * d)
+        }
     }
 
     fn albedo(&self) -> Spectrum {

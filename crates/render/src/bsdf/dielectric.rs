@@ -4,7 +4,7 @@
 
 use glam::{Vec2, Vec3A};
 
-use super::{fresnel, Bsdf, BsdfFlags, BsdfSample, TransportMode};
+use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode, fresnel};
 use crate::spectrum::Spectrum;
 
 #[derive(Debug, Clone)]
@@ -20,7 +20,12 @@ impl SmoothDielectric {
 
 impl Bsdf for SmoothDielectric {
     fn flags(&self) -> BsdfFlags {
-        BsdfFlags { reflection: self.eta != 1.0, transmission: true, specular: true, smooth: false }
+        BsdfFlags {
+            reflection: self.eta != 1.0,
+            transmission: true,
+            specular: true,
+            smooth: false,
+        }
     }
 
     fn eval(&self, _: Vec3A, _: Vec3A, _: TransportMode) -> Spectrum {
@@ -34,17 +39,35 @@ impl Bsdf for SmoothDielectric {
         let r = fresnel::dielectric(wo.z, self.eta);
         if u_lobe < r {
             let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
-            return Some(BsdfSample { wi, f: Spectrum::splat(r / wi.z.abs()), pdf: r, specular: true, transmission: false, eta: 1.0 });
+            return Some(BsdfSample {
+                wi,
+                f: Spectrum::splat(r / wi.z.abs()),
+                pdf: r,
+                specular: true,
+                transmission: false,
+                eta: 1.0,
+            });
         }
         // Relative IOR seen from wo's side, and the normal on wo's side.
-        let (etap, n) = if wo.z > 0.0 { (self.eta, Vec3A::Z) } else { (1.0 / self.eta, -Vec3A::Z) };
+        let (etap, n) = if wo.z > 0.0 {
+            (self.eta, Vec3A::Z)
+        } else {
+            (1.0 / self.eta, -Vec3A::Z)
+        };
         let wi = fresnel::refract(wo, n, etap)?;
         let t = 1.0 - r;
         let mut f = t / wi.z.abs();
         if mode == TransportMode::Radiance {
             f /= etap * etap;
         }
-        Some(BsdfSample { wi, f: Spectrum::splat(f), pdf: t, specular: true, transmission: true, eta: etap })
+        Some(BsdfSample {
+            wi,
+            f: Spectrum::splat(f),
+            pdf: t,
+            specular: true,
+            transmission: true,
+            eta: etap,
+        })
     }
 
     fn pdf(&self, _: Vec3A, _: Vec3A, _: TransportMode) -> f32 {

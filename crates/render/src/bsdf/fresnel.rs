@@ -13,7 +13,11 @@ pub fn dielectric(cos_i: f32, eta: f32) -> f32 {
     if eta == 1.0 {
         return 0.0;
     }
-    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
+    let (cos_i, eta) = if cos_i < 0.0 {
+        (-cos_i, 1.0 / eta)
+    } else {
+        (cos_i, eta)
+    };
     let cos_i = cos_i.min(1.0);
     let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
     if sin2_t >= 1.0 {
@@ -46,17 +50,29 @@ struct Complex {
 
 impl Complex {
     fn mul(self, o: Complex) -> Complex {
-        Complex { re: self.re * o.re - self.im * o.im, im: self.re * o.im + self.im * o.re }
+        Complex {
+            re: self.re * o.re - self.im * o.im,
+            im: self.re * o.im + self.im * o.re,
+        }
     }
     fn div(self, o: Complex) -> Complex {
         let d = o.re * o.re + o.im * o.im;
-        Complex { re: (self.re * o.re + self.im * o.im) / d, im: (self.im * o.re - self.re * o.im) / d }
+        Complex {
+            re: (self.re * o.re + self.im * o.im) / d,
+            im: (self.im * o.re - self.re * o.im) / d,
+        }
     }
     fn add(self, o: Complex) -> Complex {
-        Complex { re: self.re + o.re, im: self.im + o.im }
+        Complex {
+            re: self.re + o.re,
+            im: self.im + o.im,
+        }
     }
     fn sub(self, o: Complex) -> Complex {
-        Complex { re: self.re - o.re, im: self.im - o.im }
+        Complex {
+            re: self.re - o.re,
+            im: self.im - o.im,
+        }
     }
     fn norm(self) -> f32 {
         self.re * self.re + self.im * self.im
@@ -71,7 +87,10 @@ impl Complex {
         if self.re >= 0.0 {
             Complex { re: t1, im: t2 }
         } else {
-            Complex { re: t2.abs(), im: t1.copysign(self.im) }
+            Complex {
+                re: t2.abs(),
+                im: t1.copysign(self.im),
+            }
         }
     }
 }
@@ -81,7 +100,11 @@ fn conductor_1(cos_i: f32, eta: f32, k: f32) -> f32 {
     let cos_i = cos_i.clamp(0.0, 1.0);
     let eta = Complex { re: eta, im: k };
     let sin2_i = 1.0 - cos_i * cos_i;
-    let sin2_t = Complex { re: sin2_i, im: 0.0 }.div(eta.mul(eta));
+    let sin2_t = Complex {
+        re: sin2_i,
+        im: 0.0,
+    }
+    .div(eta.mul(eta));
     let cos_t = Complex { re: 1.0, im: 0.0 }.sub(sin2_t).sqrt();
     let ci = Complex { re: cos_i, im: 0.0 };
     let r_parl = eta.mul(ci).sub(cos_t).div(eta.mul(ci).add(cos_t));
@@ -92,7 +115,11 @@ fn conductor_1(cos_i: f32, eta: f32, k: f32) -> f32 {
 /// Fresnel reflectance of a conductor, per RGB channel.
 #[inline]
 pub fn conductor(cos_i: f32, eta: Spectrum, k: Spectrum) -> Spectrum {
-    Vec3A::new(conductor_1(cos_i, eta.x, k.x), conductor_1(cos_i, eta.y, k.y), conductor_1(cos_i, eta.z, k.z))
+    Vec3A::new(
+        conductor_1(cos_i, eta.x, k.x),
+        conductor_1(cos_i, eta.y, k.y),
+        conductor_1(cos_i, eta.z, k.z),
+    )
 }
 
 #[cfg(test)]

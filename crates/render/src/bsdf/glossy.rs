@@ -7,7 +7,7 @@ use glam::{Vec2, Vec3A};
 use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode};
 use crate::math::INV_PI;
 use crate::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
-use crate::spectrum::{luminance, Spectrum};
+use crate::spectrum::{Spectrum, luminance};
 
 /// The shape of a glossy lobe, defined for wo.z > 0.
 pub trait GlossyLobe: Send + Sync + std::fmt::Debug {
@@ -31,14 +31,23 @@ impl<L: GlossyLobe> WithDiffuse<L> {
     pub fn new(kd: Spectrum, ks: Spectrum, lobe: L) -> Self {
         let (d, s) = (luminance(kd), luminance(ks));
         let p_glossy = if d + s > 0.0 { s / (d + s) } else { 0.0 };
-        WithDiffuse { kd, ks, p_glossy, lobe }
+        WithDiffuse {
+            kd,
+            ks,
+            p_glossy,
+            lobe,
+        }
     }
 }
 
 impl<L: GlossyLobe> Bsdf for WithDiffuse<L> {
     fn flags(&self) -> BsdfFlags {
         let any = self.kd.max_element() > 0.0 || self.ks.max_element() > 0.0;
-        BsdfFlags { reflection: any, smooth: any, ..Default::default() }
+        BsdfFlags {
+            reflection: any,
+            smooth: any,
+            ..Default::default()
+        }
     }
 
     fn eval(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> Spectrum {
@@ -52,7 +61,11 @@ impl<L: GlossyLobe> Bsdf for WithDiffuse<L> {
         if wo.z <= 0.0 || self.flags() == BsdfFlags::default() {
             return None;
         }
-        let wi = if u_lobe < self.p_glossy { self.lobe.sample(wo, u)? } else { square_to_cosine_hemisphere(u) };
+        let wi = if u_lobe < self.p_glossy {
+            self.lobe.sample(wo, u)?
+        } else {
+            square_to_cosine_hemisphere(u)
+        };
         if wi.z <= 0.0 {
             return None;
         }
@@ -71,7 +84,11 @@ impl<L: GlossyLobe> Bsdf for WithDiffuse<L> {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        let glossy = if self.p_glossy > 0.0 { self.lobe.pdf(wo, wi) } else { 0.0 };
+        let glossy = if self.p_glossy > 0.0 {
+            self.lobe.pdf(wo, wi)
+        } else {
+            0.0
+        };
         self.p_glossy * glossy + (1.0 - self.p_glossy) * cosine_hemisphere_pdf(wi.z)
     }
 

@@ -5,7 +5,7 @@ use glam::{Vec2, Vec3A};
 use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode};
 use crate::math::INV_PI;
 use crate::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
-use crate::spectrum::{is_black, Spectrum};
+use crate::spectrum::{Spectrum, is_black};
 
 #[derive(Debug, Clone)]
 pub struct Lambert {
@@ -20,7 +20,11 @@ impl Lambert {
 
 impl Bsdf for Lambert {
     fn flags(&self) -> BsdfFlags {
-        BsdfFlags { reflection: !is_black(self.albedo), smooth: !is_black(self.albedo), ..Default::default() }
+        BsdfFlags {
+            reflection: !is_black(self.albedo),
+            smooth: !is_black(self.albedo),
+            ..Default::default()
+        }
     }
 
     fn eval(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> Spectrum {
@@ -49,7 +53,11 @@ impl Bsdf for Lambert {
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 { 0.0 } else { cosine_hemisphere_pdf(wi.z) }
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            0.0
+        } else {
+            cosine_hemisphere_pdf(wi.z)
+        }
     }
 
     fn albedo(&self) -> Spectrum {

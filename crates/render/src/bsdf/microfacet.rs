@@ -6,7 +6,7 @@
 use glam::{Vec2, Vec3A};
 use tessera_scene::Distribution;
 
-use crate::math::{safe_sqrt, PI};
+use crate::math::{PI, safe_sqrt};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Microfacet {
@@ -19,7 +19,8 @@ pub struct Microfacet {
 fn erf(x: f32) -> f32 {
     let t = 1.0 / (1.0 + 0.327_591_1 * x.abs());
     let y = 1.0
-        - (((((1.061_405_4 * t - 1.453_152_1) * t) + 1.421_413_7) * t - 0.284_496_74) * t + 0.254_829_6)
+        - (((((1.061_405_4 * t - 1.453_152_1) * t) + 1.421_413_7) * t - 0.284_496_74) * t
+            + 0.254_829_6)
             * t
             * (-x * x).exp();
     y.copysign(x)
@@ -28,7 +29,11 @@ fn erf(x: f32) -> f32 {
 impl Microfacet {
     /// Widths are clamped to at least 1e-4 so that nearly smooth surfaces stay finite.
     pub fn new(distribution: Distribution, alpha_u: f32, alpha_v: f32) -> Self {
-        Microfacet { distribution, alpha_u: alpha_u.max(1e-4), alpha_v: alpha_v.max(1e-4) }
+        Microfacet {
+            distribution,
+            alpha_u: alpha_u.max(1e-4),
+            alpha_v: alpha_v.max(1e-4),
+        }
     }
 
     /// tan²θ_m (cos²φ/α_u² + sin²φ/α_v²) for a microfacet normal m.
@@ -97,7 +102,11 @@ impl Microfacet {
                     wh = -wh;
                 }
                 let lensq = wh.x * wh.x + wh.y * wh.y;
-                let t1 = if lensq > 0.0 { Vec3A::new(-wh.y, wh.x, 0.0) / lensq.sqrt() } else { Vec3A::X };
+                let t1 = if lensq > 0.0 {
+                    Vec3A::new(-wh.y, wh.x, 0.0) / lensq.sqrt()
+                } else {
+                    Vec3A::X
+                };
                 let t2 = wh.cross(t1);
                 let p = crate::sampling::square_to_disk(u);
                 let h = safe_sqrt(1.0 - p.x * p.x);
@@ -163,8 +172,14 @@ mod tests {
                 }
                 norm /= n as f64;
                 proj /= n as f64;
-                assert!((norm - 1.0).abs() < 0.02, "{dist:?} {au} {av}: ∫D cos = {norm}");
-                assert!((proj - w.z as f64).abs() < 0.02, "{dist:?} {au} {av}: ∫G1 D (w·m) = {proj}");
+                assert!(
+                    (norm - 1.0).abs() < 0.02,
+                    "{dist:?} {au} {av}: ∫D cos = {norm}"
+                );
+                assert!(
+                    (proj - w.z as f64).abs() < 0.02,
+                    "{dist:?} {au} {av}: ∫G1 D (w·m) = {proj}"
+                );
             }
         }
     }

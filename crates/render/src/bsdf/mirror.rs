@@ -3,7 +3,7 @@
 use glam::{Vec2, Vec3A};
 
 use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode};
-use crate::spectrum::{is_black, Spectrum};
+use crate::spectrum::{Spectrum, is_black};
 
 #[derive(Debug, Clone)]
 pub struct Mirror {
@@ -18,7 +18,11 @@ impl Mirror {
 
 impl Bsdf for Mirror {
     fn flags(&self) -> BsdfFlags {
-        BsdfFlags { reflection: !is_black(self.reflectance), specular: !is_black(self.reflectance), ..Default::default() }
+        BsdfFlags {
+            reflection: !is_black(self.reflectance),
+            specular: !is_black(self.reflectance),
+            ..Default::default()
+        }
     }
 
     fn eval(&self, _: Vec3A, _: Vec3A, _: TransportMode) -> Spectrum {
@@ -30,7 +34,14 @@ impl Bsdf for Mirror {
             return None;
         }
         let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
-        Some(BsdfSample { wi, f: self.reflectance / wi.z, pdf: 1.0, specular: true, transmission: false, eta: 1.0 })
+        Some(BsdfSample {
+            wi,
+            f: self.reflectance / wi.z,
+            pdf: 1.0,
+            specular: true,
+            transmission: false,
+            eta: 1.0,
+        })
     }
 
     fn pdf(&self, _: Vec3A, _: Vec3A, _: TransportMode) -> f32 {

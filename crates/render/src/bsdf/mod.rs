@@ -32,13 +32,13 @@ use crate::spectrum::Spectrum;
 pub use blinn_phong::{BlinnPhong, BlinnPhongLobe};
 pub use conductor::Conductor;
 pub use dielectric::SmoothDielectric;
+pub use glossy::{GlossyLobe, WithDiffuse};
 pub use lambert::Lambert;
 pub use microfacet::Microfacet;
 pub use mirror::Mirror;
 pub use oren_nayar::OrenNayar;
 pub use phong::{Phong, PhongLobe};
 pub use rough_dielectric::RoughDielectric;
-pub use glossy::{GlossyLobe, WithDiffuse};
 pub use ward::{Ward, WardLobe};
 
 /// Whether the path carries radiance (from the camera) or importance (from a light): BTDFs
@@ -101,23 +101,53 @@ pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
     match *kind {
         MaterialKind::Diffuse { albedo } => Box::new(Lambert::new(v(albedo))),
         MaterialKind::OrenNayar { albedo, sigma } => Box::new(OrenNayar::new(v(albedo), sigma)),
-        MaterialKind::Phong { diffuse, specular, exponent } => {
-            Box::new(Phong::new(v(diffuse), v(specular), PhongLobe::new(exponent)))
-        }
-        MaterialKind::BlinnPhong { diffuse, specular, exponent } => {
-            Box::new(BlinnPhong::new(v(diffuse), v(specular), BlinnPhongLobe::new(exponent)))
-        }
-        MaterialKind::Ward { diffuse, specular, alpha_x, alpha_y } => {
-            Box::new(Ward::new(v(diffuse), v(specular), WardLobe::new(alpha_x, alpha_y)))
-        }
-        MaterialKind::Conductor { eta, k, specular, roughness } => {
-            Box::new(Conductor::new(v(eta), v(k), v(specular), microfacet_of(&roughness)))
-        }
+        MaterialKind::Phong {
+            diffuse,
+            specular,
+            exponent,
+        } => Box::new(Phong::new(
+            v(diffuse),
+            v(specular),
+            PhongLobe::new(exponent),
+        )),
+        MaterialKind::BlinnPhong {
+            diffuse,
+            specular,
+            exponent,
+        } => Box::new(BlinnPhong::new(
+            v(diffuse),
+            v(specular),
+            BlinnPhongLobe::new(exponent),
+        )),
+        MaterialKind::Ward {
+            diffuse,
+            specular,
+            alpha_x,
+            alpha_y,
+        } => Box::new(Ward::new(
+            v(diffuse),
+            v(specular),
+            WardLobe::new(alpha_x, alpha_y),
+        )),
+        MaterialKind::Conductor {
+            eta,
+            k,
+            specular,
+            roughness,
+        } => Box::new(Conductor::new(
+            v(eta),
+            v(k),
+            v(specular),
+            microfacet_of(&roughness),
+        )),
         MaterialKind::Dielectric { eta, roughness } => {
             if roughness.is_smooth() || eta == 1.0 {
                 Box::new(SmoothDielectric::new(eta))
             } else {
-                Box::new(RoughDielectric::new(eta, microfacet_of(&roughness).expect("rough")))
+                Box::new(RoughDielectric::new(
+                    eta,
+                    microfacet_of(&roughness).expect("rough"),
+                ))
             }
         }
         MaterialKind::Mirror { reflectance } => Box::new(Mirror::new(v(reflectance))),

@@ -6,9 +6,9 @@
 use glam::{Vec2, Vec3A};
 
 use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode};
-use crate::math::{safe_sqrt, INV_PI};
+use crate::math::{INV_PI, safe_sqrt};
 use crate::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
-use crate::spectrum::{is_black, Spectrum};
+use crate::spectrum::{Spectrum, is_black};
 
 #[derive(Debug, Clone)]
 pub struct OrenNayar {
@@ -20,13 +20,21 @@ pub struct OrenNayar {
 impl OrenNayar {
     pub fn new(albedo: Spectrum, sigma: f32) -> Self {
         let s2 = sigma * sigma;
-        OrenNayar { albedo, a: 1.0 - s2 / (2.0 * (s2 + 0.33)), b: 0.45 * s2 / (s2 + 0.09) }
+        OrenNayar {
+            albedo,
+            a: 1.0 - s2 / (2.0 * (s2 + 0.33)),
+            b: 0.45 * s2 / (s2 + 0.09),
+        }
     }
 }
 
 impl Bsdf for OrenNayar {
     fn flags(&self) -> BsdfFlags {
-        BsdfFlags { reflection: !is_black(self.albedo), smooth: !is_black(self.albedo), ..Default::default() }
+        BsdfFlags {
+            reflection: !is_black(self.albedo),
+            smooth: !is_black(self.albedo),
+            ..Default::default()
+        }
     }
 
     fn eval(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> Spectrum {
@@ -40,7 +48,11 @@ impl Bsdf for OrenNayar {
         } else {
             0.0
         };
-        let (sin_alpha, tan_beta) = if wi.z > wo.z { (sin_o, sin_i / wi.z) } else { (sin_i, sin_o / wo.z) };
+        let (sin_alpha, tan_beta) = if wi.z > wo.z {
+            (sin_o, sin_i / wi.z)
+        } else {
+            (sin_i, sin_o / wo.z)
+        };
         self.albedo * (INV_PI * (self.a + self.b * max_cos * sin_alpha * tan_beta))
     }
 
@@ -63,7 +75,11 @@ impl Bsdf for OrenNayar {
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 { 0.0 } else { cosine_hemisphere_pdf(wi.z) }
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            0.0
+        } else {
+            cosine_hemisphere_pdf(wi.z)
+        }
     }
 
     fn albedo(&self) -> Spectrum {

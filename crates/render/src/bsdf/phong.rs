@@ -7,7 +7,7 @@
 use glam::{Vec2, Vec3A};
 
 use super::glossy::{GlossyLobe, WithDiffuse};
-use crate::math::{safe_sqrt, Frame, INV_2PI, PI};
+use crate::math::{Frame, INV_2PI, PI, safe_sqrt};
 
 pub type Phong = WithDiffuse<PhongLobe>;
 

@@ -8,7 +8,7 @@
 use glam::{Vec2, Vec3A};
 
 use super::microfacet::Microfacet;
-use super::{fresnel, Bsdf, BsdfFlags, BsdfSample, TransportMode};
+use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode, fresnel};
 use crate::math::reflect;
 use crate::spectrum::Spectrum;
 
@@ -35,7 +35,13 @@ impl RoughDielectric {
             return None;
         }
         let reflect = wo.z * wi.z > 0.0;
-        let etap = if reflect { 1.0 } else if wo.z > 0.0 { self.eta } else { 1.0 / self.eta };
+        let etap = if reflect {
+            1.0
+        } else if wo.z > 0.0 {
+            self.eta
+        } else {
+            1.0 / self.eta
+        };
         let m = wi * etap + wo;
         if m.length_squared() == 0.0 {
             return None;
@@ -52,11 +58,18 @@ impl RoughDielectric {
 
 impl Bsdf for RoughDielectric {
     fn flags(&self) -> BsdfFlags {
-        BsdfFlags { reflection: true, transmission: true, specular: false, smooth: true }
+        BsdfFlags {
+            reflection: true,
+            transmission: true,
+            specular: false,
+            smooth: true,
+        }
     }
 
     fn eval(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> Spectrum {
-        let Some(Half { m, etap, reflect }) = self.half(wo, wi) else { return Spectrum::ZERO };
+        let Some(Half { m, etap, reflect }) = self.half(wo, wi) else {
+            return Spectrum::ZERO;
+        };
         // Fresnel is the same from either side of the microfacet; evaluating it from the
         // outside avoids the cancellation near total internal reflection and keeps f exactly
         // reciprocal.
@@ -95,7 +108,11 @@ impl Bsdf for RoughDielectric {
             (wi, false, 1.0)
         } else {
             // Snell's law across the microfacet, from whichever side of it wo is on.
-            let (etap, n) = if wo.dot(m) > 0.0 { (self.eta, m) } else { (1.0 / self.eta, -m) };
+            let (etap, n) = if wo.dot(m) > 0.0 {
+                (self.eta, m)
+            } else {
+                (1.0 / self.eta, -m)
+            };
             let wi = fresnel::refract(wo, n, etap)?;
             if wi.z * wo.z >= 0.0 {
                 return None;
@@ -103,11 +120,20 @@ impl Bsdf for RoughDielectric {
             (wi, true, etap)
         };
         let pdf = self.pdf(wo, wi, mode);
-        (pdf > 0.0).then(|| BsdfSample { wi, f: self.eval(wo, wi, mode), pdf, specular: false, transmission, eta: etap })
+        (pdf > 0.0).then(|| BsdfSample {
+            wi,
+            f: self.eval(wo, wi, mode),
+            pdf,
+            specular: false,
+            transmission,
+            eta: etap,
+        })
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> f32 {
-        let Some(Half { m, etap, reflect }) = self.half(wo, wi) else { return 0.0 };
+        let Some(Half { m, etap, reflect }) = self.half(wo, wi) else {
+            return 0.0;
+        };
         let r = fresnel::dielectric(wo.dot(m), self.eta);
         let pdf_m = self.mf.pdf_m(wo, m);
         let pdf = if reflect {
@@ -123,4 +149,3 @@ impl Bsdf for RoughDielectric {
         Spectrum::ONE
     }
 }
-

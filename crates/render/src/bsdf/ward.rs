@@ -9,7 +9,7 @@ use tessera_scene::Distribution;
 
 use super::glossy::{GlossyLobe, WithDiffuse};
 use super::microfacet::Microfacet;
-use crate::math::{reflect, PI};
+use crate::math::{PI, reflect};
 
 pub type Ward = WithDiffuse<WardLobe>;
 
@@ -23,7 +23,11 @@ pub struct WardLobe {
 
 impl WardLobe {
     pub fn new(alpha_x: f32, alpha_y: f32) -> Self {
-        WardLobe { alpha_x, alpha_y, half_vectors: Microfacet::new(Distribution::Beckmann, alpha_x, alpha_y) }
+        WardLobe {
+            alpha_x,
+            alpha_y,
+            half_vectors: Microfacet::new(Distribution::Beckmann, alpha_x, alpha_y),
+        }
     }
 }
 
@@ -32,7 +36,8 @@ impl GlossyLobe for WardLobe {
         let h = wo + wi;
         let (x, y) = (h.x / self.alpha_x, h.y / self.alpha_y);
         let hz2 = h.z * h.z;
-        let f = h.length_squared() / (PI * self.alpha_x * self.alpha_y * hz2 * hz2) * (-(x * x + y * y) / hz2).exp();
+        let f = h.length_squared() / (PI * self.alpha_x * self.alpha_y * hz2 * hz2)
+            * (-(x * x + y * y) / hz2).exp();
         if f.is_finite() { f } else { 0.0 }
     }
 
@@ -44,6 +49,10 @@ impl GlossyLobe for WardLobe {
     fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
         let h = (wo + wi).normalize();
         let d = wo.dot(h);
-        if d <= 0.0 { 0.0 } else { self.half_vectors.pdf_m(wo, h) / (4.0 * d) }
+        if d <= 0.0 {
+            0.0
+        } else {
+            self.half_vectors.pdf_m(wo, h) / (4.0 * d)
+        }
     }
 }

@@ -1,22 +1,21 @@
 //! Ray queries against all primitives: compressed wide BVHs (CWBVH8) built with `obvhs`,
 //! one over triangles and one over spheres.
 //!
-//! Two things make obvhs's traversal safe for rendering:
-//! - it culls nodes whose entry distance is below an absolute 1e-4, which would hide geometry
-//!   near the ray origin in small scenes (a scene 10⁻³ units across). The BVHs are therefore
-//!   built in a copy of the scene scaled by an exact power of two, chosen so that the scene's
-//!   diagonal is about 2¹⁶; scaling by 2^k changes no rounding, so intersections are the same
-//!   as in world space and that cut-off falls far below float resolution;
-//! - its slab test is not conservative: a ray through the edge of a flat box (an axis-aligned
-//!   face) can round its way out of the box. Primitive bounds are therefore padded by a few
-//!   ulps of the scene's largest coordinate, more than the slab test's rounding error.
+//! Nodes are tested with our own slab test ([`intersect_node`]) rather than obvhs's, because
+//! obvhs's culls nodes whose entry distance is below an absolute 1e-4 (hiding geometry near
+//! the ray origin in a scene 10⁻³ units across) and converts the quantised child bounds one
+//! value at a time (about half of all traversal instructions). The slab test rounds, and a
+//! ray through the edge of a flat box (an axis-aligned face) could round its way out of it:
+//! primitive bounds are padded by 16 ulps of the scene's largest coordinate, more than that
+//! rounding error for rays that start inside the scene.
 
 use std::time::Duration;
 
 use glam::{UVec2, Vec3A};
 use obvhs::aabb::Aabb;
-use obvhs::cwbvh::{builder::build_cwbvh, CwBvh};
-use obvhs::{BvhBuildParams, Boundable};
+use obvhs::cwbvh::node::CwBvhNode;
+use obvhs::cwbvh::{CwBvh, builder::build_cwbvh};
+use obvhs::{Boundable, BvhBuildParams};
 
 use super::{sphere, triangle};
 use crate::ray::Ray;
@@ -36,20 +35,25 @@ pub struct PrimHit {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Prim {
     /// Triangle `id` (in the order given to [`Accel::build`]) at barycentrics `b`.
-    Triangle { id: u32, b: [f32; 3] },
-    Sphere { id: u32 },
+    Triangle {
+        id: u32,
+        b: [f32; 3],
+    },
+    Sphere {
+        id: u32,
+    },
 }
 
 struct TriangleBvh {
     bvh: CwBvh,
-    /// Scaled vertices in BVH leaf order.
-    verts: Vec<[Vec3A; 3]>,
+    /// Triangles in BVH leaf order.
+    tris: Vec<triangle::Triangle>,
     /// BVH leaf slot → triangle id.
     ids: Vec<u32>,
 }
 
 #[derive(Clone, Copy)]
-struct ScaledSphere {
+struct Sphere {
     center: Vec3A,
     radius: f32,
 }
@@ -68,25 +72,135 @@ impl Boundable for Padded {
 
 struct SphereBvh {
     bvh: CwBvh,
-    spheres: Vec<ScaledSphere>,
+    spheres: Vec<Sphere>,
     ids: Vec<u32>,
 }
 
 /// Bounding volume hierarchies over a scene's triangles and spheres.
 pub struct Accel {
-    scale: f32,
-    inv_scale: f32,
     triangles: Option<TriangleBvh>,
     spheres: Option<SphereBvh>,
 }
 
-/// 2^k with k the integer nearest to log2(target / extent), within f32's safe range.
-fn power_of_two_scale(extent: f32) -> f32 {
-    if !(extent > 0.0 && extent.is_finite()) {
-        return 1.0;
+/// Per-ray data for node tests.
+#[derive(Debug, Clone, Copy)]
+struct NodeRay {
+    o: Vec3A,
+    inv: Vec3A,
+    /// The direction is negative along x, y, z (the maximum plane is entered first).
+    negative: [bool; 3],
+    /// Octant code for obvhs's child ordering.
+    oct_inv4: u32,
+}
+
+impl NodeRay {
+    #[inline]
+    fn new(ray: &Ray) -> Self {
+        // A huge finite inverse for zero components: (plane − o)·inv never becomes NaN.
+        let inv = |c: f32| {
+            if c == 0.0 {
+                1.0e30f32.copysign(c)
+            } else {
+                1.0 / c
+            }
+        };
+        let d = ray.d;
+        let neg = [
+            d.x.is_sign_negative(),
+            d.y.is_sign_negative(),
+            d.z.is_sign_negative(),
+        ];
+        let oct_inv4 = (if neg[0] { 0 } else { 0x0404_0404 })
+            | (if neg[1] { 0 } else { 0x0202_0202 })
+            | (if neg[2] { 0 } else { 0x0101_0101 });
+        NodeRay {
+            o: ray.o,
+            inv: Vec3A::new(inv(d.x), inv(d.y), inv(d.z)),
+            negative: neg,
+            oct_inv4,
+        }
     }
-    let k = (65536.0f32 / extent).log2().round().clamp(-60.0, 60.0) as i32;
-    2.0f32.powi(k)
+}
+
+/// Tests a ray against the eight children of a compressed wide node for 0 ≤ t ≤ `t_max` and
+/// returns obvhs's hit mask (child bits placed by traversal priority). The quantised bounds
+/// are widened eight at a time (bytes → 16 → 32-bit integers → floats) with SSE2.
+#[inline(always)]
+fn intersect_node(n: &CwBvhNode, r: &NodeRay, t_max: f32) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::*;
+        // Child bounds along an axis are p + q·e, so t = q·(e·inv) + (p − o)·inv.
+        let scale = n.compute_extent() * r.inv;
+        let offset = (Vec3A::from(n.p) - r.o) * r.inv;
+        // SAFETY: SSE2 is part of the x86_64 baseline; all operands are plain values.
+        let mask = unsafe {
+            let widen = |bytes: [u8; 8]| {
+                let z = _mm_setzero_si128();
+                let w = _mm_unpacklo_epi8(_mm_cvtsi64_si128(i64::from_le_bytes(bytes)), z);
+                (
+                    _mm_cvtepi32_ps(_mm_unpacklo_epi16(w, z)),
+                    _mm_cvtepi32_ps(_mm_unpackhi_epi16(w, z)),
+                )
+            };
+            let axis = |lo: [u8; 8], hi: [u8; 8], neg: bool, a: f32, b: f32| {
+                let (near, far) = if neg { (hi, lo) } else { (lo, hi) };
+                let (n0, n1) = widen(near);
+                let (f0, f1) = widen(far);
+                let (a, b) = (_mm_set1_ps(a), _mm_set1_ps(b));
+                (
+                    _mm_add_ps(_mm_mul_ps(n0, a), b),
+                    _mm_add_ps(_mm_mul_ps(n1, a), b),
+                    _mm_add_ps(_mm_mul_ps(f0, a), b),
+                    _mm_add_ps(_mm_mul_ps(f1, a), b),
+                )
+            };
+            let x = axis(
+                n.child_min_x,
+                n.child_max_x,
+                r.negative[0],
+                scale.x,
+                offset.x,
+            );
+            let y = axis(
+                n.child_min_y,
+                n.child_max_y,
+                r.negative[1],
+                scale.y,
+                offset.y,
+            );
+            let z = axis(
+                n.child_min_z,
+                n.child_max_z,
+                r.negative[2],
+                scale.z,
+                offset.z,
+            );
+            let zero = _mm_setzero_ps();
+            let tmax = _mm_set1_ps(t_max);
+            let near0 = _mm_max_ps(_mm_max_ps(x.0, y.0), _mm_max_ps(z.0, zero));
+            let near1 = _mm_max_ps(_mm_max_ps(x.1, y.1), _mm_max_ps(z.1, zero));
+            let far0 = _mm_min_ps(_mm_min_ps(x.2, y.2), _mm_min_ps(z.2, tmax));
+            let far1 = _mm_min_ps(_mm_min_ps(x.3, y.3), _mm_min_ps(z.3, tmax));
+            (_mm_movemask_ps(_mm_cmple_ps(near0, far0))
+                | (_mm_movemask_ps(_mm_cmple_ps(near1, far1)) << 4)) as u32
+        };
+        let (child_bits8, bit_index8) = n.get_child_and_index_bits(r.oct_inv4);
+        let mut hit_mask = 0u32;
+        let mut m = mask;
+        while m != 0 {
+            let child = m.trailing_zeros() as u64;
+            m &= m - 1;
+            hit_mask |= (((child_bits8 >> (child * 8)) & 0xff) as u32)
+                << ((bit_index8 >> (child * 8)) & 0xff);
+        }
+        hit_mask
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let ray = obvhs::ray::Ray::new(r.o, 1.0 / r.inv, 0.0, t_max);
+        n.intersect_ray(&ray, r.oct_inv4)
+    }
 }
 
 impl Accel {
@@ -102,128 +216,174 @@ impl Accel {
             lo = lo.min(c - Vec3A::splat(r));
             hi = hi.max(c + Vec3A::splat(r));
         }
-        let scale = power_of_two_scale((hi - lo).length());
-        // 16 ulps of the largest scaled coordinate.
-        let pad = Vec3A::splat(lo.abs().max(hi.abs()).max_element() * scale * (16.0 * f32::EPSILON));
+        // 16 ulps of the largest coordinate.
+        let pad = Vec3A::splat(lo.abs().max(hi.abs()).max_element() * (16.0 * f32::EPSILON));
         let params = BvhBuildParams::medium_build();
-        let padded = |a: Vec3A, b: Vec3A| Padded { lo: a - pad, hi: b + pad };
+        let padded = |a: Vec3A, b: Vec3A| Padded {
+            lo: a - pad,
+            hi: b + pad,
+        };
 
         let triangles = (!triangles.is_empty()).then(|| {
-            let scaled: Vec<[Vec3A; 3]> = triangles.iter().map(|t| t.map(|v| v * scale)).collect();
-            let bounds: Vec<Padded> =
-                scaled.iter().map(|t| padded(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]))).collect();
+            let bounds: Vec<Padded> = triangles
+                .iter()
+                .map(|t| padded(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
+                .collect();
             let bvh = build_cwbvh(&bounds, params, &mut Duration::default());
             let ids = bvh.primitive_indices.clone();
-            TriangleBvh { verts: ids.iter().map(|&i| scaled[i as usize]).collect(), ids, bvh }
+            TriangleBvh {
+                tris: ids
+                    .iter()
+                    .map(|&i| triangle::Triangle::new(triangles[i as usize]))
+                    .collect(),
+                ids,
+                bvh,
+            }
         });
         let spheres = (!spheres.is_empty()).then(|| {
-            let scaled: Vec<ScaledSphere> =
-                spheres.iter().map(|&(c, r)| ScaledSphere { center: c * scale, radius: r * scale }).collect();
-            let bounds: Vec<Padded> =
-                scaled.iter().map(|s| padded(s.center - Vec3A::splat(s.radius), s.center + Vec3A::splat(s.radius))).collect();
+            let spheres: Vec<Sphere> = spheres
+                .iter()
+                .map(|&(center, radius)| Sphere { center, radius })
+                .collect();
+            let bounds: Vec<Padded> = spheres
+                .iter()
+                .map(|s| {
+                    padded(
+                        s.center - Vec3A::splat(s.radius),
+                        s.center + Vec3A::splat(s.radius),
+                    )
+                })
+                .collect();
             let bvh = build_cwbvh(&bounds, params, &mut Duration::default());
             let ids = bvh.primitive_indices.clone();
-            SphereBvh { spheres: ids.iter().map(|&i| scaled[i as usize]).collect(), ids, bvh }
+            SphereBvh {
+                spheres: ids.iter().map(|&i| spheres[i as usize]).collect(),
+                ids,
+                bvh,
+            }
         });
-        Accel { scale, inv_scale: 1.0 / scale, triangles, spheres }
-    }
-
-    fn bvh_ray(&self, ray: &Ray, t_max: f32) -> obvhs::ray::Ray {
-        obvhs::ray::Ray::new(ray.o * self.scale, ray.d, 0.0, t_max * self.scale)
+        Accel { triangles, spheres }
     }
 
     /// The closest hit with 0 < t < `t_max`.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<PrimHit> {
-        let r = self.bvh_ray(ray, t_max);
-        let mut best_t = r.tmax;
-        let mut best: Option<(usize, [f32; 3])> = None;
+        let nr = NodeRay::new(ray);
+        let mut t_best = t_max;
+        let mut best = None;
         if let Some(tb) = &self.triangles {
-            let tr = triangle::TriangleRay::new(r.origin, r.direction);
-            let mut state = tb.bvh.new_traversal(r.direction);
-            let mut traverse_ray = r;
-            let mut node;
-            obvhs::traverse!(tb.bvh, node, state, node.intersect_ray(&traverse_ray, state.oct_inv4), {
-                let slot = state.primitive_id as usize;
-                if let Some(h) = triangle::intersect(&tr, &tb.verts[slot], traverse_ray.tmax) {
-                    traverse_ray.tmax = h.t;
-                    best_t = h.t;
-                    best = Some((slot, h.b));
-                }
-            });
+            best = match triangle::dominant_axis(ray.d) {
+                0 => tb.closest::<0>(ray, &nr, &mut t_best),
+                1 => tb.closest::<1>(ray, &nr, &mut t_best),
+                _ => tb.closest::<2>(ray, &nr, &mut t_best),
+            };
         }
         let mut best_sphere = None;
         if let Some(sb) = &self.spheres {
-            let mut state = sb.bvh.new_traversal(r.direction);
-            let mut traverse_ray = r;
-            traverse_ray.tmax = best_t;
+            let mut state = sb.bvh.new_traversal(ray.d);
             let mut node;
-            obvhs::traverse!(sb.bvh, node, state, node.intersect_ray(&traverse_ray, state.oct_inv4), {
+            obvhs::traverse!(sb.bvh, node, state, intersect_node(node, &nr, t_best), {
                 let slot = state.primitive_id as usize;
                 let s = sb.spheres[slot];
-                if let Some(t) = sphere::intersect(s.center, s.radius, r.origin, r.direction, traverse_ray.tmax) {
-                    traverse_ray.tmax = t;
-                    best_t = t;
+                if let Some(t) = sphere::intersect(s.center, s.radius, ray.o, ray.d, t_best) {
+                    t_best = t;
                     best_sphere = Some(slot);
                 }
             });
         }
-
         if let (Some(slot), Some(sb)) = (best_sphere, &self.spheres) {
             let s = sb.spheres[slot];
-            let (p, err, n) = sphere::point_and_error(s.center, s.radius, r.origin, r.direction, best_t);
+            let (p, p_error, n) = sphere::point_and_error(s.center, s.radius, ray.o, ray.d, t_best);
             return Some(PrimHit {
-                t: best_t * self.inv_scale,
+                t: t_best,
                 prim: Prim::Sphere { id: sb.ids[slot] },
-                p: p * self.inv_scale,
-                p_error: err * self.inv_scale,
+                p,
+                p_error,
                 n,
             });
         }
         let (slot, b) = best?;
         let tb = self.triangles.as_ref()?;
-        let v = &tb.verts[slot];
-        let (p, err) = triangle::point_and_error(v, b);
+        let v = tb.tris[slot].vertices();
+        let (p, p_error) = triangle::point_off_edges(&v, b);
         Some(PrimHit {
-            t: best_t * self.inv_scale,
-            prim: Prim::Triangle { id: tb.ids[slot], b },
-            p: p * self.inv_scale,
-            p_error: err * self.inv_scale,
+            t: t_best,
+            prim: Prim::Triangle {
+                id: tb.ids[slot],
+                b,
+            },
+            p,
+            p_error,
             n: (v[1] - v[0]).cross(v[2] - v[0]).normalize(),
         })
     }
 
     /// Whether anything is hit with 0 < t < `t_max`.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
-        let r = self.bvh_ray(ray, t_max);
+        let nr = NodeRay::new(ray);
         if let Some(tb) = &self.triangles {
-            let tr = triangle::TriangleRay::new(r.origin, r.direction);
-            let mut state = tb.bvh.new_traversal(r.direction);
-            let mut node;
-            let mut hit = false;
-            obvhs::traverse!(tb.bvh, node, state, node.intersect_ray(&r, state.oct_inv4), {
-                if triangle::intersect(&tr, &tb.verts[state.primitive_id as usize], r.tmax).is_some() {
-                    hit = true;
-                    break;
-                }
-            });
+            let hit = match triangle::dominant_axis(ray.d) {
+                0 => tb.any::<0>(ray, &nr, t_max),
+                1 => tb.any::<1>(ray, &nr, t_max),
+                _ => tb.any::<2>(ray, &nr, t_max),
+            };
             if hit {
                 return true;
             }
         }
+        let mut hit = false;
         if let Some(sb) = &self.spheres {
-            let mut state = sb.bvh.new_traversal(r.direction);
+            let mut state = sb.bvh.new_traversal(ray.d);
             let mut node;
-            let mut hit = false;
-            obvhs::traverse!(sb.bvh, node, state, node.intersect_ray(&r, state.oct_inv4), {
+            obvhs::traverse!(sb.bvh, node, state, intersect_node(node, &nr, t_max), {
                 let s = sb.spheres[state.primitive_id as usize];
-                if sphere::intersect(s.center, s.radius, r.origin, r.direction, r.tmax).is_some() {
+                if sphere::intersect(s.center, s.radius, ray.o, ray.d, t_max).is_some() {
                     hit = true;
                     break;
                 }
             });
-            return hit;
         }
-        false
+        hit
+    }
+}
+
+impl TriangleBvh {
+    /// Closest triangle hit (BVH slot and barycentrics), lowering `t_max`, for rays whose
+    /// dominant axis is `KZ`.
+    #[inline]
+    fn closest<const KZ: usize>(
+        &self,
+        ray: &Ray,
+        nr: &NodeRay,
+        t_max: &mut f32,
+    ) -> Option<(usize, [f32; 3])> {
+        let tr = triangle::TriangleRay::<KZ>::new(ray.o, ray.d);
+        let mut state = self.bvh.new_traversal(ray.d);
+        let mut best = None;
+        let mut node;
+        obvhs::traverse!(self.bvh, node, state, intersect_node(node, nr, *t_max), {
+            let slot = state.primitive_id as usize;
+            if let Some(h) = triangle::intersect(&tr, &self.tris[slot], *t_max) {
+                *t_max = h.t;
+                best = Some((slot, h.b));
+            }
+        });
+        best
+    }
+
+    /// Whether any triangle is hit within `t_max`.
+    #[inline]
+    fn any<const KZ: usize>(&self, ray: &Ray, nr: &NodeRay, t_max: f32) -> bool {
+        let tr = triangle::TriangleRay::<KZ>::new(ray.o, ray.d);
+        let mut state = self.bvh.new_traversal(ray.d);
+        let mut node;
+        let mut hit = false;
+        obvhs::traverse!(self.bvh, node, state, intersect_node(node, nr, t_max), {
+            if triangle::intersect(&tr, &self.tris[state.primitive_id as usize], t_max).is_some() {
+                hit = true;
+                break;
+            }
+        });
+        hit
     }
 }
 
@@ -233,9 +393,21 @@ mod tests {
 
     /// A closed unit cube (12 triangles) scaled by `size` and moved to `offset`.
     fn cube(offset: Vec3A, size: f32) -> Vec<[Vec3A; 3]> {
-        let c = |i: u32| offset + Vec3A::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32) * size;
-        let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
-        quads.iter().flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]]).collect()
+        let c = |i: u32| {
+            offset + Vec3A::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32) * size
+        };
+        let quads = [
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+        ];
+        quads
+            .iter()
+            .flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]])
+            .collect()
     }
 
     /// Rays inside a closed box must always hit it: rays from an interior point aimed exactly
@@ -251,15 +423,24 @@ mod tests {
         let random_dir = |i: u32| {
             use crate::sampler::hash::{mix64, u32_to_unit};
             let h = mix64(i as u64 + 1);
-            crate::sampling::square_to_uniform_sphere(glam::Vec2::new(u32_to_unit(h as u32), u32_to_unit((h >> 32) as u32)))
+            crate::sampling::square_to_uniform_sphere(glam::Vec2::new(
+                u32_to_unit(h as u32),
+                u32_to_unit((h >> 32) as u32),
+            ))
         };
         // Corners and points along every edge.
         for c in 0..8u32 {
-            let corner = offset + Vec3A::new((c & 1) as f32, (c >> 1 & 1) as f32, (c >> 2 & 1) as f32) * size;
+            let corner = offset
+                + Vec3A::new((c & 1) as f32, (c >> 1 & 1) as f32, (c >> 2 & 1) as f32) * size;
             for k in 0..=16 {
                 let target = corner + (center - corner) * Vec3A::new(0.0, 0.0, k as f32 / 8.0);
                 let d = (target - inner).normalize();
-                assert!(accel.intersect(&Ray::new(inner, d), f32::INFINITY).is_some(), "ray to {target} slipped out");
+                assert!(
+                    accel
+                        .intersect(&Ray::new(inner, d), f32::INFINITY)
+                        .is_some(),
+                    "ray to {target} slipped out"
+                );
             }
         }
         // Random walk inside the box.
@@ -304,15 +485,32 @@ mod tests {
     #[test]
     fn nearest_hit_among_triangles_and_spheres() {
         let tris = cube(Vec3A::new(-1.0, -1.0, 5.0), 2.0);
-        let accel = Accel::build(&tris, &[(Vec3A::new(0.0, 0.0, 2.0), 0.5), (Vec3A::new(0.0, 0.0, 9.0), 0.5)]);
-        let h = accel.intersect(&Ray::new(Vec3A::ZERO, Vec3A::Z), f32::INFINITY).unwrap();
+        let accel = Accel::build(
+            &tris,
+            &[
+                (Vec3A::new(0.0, 0.0, 2.0), 0.5),
+                (Vec3A::new(0.0, 0.0, 9.0), 0.5),
+            ],
+        );
+        let h = accel
+            .intersect(&Ray::new(Vec3A::ZERO, Vec3A::Z), f32::INFINITY)
+            .unwrap();
         assert!(matches!(h.prim, Prim::Sphere { id: 0 }));
         assert!((h.t - 1.5).abs() < 1e-5);
-        let h = accel.intersect(&Ray::new(Vec3A::new(0.0, 0.0, 3.0), Vec3A::Z), f32::INFINITY).unwrap();
+        let h = accel
+            .intersect(
+                &Ray::new(Vec3A::new(0.0, 0.0, 3.0), Vec3A::Z),
+                f32::INFINITY,
+            )
+            .unwrap();
         assert!(matches!(h.prim, Prim::Triangle { .. }));
         assert!((h.t - 2.0).abs() < 1e-5);
         assert!(accel.occluded(&Ray::new(Vec3A::ZERO, Vec3A::Z), 1.6));
         assert!(!accel.occluded(&Ray::new(Vec3A::ZERO, Vec3A::Z), 1.4));
-        assert!(accel.intersect(&Ray::new(Vec3A::ZERO, -Vec3A::Z), f32::INFINITY).is_none());
+        assert!(
+            accel
+                .intersect(&Ray::new(Vec3A::ZERO, -Vec3A::Z), f32::INFINITY)
+                .is_none()
+        );
     }
 }

@@ -31,7 +31,13 @@ pub fn intersect(center: Vec3A, radius: f32, o: Vec3A, d: Vec3A, t_max: f32) -> 
 /// Hit point on the sphere for distance `t`, reprojected onto the surface, with its error
 /// bound and the outward unit normal.
 #[inline]
-pub fn point_and_error(center: Vec3A, radius: f32, o: Vec3A, d: Vec3A, t: f32) -> (Vec3A, Vec3A, Vec3A) {
+pub fn point_and_error(
+    center: Vec3A,
+    radius: f32,
+    o: Vec3A,
+    d: Vec3A,
+    t: f32,
+) -> (Vec3A, Vec3A, Vec3A) {
     let c = center.as_dvec3();
     let local = (o.as_dvec3() + d.as_dvec3() * t as f64) - c;
     let n = local.normalize();
@@ -69,7 +75,10 @@ mod tests {
             // Leave outwards (reflection) from the offset origin: no hit on this sphere.
             let out = crate::math::reflect(-dir, n);
             let po = crate::math::offset_ray_origin(p, err, n, out);
-            assert!(intersect(c, r, po, out, f32::INFINITY).is_none(), "re-hit at {i}");
+            assert!(
+                intersect(c, r, po, out, f32::INFINITY).is_none(),
+                "re-hit at {i}"
+            );
             // Enter (refraction straight on): the far side, not the entry point.
             let pi = crate::math::offset_ray_origin(p, err, n, dir);
             let t2 = intersect(c, r, pi, dir, f32::INFINITY).unwrap();

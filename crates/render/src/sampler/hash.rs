@@ -15,7 +15,11 @@ pub const fn mix64(mut x: u64) -> u64 {
 pub fn hash(values: &[u64]) -> u64 {
     let mut h = 0x9e37_79b9_7f4a_7c15u64;
     for &v in values {
-        h = mix64(h ^ v.wrapping_mul(0x9e37_79b9_7f4a_7c15).wrapping_add(0x632b_e59b_d9b4_e019));
+        h = mix64(
+            h ^ v
+                .wrapping_mul(0x9e37_79b9_7f4a_7c15)
+                .wrapping_add(0x632b_e59b_d9b4_e019),
+        );
     }
     h
 }

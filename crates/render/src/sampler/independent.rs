@@ -2,8 +2,8 @@
 
 use glam::{UVec2, Vec2};
 
-use super::hash::{hash, mix64, u32_to_unit};
 use super::Sampler;
+use super::hash::{hash, mix64, u32_to_unit};
 
 #[derive(Debug, Clone)]
 pub struct IndependentSampler {
@@ -14,7 +14,11 @@ pub struct IndependentSampler {
 
 impl IndependentSampler {
     pub fn new(seed: u64) -> Self {
-        IndependentSampler { seed, key: 0, dimension: 0 }
+        IndependentSampler {
+            seed,
+            key: 0,
+            dimension: 0,
+        }
     }
 
     #[inline]
@@ -61,7 +65,10 @@ mod tests {
         let mean = sum / n as f64;
         let var = sum2 / n as f64 - mean * mean;
         // Standard error of the mean is sqrt(1/12/n) ≈ 9e-4: allow 4 of them.
-        assert!((mean - 0.5).abs() < 4.0 * (1.0 / 12.0 / n as f64).sqrt(), "{mean}");
+        assert!(
+            (mean - 0.5).abs() < 4.0 * (1.0 / 12.0 / n as f64).sqrt(),
+            "{mean}"
+        );
         assert!((var - 1.0 / 12.0).abs() < 2e-3, "{var}");
     }
 }

@@ -8,35 +8,22 @@
 
 use glam::{UVec2, Vec2};
 
-use super::hash::{hash, u32_to_unit};
 use super::Sampler;
+use super::hash::{hash, mix64, u32_to_unit};
 
-/// Direction numbers of the second Sobol dimension (primitive polynomial x + 1):
-/// v₁ = 2³¹, vₖ = vₖ₋₁ ⊕ (vₖ₋₁ >> 1).
-const SOBOL1: [u32; 32] = {
-    let mut v = [0u32; 32];
-    v[0] = 1 << 31;
-    let mut k = 1;
-    while k < 32 {
-        v[k] = v[k - 1] ^ (v[k - 1] >> 1);
-        k += 1;
-    }
-    v
-};
-
-/// The second Sobol dimension of point `index`, as a 32-bit fraction.
+/// The second Sobol dimension of point `index`, bit-reversed. Its generator matrix (primitive
+/// polynomial x + 1, direction numbers vₖ = vₖ₋₁ ⊕ (vₖ₋₁ >> 1)) is Pascal's triangle mod 2, so
+/// by Lucas' theorem bit j of the reversed result is the XOR of the index bits k ⊇ j: a
+/// superset-sum transform over GF(2), five shift-mask-xor steps instead of a loop over bits.
 #[inline]
-fn sobol1(mut index: u32) -> u32 {
-    let mut x = 0;
-    let mut k = 0;
-    while index != 0 {
-        if index & 1 != 0 {
-            x ^= SOBOL1[k];
-        }
-        index >>= 1;
-        k += 1;
-    }
-    x
+fn sobol1_reversed(index: u32) -> u32 {
+    let mut y = index;
+    y ^= (y >> 1) & 0x5555_5555;
+    y ^= (y >> 2) & 0x3333_3333;
+    y ^= (y >> 4) & 0x0f0f_0f0f;
+    y ^= (y >> 8) & 0x00ff_00ff;
+    y ^= (y >> 16) & 0x0000_ffff;
+    y
 }
 
 /// Owen scrambling of a bit-reversed integer: a Laine–Karras style hash in which each output
@@ -52,39 +39,55 @@ fn lk_owen_reversed(mut x: u32, seed: u32) -> u32 {
     x
 }
 
-/// Nested uniform (Owen) scramble of a 32-bit fraction.
+/// Owen-scrambled first (van der Corput: the reversed index) and second Sobol dimensions of a
+/// point, working in reversed-bit space throughout.
 #[inline]
-fn owen_scramble(x: u32, seed: u32) -> u32 {
-    lk_owen_reversed(x.reverse_bits(), seed).reverse_bits()
+fn scrambled_pair(index: u32, s0: u32, s1: u32) -> (u32, u32) {
+    (
+        lk_owen_reversed(index, s0).reverse_bits(),
+        lk_owen_reversed(sobol1_reversed(index), s1).reverse_bits(),
+    )
 }
 
 #[derive(Debug, Clone)]
 pub struct SobolSampler {
     seed: u64,
     pixel_key: u64,
-    index: u32,
+    /// The sample index, bit-reversed once per pixel sample (x86 has no bit-reverse
+    /// instruction, and every request needs it).
+    index_reversed: u32,
     dimension: u32,
 }
 
 impl SobolSampler {
     pub fn new(seed: u64) -> Self {
-        SobolSampler { seed, pixel_key: 0, index: 0, dimension: 0 }
+        SobolSampler {
+            seed,
+            pixel_key: 0,
+            index_reversed: 0,
+            dimension: 0,
+        }
     }
 
     /// Shuffled index and the two coordinate seeds for the current request.
     #[inline]
     fn request(&mut self) -> (u32, u32, u32) {
-        let h = hash(&[self.pixel_key, self.dimension as u64]);
+        let h = mix64(self.pixel_key ^ (self.dimension as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
         self.dimension += 1;
-        let index = owen_scramble(self.index, h as u32);
-        (index, (h >> 32) as u32, (h.rotate_left(17) as u32) ^ 0x5bd1_e995)
+        // Owen-scrambling the index (shuffling the padded dimensions independently).
+        let index = lk_owen_reversed(self.index_reversed, h as u32).reverse_bits();
+        (
+            index,
+            (h >> 32) as u32,
+            (h.rotate_left(17) as u32) ^ 0x5bd1_e995,
+        )
     }
 }
 
 impl Sampler for SobolSampler {
     fn start_pixel_sample(&mut self, pixel: UVec2, index: u32) {
         self.pixel_key = hash(&[self.seed, pixel.x as u64, pixel.y as u64]);
-        self.index = index;
+        self.index_reversed = index.reverse_bits();
         self.dimension = 0;
     }
 
@@ -92,16 +95,14 @@ impl Sampler for SobolSampler {
     fn get_1d(&mut self) -> f32 {
         let (index, s0, _) = self.request();
         // The first Sobol dimension is the bit reversal of the index (van der Corput).
-        u32_to_unit(owen_scramble(index.reverse_bits(), s0))
+        u32_to_unit(lk_owen_reversed(index, s0).reverse_bits())
     }
 
     #[inline]
     fn get_2d(&mut self) -> Vec2 {
         let (index, s0, s1) = self.request();
-        Vec2::new(
-            u32_to_unit(owen_scramble(index.reverse_bits(), s0)),
-            u32_to_unit(owen_scramble(sobol1(index), s1)),
-        )
+        let (x, y) = scrambled_pair(index, s0, s1);
+        Vec2::new(u32_to_unit(x), u32_to_unit(y))
     }
 }
 
@@ -109,13 +110,27 @@ impl Sampler for SobolSampler {
 mod tests {
     use super::*;
 
+    /// Nested uniform (Owen) scramble of a 32-bit fraction.
+    fn owen_scramble(x: u32, seed: u32) -> u32 {
+        lk_owen_reversed(x.reverse_bits(), seed).reverse_bits()
+    }
+
     #[test]
     fn unscrambled_second_dimension_matches_known_sobol_values() {
         // Sobol dimension 2 for indices 0..8 in direct (not Gray-code) order: the XOR of the
         // direction numbers 1/2, 3/4, 5/8 selected by the index bits.
         let expect = [0.0, 0.5, 0.75, 0.25, 0.625, 0.125, 0.375, 0.875];
         for (i, e) in expect.iter().enumerate() {
-            assert_eq!(sobol1(i as u32) as f64 / 4294967296.0, *e);
+            assert_eq!(
+                sobol1_reversed(i as u32).reverse_bits() as f64 / 4294967296.0,
+                *e
+            );
+        }
+        // And against the direction numbers for every single bit.
+        let mut v = 1u32 << 31;
+        for k in 0..32 {
+            assert_eq!(sobol1_reversed(1 << k).reverse_bits(), v, "bit {k}");
+            v ^= v >> 1;
         }
     }
 
@@ -158,7 +173,10 @@ mod tests {
                         let cy = (p.y * ny as f32) as usize;
                         cells[cy * nx + cx] += 1;
                     }
-                    assert!(cells.iter().all(|&c| c == 1), "m={m} kx={kx} dim={dim_skip}");
+                    assert!(
+                        cells.iter().all(|&c| c == 1),
+                        "m={m} kx={kx} dim={dim_skip}"
+                    );
                 }
             }
         }
@@ -176,6 +194,9 @@ mod tests {
         assert_eq!(a.get_1d(), b.get_1d());
         let mut c = SobolSampler::new(2);
         c.start_pixel_sample(UVec2::new(2, 7), 5);
-        assert_ne!(c.get_2d(), { a.start_pixel_sample(UVec2::new(2, 7), 5); a.get_2d() });
+        assert_ne!(c.get_2d(), {
+            a.start_pixel_sample(UVec2::new(2, 7), 5);
+            a.get_2d()
+        });
     }
 }

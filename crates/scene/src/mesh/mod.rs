@@ -23,7 +23,10 @@ pub struct MeshError {
 
 impl MeshError {
     fn new(location: impl Into<String>, message: impl Into<String>) -> Self {
-        MeshError { location: location.into(), message: message.into() }
+        MeshError {
+            location: location.into(),
+            message: message.into(),
+        }
     }
 }
 
@@ -49,13 +52,19 @@ fn check(mesh: &RawMesh) -> Result<(), MeshError> {
         let p = mesh.positions[i];
         return Err(MeshError::new(
             format!("vertex {i}"),
-            format!("expected finite coordinates, got ({}, {}, {})", p.x, p.y, p.z),
+            format!(
+                "expected finite coordinates, got ({}, {}, {})",
+                p.x, p.y, p.z
+            ),
         ));
     }
-    if let Some(normals) = &mesh.normals {
-        if let Some(i) = normals.iter().position(|n| !n.is_finite()) {
-            return Err(MeshError::new(format!("normal of vertex {i}"), "expected finite components"));
-        }
+    if let Some(normals) = &mesh.normals
+        && let Some(i) = normals.iter().position(|n| !n.is_finite())
+    {
+        return Err(MeshError::new(
+            format!("normal of vertex {i}"),
+            "expected finite components",
+        ));
     }
     let n = mesh.positions.len();
     for (f, t) in mesh.triangles.iter().enumerate() {
@@ -67,7 +76,10 @@ fn check(mesh: &RawMesh) -> Result<(), MeshError> {
         }
     }
     if mesh.triangles.is_empty() {
-        return Err(MeshError::new("", "expected at least one face, the mesh has none"));
+        return Err(MeshError::new(
+            "",
+            "expected at least one face, the mesh has none",
+        ));
     }
     Ok(())
 }

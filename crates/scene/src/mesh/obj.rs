@@ -6,7 +6,7 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 
-use super::{fan, MeshError, RawMesh};
+use super::{MeshError, RawMesh, fan};
 
 pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
     let text = std::str::from_utf8(bytes)
@@ -24,8 +24,12 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
         let line = raw.split('#').next().unwrap_or("").trim();
         let mut tokens = line.split_whitespace();
         match tokens.next() {
-            Some("v") => positions.push(parse_vec3(&mut tokens).map_err(|m| MeshError::new(at(), m))?),
-            Some("vn") => file_normals.push(parse_vec3(&mut tokens).map_err(|m| MeshError::new(at(), m))?),
+            Some("v") => {
+                positions.push(parse_vec3(&mut tokens).map_err(|m| MeshError::new(at(), m))?)
+            }
+            Some("vn") => {
+                file_normals.push(parse_vec3(&mut tokens).map_err(|m| MeshError::new(at(), m))?)
+            }
             Some("f") => {
                 let start = corners.len();
                 for token in tokens {
@@ -33,7 +37,8 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
                     let v = parts.next().unwrap_or("");
                     let _vt = parts.next();
                     let vn = parts.next().filter(|s| !s.is_empty());
-                    let p = resolve_index(v, positions.len()).map_err(|m| MeshError::new(at(), m))?;
+                    let p =
+                        resolve_index(v, positions.len()).map_err(|m| MeshError::new(at(), m))?;
                     let n = vn
                         .map(|s| resolve_index(s, file_normals.len()))
                         .transpose()
@@ -41,7 +46,10 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
                     corners.push((p, n));
                 }
                 if corners.len() - start < 3 {
-                    return Err(MeshError::new(at(), "expected a face with at least 3 vertices"));
+                    return Err(MeshError::new(
+                        at(),
+                        "expected a face with at least 3 vertices",
+                    ));
                 }
                 polygons.push((start, corners.len()));
             }
@@ -56,7 +64,11 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
             let poly: Vec<u32> = corners[a..b].iter().map(|c| c.0).collect();
             fan(&poly, &mut triangles);
         }
-        return Ok(RawMesh { positions, normals: None, triangles });
+        return Ok(RawMesh {
+            positions,
+            normals: None,
+            triangles,
+        });
     }
 
     // Give every distinct (position, normal) pair its own vertex.
@@ -76,14 +88,22 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
             .collect();
         fan(&poly, &mut triangles);
     }
-    Ok(RawMesh { positions: out_positions, normals: Some(out_normals), triangles })
+    Ok(RawMesh {
+        positions: out_positions,
+        normals: Some(out_normals),
+        triangles,
+    })
 }
 
 fn parse_vec3<'a>(tokens: &mut impl Iterator<Item = &'a str>) -> Result<Vec3, String> {
     let mut v = [0.0f32; 3];
     for (i, slot) in v.iter_mut().enumerate() {
-        let token = tokens.next().ok_or_else(|| format!("expected 3 coordinates, got {i}"))?;
-        *slot = token.parse().map_err(|_| format!("expected a number, got \"{token}\""))?;
+        let token = tokens
+            .next()
+            .ok_or_else(|| format!("expected 3 coordinates, got {i}"))?;
+        *slot = token
+            .parse()
+            .map_err(|_| format!("expected a number, got \"{token}\""))?;
         if !slot.is_finite() {
             return Err(format!("expected a finite coordinate, got \"{token}\""));
         }
@@ -93,10 +113,14 @@ fn parse_vec3<'a>(tokens: &mut impl Iterator<Item = &'a str>) -> Result<Vec3, St
 
 /// OBJ indices are 1-based; negative ones count back from the last element defined so far.
 fn resolve_index(token: &str, defined: usize) -> Result<u32, String> {
-    let i: i64 = token.parse().map_err(|_| format!("expected a vertex index, got \"{token}\""))?;
+    let i: i64 = token
+        .parse()
+        .map_err(|_| format!("expected a vertex index, got \"{token}\""))?;
     let resolved = if i > 0 { i - 1 } else { defined as i64 + i };
     if i == 0 || resolved < 0 || resolved >= defined as i64 {
-        return Err(format!("index {i} is out of range: {defined} defined so far"));
+        return Err(format!(
+            "index {i} is out of range: {defined} defined so far"
+        ));
     }
     Ok(resolved as u32)
 }
@@ -115,7 +139,8 @@ mod tests {
 
     #[test]
     fn normals_split_vertices_per_distinct_pair() {
-        let src = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 0 -1\nf 1//1 2//1 3//1\nf 1//2 3//2 2//2\n";
+        let src =
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 0 -1\nf 1//1 2//1 3//1\nf 1//2 3//2 2//2\n";
         let m = parse(src).unwrap();
         assert_eq!(m.positions.len(), 6);
         let n = m.normals.unwrap();

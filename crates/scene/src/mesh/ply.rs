@@ -6,7 +6,7 @@ use glam::Vec3;
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{DefaultElement, PropertyAccess, PropertyAccessResult};
 
-use super::{fan, MeshError, RawMesh};
+use super::{MeshError, RawMesh, fan};
 
 #[derive(Default)]
 struct Vertex {
@@ -99,8 +99,12 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
     let vertex_parser = Parser::<Vertex>::new();
     let face_parser = Parser::<Face>::new();
     let other_parser = Parser::<DefaultElement>::new();
-    let bad = |what: &str, e: ply_rs_bw::parser::ParseError| MeshError::new(what.to_string(), format!("not a valid PLY file: {e}"));
-    let header = vertex_parser.read_header(&mut reader).map_err(|e| bad("header", e))?;
+    let bad = |what: &str, e: ply_rs_bw::parser::ParseError| {
+        MeshError::new(what.to_string(), format!("not a valid PLY file: {e}"))
+    };
+    let header = vertex_parser
+        .read_header(&mut reader)
+        .map_err(|e| bad("header", e))?;
 
     let mut vertices = Vec::new();
     let mut faces = Vec::new();
@@ -129,7 +133,10 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
     let mut poly = Vec::new();
     for (f, face) in faces.iter().enumerate() {
         if face.indices.len() < 3 {
-            return Err(MeshError::new(format!("face {f}"), "expected at least 3 vertex indices"));
+            return Err(MeshError::new(
+                format!("face {f}"),
+                "expected at least 3 vertex indices",
+            ));
         }
         poly.clear();
         for &i in &face.indices {

@@ -1,0 +1,355 @@
+//! Tiles and their accumulated samples.
+//!
+//! A tile is a rectangle of pixels and a range of sample indices. It accumulates, per pixel,
+//! weighted sums (Σw·L, Σw, Σ(w·L)², and the AOVs) — never normalised colour — in fixed point
+//! (i128). Integer addition is associative, so sums merged from any split of the sample range,
+//! in any order, on any machine, are bit-identical; the image is divided out once, at the end
+//! (DESIGN: tiles carry Σw·L and Σw).
+
+use glam::{UVec2, Vec3A};
+
+use crate::spectrum::Spectrum;
+
+/// A rectangle of pixels [x0, x1) × [y0, y1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct Tile {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+impl Tile {
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+    pub fn pixel_count(&self) -> usize {
+        (self.width() * self.height()) as usize
+    }
+    /// Pixels in row-major order.
+    pub fn pixels(&self) -> impl Iterator<Item = UVec2> + '_ {
+        (self.y0..self.y1).flat_map(move |y| (self.x0..self.x1).map(move |x| UVec2::new(x, y)))
+    }
+}
+
+/// Cuts a `width` × `height` film into tiles of `size` × `size` pixels, row-major.
+pub fn tiles(width: u32, height: u32, size: u32) -> Vec<Tile> {
+    let size = size.max(1);
+    let mut out = Vec::new();
+    for y0 in (0..height).step_by(size as usize) {
+        for x0 in (0..width).step_by(size as usize) {
+            out.push(Tile {
+                x0,
+                y0,
+                x1: (x0 + size).min(width),
+                y1: (y0 + size).min(height),
+            });
+        }
+    }
+    out
+}
+
+/// Sample indices [start, end) of every pixel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct SampleRange {
+    pub start: u32,
+    pub end: u32,
+}
+
+impl SampleRange {
+    pub fn len(&self) -> u32 {
+        self.end.saturating_sub(self.start)
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Fractional bits of first moments and of second moments. Per-sample values are clamped to
+/// ±2³² (a guard, far above any sane radiance), so 2²⁴ samples of (2³²·2⁶⁴) fit in an i128,
+/// as do 2²⁴ squares of (2⁶⁴·2³⁸).
+const FRAC: i32 = 64;
+const FRAC_SQ: i32 = 38;
+const LIMIT: f32 = 4_294_967_296.0;
+
+/// v·2^frac as an integer, from the bits of `v`: the 24-bit significand shifted by the
+/// exponent (exact where the result is an integer, truncated toward zero below 2^−frac).
+#[inline]
+fn fixed(v: f32, frac: i32) -> i128 {
+    let v = v.clamp(-LIMIT, LIMIT);
+    let bits = v.to_bits();
+    let exponent = ((bits >> 23) & 0xff) as i32;
+    if exponent == 0 {
+        return 0; // zero and subnormals: far below the resolution
+    }
+    let significand = ((bits & 0x7f_ffff) | 0x80_0000) as i128;
+    let shift = exponent - 150 + frac;
+    let magnitude = if shift >= 0 {
+        significand << shift
+    } else if shift > -32 {
+        significand >> -shift
+    } else {
+        0
+    };
+    if bits >> 31 != 0 {
+        -magnitude
+    } else {
+        magnitude
+    }
+}
+
+#[inline]
+fn unfixed(v: i128, frac: i32) -> f64 {
+    v as f64 * f64::from_bits(((1023 - frac) as u64) << 52)
+}
+
+/// What the first surface a camera ray hits looked like (for the AOVs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FirstHit {
+    pub albedo: Spectrum,
+    /// World-space shading normal.
+    pub normal: Vec3A,
+    /// Distance along the camera's axis.
+    pub depth: f32,
+}
+
+/// Fixed-point sums of one pixel.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PixelSums {
+    pub samples: u64,
+    pub w: i128,
+    pub wl: [i128; 3],
+    pub wl2: [i128; 3],
+    pub albedo: [i128; 3],
+    pub normal: [i128; 3],
+    pub depth: i128,
+    /// Σw over samples whose ray hit something.
+    pub hit_w: i128,
+}
+
+impl PixelSums {
+    /// Adds a sample of radiance `l` (already finite) with filter weight `w`.
+    #[inline]
+    pub fn add(&mut self, w: f32, l: Spectrum, hit: Option<&FirstHit>) {
+        let wl = l * w;
+        self.samples += 1;
+        self.w += fixed(w, FRAC);
+        for c in 0..3 {
+            self.wl[c] += fixed(wl[c], FRAC);
+            self.wl2[c] += fixed(wl[c] * wl[c], FRAC_SQ);
+        }
+        if let Some(h) = hit {
+            self.hit_w += fixed(w, FRAC);
+            self.depth += fixed(w * h.depth, FRAC);
+            for c in 0..3 {
+                self.albedo[c] += fixed(w * h.albedo[c], FRAC);
+                self.normal[c] += fixed(w * h.normal[c], FRAC);
+            }
+        }
+    }
+
+    pub fn merge(&mut self, o: &PixelSums) {
+        self.samples += o.samples;
+        self.w += o.w;
+        self.hit_w += o.hit_w;
+        self.depth += o.depth;
+        for c in 0..3 {
+            self.wl[c] += o.wl[c];
+            self.wl2[c] += o.wl2[c];
+            self.albedo[c] += o.albedo[c];
+            self.normal[c] += o.normal[c];
+        }
+    }
+
+    /// The pixel's final values.
+    pub fn resolve(&self) -> Pixel {
+        let w = unfixed(self.w, FRAC);
+        let n = self.samples as f64;
+        if w == 0.0 || n == 0.0 {
+            return Pixel::default();
+        }
+        let hit_w = unfixed(self.hit_w, FRAC);
+        let per_hit = |v: i128| {
+            if hit_w != 0.0 {
+                (unfixed(v, FRAC) / hit_w) as f32
+            } else {
+                0.0
+            }
+        };
+        let mut p = Pixel {
+            alpha: (hit_w / w) as f32,
+            depth: per_hit(self.depth),
+            ..Default::default()
+        };
+        let mean_w = w / n;
+        for c in 0..3 {
+            let s1 = unfixed(self.wl[c], FRAC);
+            p.rgb[c] = (s1 / w) as f32;
+            // Variance of the pixel estimate Σw·L/Σw ≈ Var(w·L) / (n w̄²) with the unbiased
+            // sample variance of w·L (w is constant up to sign under filter importance sampling).
+            if n > 1.0 {
+                let s2 = unfixed(self.wl2[c], FRAC_SQ);
+                let var = ((s2 - s1 * s1 / n) / (n - 1.0)).max(0.0);
+                p.variance[c] = (var / (n * mean_w * mean_w)) as f32;
+            }
+            p.albedo[c] = per_hit(self.albedo[c]);
+            p.normal[c] = per_hit(self.normal[c]);
+        }
+        p
+    }
+}
+
+/// The final values of a pixel.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Pixel {
+    pub rgb: [f32; 3],
+    /// Fraction of the filter weight whose rays hit geometry.
+    pub alpha: f32,
+    pub albedo: [f32; 3],
+    pub normal: [f32; 3],
+    /// Mean depth along the camera axis over the samples that hit (0 where none did).
+    pub depth: f32,
+    /// Estimated variance of `rgb` (of the mean, not of one sample).
+    pub variance: [f32; 3],
+}
+
+/// The sums of every pixel of a tile over a sample range.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TileSums {
+    pub tile: Tile,
+    pub samples: SampleRange,
+    pub pixels: Vec<PixelSums>,
+}
+
+impl TileSums {
+    pub fn new(tile: Tile, samples: SampleRange) -> Self {
+        TileSums {
+            tile,
+            samples,
+            pixels: vec![PixelSums::default(); tile.pixel_count()],
+        }
+    }
+
+    /// Adds the sums of another sample range of the same tile.
+    pub fn merge(&mut self, other: &TileSums) {
+        assert_eq!(self.tile, other.tile, "merging sums of different tiles");
+        for (a, b) in self.pixels.iter_mut().zip(&other.pixels) {
+            a.merge(b);
+        }
+        self.samples = SampleRange {
+            start: self.samples.start.min(other.samples.start),
+            end: self.samples.end.max(other.samples.end),
+        };
+    }
+}
+
+/// A finished frame: every pixel's final values, row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Pixel>,
+}
+
+impl Image {
+    pub fn new(width: u32, height: u32) -> Self {
+        Image {
+            width,
+            height,
+            pixels: vec![Pixel::default(); (width * height) as usize],
+        }
+    }
+
+    /// Writes a tile's resolved pixels into place.
+    pub fn put(&mut self, sums: &TileSums) {
+        for (p, s) in sums.tile.pixels().zip(&sums.pixels) {
+            self.pixels[(p.y * self.width + p.x) as usize] = s.resolve();
+        }
+    }
+
+    pub fn rgb(&self) -> Vec<Vec3A> {
+        self.pixels.iter().map(|p| Vec3A::from(p.rgb)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_point_is_exact_for_representable_values() {
+        for v in [0.0f32, 1.0, -1.0, 0.375, 3.0e5, -7.25e-3, 1.0e-12, 4.0e9] {
+            let expect = (v as f64 * (FRAC as f64).exp2()).trunc();
+            assert_eq!(fixed(v, FRAC) as f64, expect, "{v}");
+            assert!(
+                (unfixed(fixed(v, FRAC), FRAC) - v as f64).abs() <= 1e-18 + 1e-7 * v.abs() as f64
+            );
+        }
+        assert_eq!(fixed(f32::INFINITY, FRAC), fixed(LIMIT, FRAC));
+        assert_eq!(fixed(1.0e-30, FRAC_SQ), 0);
+    }
+
+    #[test]
+    fn tiles_cover_the_film_exactly_once() {
+        let t = tiles(70, 33, 16);
+        let mut covered = vec![0u8; 70 * 33];
+        for tile in &t {
+            for p in tile.pixels() {
+                covered[(p.y * 70 + p.x) as usize] += 1;
+            }
+        }
+        assert!(covered.iter().all(|&c| c == 1));
+        assert_eq!(t.len(), 5 * 3);
+    }
+
+    #[test]
+    fn sums_are_independent_of_how_samples_are_split_and_ordered() {
+        let values: Vec<(f32, Spectrum)> = (0..100)
+            .map(|i| {
+                (
+                    1.0 + (i % 3) as f32 * 0.25,
+                    Vec3A::new(i as f32 * 0.37, 1e-3 / (i + 1) as f32, 1e4 * (i % 7) as f32),
+                )
+            })
+            .collect();
+        let mut whole = PixelSums::default();
+        for (w, l) in &values {
+            whole.add(*w, *l, None);
+        }
+        let (mut a, mut b) = (PixelSums::default(), PixelSums::default());
+        for (i, (w, l)) in values.iter().enumerate().rev() {
+            if i % 2 == 0 {
+                a.add(*w, *l, None)
+            } else {
+                b.add(*w, *l, None)
+            }
+        }
+        b.merge(&a);
+        assert_eq!(whole, b);
+    }
+
+    #[test]
+    fn resolve_gives_weighted_mean_and_variance_of_the_mean() {
+        let mut s = PixelSums::default();
+        let ls = [1.0f32, 2.0, 3.0, 6.0];
+        for l in ls {
+            s.add(
+                1.0,
+                Spectrum::splat(l),
+                Some(&FirstHit {
+                    albedo: Spectrum::ONE,
+                    normal: Vec3A::Z,
+                    depth: 4.0,
+                }),
+            );
+        }
+        let p = s.resolve();
+        assert!((p.rgb[0] - 3.0).abs() < 1e-6);
+        // Sample variance 14/3, variance of the mean 14/12.
+        assert!((p.variance[1] - 14.0 / 12.0).abs() < 1e-5);
+        assert_eq!((p.alpha, p.depth, p.normal[2]), (1.0, 4.0, 1.0));
+    }
+}

@@ -1,0 +1,191 @@
+//! Diffuse area emitters: triangles (every emissive mesh triangle is one light) and spheres.
+//! Radiance is constant over the surface and emitted on the front side (the side of the
+//! geometric normal), or on both.
+
+use glam::{Vec2, Vec3A};
+
+use super::{LightSample, ShadowTarget, lum};
+use crate::geometry::{sphere, triangle};
+use crate::math::{Frame, PI, gamma};
+use crate::sampling::{
+    square_to_triangle, square_to_uniform_cone, square_to_uniform_sphere, uniform_cone_pdf,
+};
+use crate::spectrum::Spectrum;
+
+#[derive(Debug, Clone)]
+pub struct TriangleLight {
+    v: [Vec3A; 3],
+    /// Front-face unit normal.
+    n: Vec3A,
+    area: f32,
+    radiance: Spectrum,
+    two_sided: bool,
+}
+
+/// Radiance toward `w` from a surface with front normal `n`.
+#[inline]
+fn emitted(radiance: Spectrum, two_sided: bool, n: Vec3A, w: Vec3A) -> Spectrum {
+    if two_sided || n.dot(w) > 0.0 {
+        radiance
+    } else {
+        Spectrum::ZERO
+    }
+}
+
+/// Converts an area density at `p_light` to solid angle at `p`.
+#[inline]
+fn area_to_solid_angle(pdf_area: f32, p: Vec3A, p_light: Vec3A, n_light: Vec3A) -> f32 {
+    let d = p_light - p;
+    let dist2 = d.length_squared();
+    let cos = n_light.dot(d).abs() / dist2.sqrt();
+    if cos == 0.0 {
+        0.0
+    } else {
+        pdf_area * dist2 / cos
+    }
+}
+
+impl TriangleLight {
+    /// `v` wound so that its normal is the front face. Degenerate triangles have zero area
+    /// and are never chosen.
+    pub fn new(v: [Vec3A; 3], radiance: Spectrum, two_sided: bool) -> Self {
+        let c = (v[1] - v[0]).cross(v[2] - v[0]);
+        let area = 0.5 * c.length();
+        TriangleLight {
+            v,
+            n: c.normalize_or_zero(),
+            area,
+            radiance,
+            two_sided,
+        }
+    }
+
+    pub fn sample_li(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
+        if self.area == 0.0 {
+            return None;
+        }
+        let (pl, p_error) = triangle::point_and_error(&self.v, square_to_triangle(u));
+        let to = pl - p;
+        let dist2 = to.length_squared();
+        if dist2 == 0.0 {
+            return None;
+        }
+        let wi = to / dist2.sqrt();
+        let li = emitted(self.radiance, self.two_sided, self.n, -wi);
+        let pdf = area_to_solid_angle(1.0 / self.area, p, pl, self.n);
+        (pdf > 0.0 && pdf.is_finite() && li.max_element() > 0.0).then_some(LightSample {
+            li,
+            wi,
+            pdf,
+            delta: false,
+            target: ShadowTarget::Point {
+                p: pl,
+                p_error,
+                n: self.n,
+            },
+        })
+    }
+
+    pub fn pdf_li(&self, p: Vec3A, p_light: Vec3A, n_light: Vec3A) -> f32 {
+        if self.area == 0.0 || (!self.two_sided && n_light.dot(p - p_light) <= 0.0) {
+            return 0.0;
+        }
+        area_to_solid_angle(1.0 / self.area, p, p_light, n_light)
+    }
+
+    pub fn le(&self, n: Vec3A, w: Vec3A) -> Spectrum {
+        emitted(self.radiance, self.two_sided, n, w)
+    }
+
+    pub fn power(&self) -> f32 {
+        PI * self.area * lum(self.radiance) * if self.two_sided { 2.0 } else { 1.0 }
+    }
+}
+
+/// A spherical emitter, sampled by the cone it subtends (pbrt-v4 §6.2.4) from outside and
+/// uniformly by area from inside.
+#[derive(Debug, Clone)]
+pub struct SphereLight {
+    center: Vec3A,
+    radius: f32,
+    radiance: Spectrum,
+    two_sided: bool,
+}
+
+impl SphereLight {
+    pub fn new(center: Vec3A, radius: f32, radiance: Spectrum, two_sided: bool) -> Self {
+        SphereLight {
+            center,
+            radius,
+            radiance,
+            two_sided,
+        }
+    }
+
+    /// cos of the half-angle of the cone the sphere subtends from `p`, if `p` is outside.
+    #[inline]
+    fn cos_max(&self, p: Vec3A) -> Option<f32> {
+        let dist2 = (p - self.center).length_squared();
+        let r2 = self.radius * self.radius;
+        (dist2 > r2 * 1.0001).then(|| (1.0 - r2 / dist2).max(0.0).sqrt())
+    }
+
+    pub fn sample_li(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
+        let (pl, p_error, n, pdf) = match self.cos_max(p) {
+            Some(cos_max) => {
+                let axis = (self.center - p).normalize();
+                let wi = Frame::from_normal(axis).to_world(square_to_uniform_cone(u, cos_max));
+                let t = sphere::intersect(self.center, self.radius, p, wi, f32::INFINITY)
+                    // Rounding can graze past the silhouette: take the closest point instead.
+                    .unwrap_or_else(|| (self.center - p).dot(wi));
+                let (pl, err, n) = sphere::point_and_error(self.center, self.radius, p, wi, t);
+                (pl, err, n, uniform_cone_pdf(cos_max))
+            }
+            None => {
+                let n = square_to_uniform_sphere(u);
+                let pl = self.center + n * self.radius;
+                let err = (n * self.radius).abs() * gamma(5) + pl.abs() * gamma(2);
+                let pdf =
+                    area_to_solid_angle(1.0 / (4.0 * PI * self.radius * self.radius), p, pl, n);
+                (pl, err, n, pdf)
+            }
+        };
+        let to = pl - p;
+        let wi = to.normalize_or_zero();
+        let li = emitted(self.radiance, self.two_sided, n, -wi);
+        (pdf > 0.0 && pdf.is_finite() && li.max_element() > 0.0 && wi != Vec3A::ZERO).then_some(
+            LightSample {
+                li,
+                wi,
+                pdf,
+                delta: false,
+                target: ShadowTarget::Point { p: pl, p_error, n },
+            },
+        )
+    }
+
+    pub fn pdf_li(&self, p: Vec3A, p_light: Vec3A, n_light: Vec3A) -> f32 {
+        match self.cos_max(p) {
+            Some(cos_max) => uniform_cone_pdf(cos_max),
+            None => area_to_solid_angle(
+                1.0 / (4.0 * PI * self.radius * self.radius),
+                p,
+                p_light,
+                n_light,
+            ),
+        }
+    }
+
+    pub fn le(&self, n: Vec3A, w: Vec3A) -> Spectrum {
+        emitted(self.radiance, self.two_sided, n, w)
+    }
+
+    pub fn power(&self) -> f32 {
+        PI * 4.0
+            * PI
+            * self.radius
+            * self.radius
+            * lum(self.radiance)
+            * if self.two_sided { 2.0 } else { 1.0 }
+    }
+}

@@ -1,0 +1,340 @@
+//! The scene at render time: acceleration structure, materials, lights, camera and film,
+//! built once from a validated [`SceneDesc`] and shared read-only by every thread.
+
+use glam::{Mat3A, Vec3A};
+use tessera_scene::{FilmDesc, IntegratorDesc, LightDesc, SceneDesc};
+
+use crate::bsdf::{self, Bsdf, BsdfFlags};
+use crate::camera::Camera;
+use crate::filter::Filter;
+use crate::geometry::{Accel, Prim};
+use crate::light::{
+    DirectionalLight, EnvironmentLight, Light, LightSample, LightSet, PointLight, ShadowTarget,
+    SphereLight, SpotLight, TriangleLight,
+};
+use crate::math::{Frame, offset_ray_origin};
+use crate::ray::Ray;
+
+/// Index meaning "not an emitter".
+pub const NO_LIGHT: u32 = u32::MAX;
+
+/// Shadow rays stop this fraction short of their target (pbrt-v4's ShadowEpsilon): the target
+/// point is already offset off the emitter by its error bound, this keeps the rounding of the
+/// distance itself from registering the emitter as its own occluder. Relative to the segment,
+/// so it is scale-free.
+const SHADOW_EPSILON: f32 = 1e-4;
+
+/// A material: its BSDF and how to orient it.
+#[derive(Debug)]
+pub struct Material {
+    pub bsdf: Box<dyn Bsdf>,
+    pub flags: BsdfFlags,
+}
+
+impl Material {
+    /// Nothing is scattered: paths end here.
+    pub fn is_black(&self) -> bool {
+        !self.flags.smooth && !self.flags.specular
+    }
+
+    /// The BSDF's local frame at `si` for light leaving toward `wo`. Reflection-only BSDFs are
+    /// two-sided: the frame is turned to face `wo`. Transmissive ones keep the normal outward.
+    #[inline]
+    pub fn frame(&self, si: &SurfaceInteraction, wo: Vec3A) -> Frame {
+        let f = Frame::from_normal(si.ns);
+        if !self.flags.transmission && wo.dot(si.ns) < 0.0 {
+            f.flipped()
+        } else {
+            f
+        }
+    }
+}
+
+/// A ray's hit on a surface.
+#[derive(Debug, Clone, Copy)]
+pub struct SurfaceInteraction {
+    pub p: Vec3A,
+    pub p_error: Vec3A,
+    pub t: f32,
+    /// Geometric normal of the front face (the side an emitter emits from).
+    pub ng: Vec3A,
+    /// Shading normal, in the hemisphere of `ng`.
+    pub ns: Vec3A,
+    pub material: u32,
+    /// Emitter index into the scene's lights, or [`NO_LIGHT`].
+    pub light: u32,
+}
+
+impl SurfaceInteraction {
+    /// A ray leaving the surface in direction `d`, from an origin offset past the error bound.
+    #[inline]
+    pub fn spawn(&self, d: Vec3A) -> Ray {
+        Ray::new(offset_ray_origin(self.p, self.p_error, self.ng, d), d)
+    }
+}
+
+struct MeshRuntime {
+    material: u32,
+    first_triangle: u32,
+    /// Per-vertex shading normals and the triangles' vertex indices, for smooth meshes.
+    normals: Option<(Vec<Vec3A>, Vec<[u32; 3]>)>,
+}
+
+struct SphereRuntime {
+    material: u32,
+    light: u32,
+}
+
+/// Sizes of what was built, for logs.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct SceneStats {
+    pub triangles: usize,
+    pub spheres: usize,
+    pub lights: usize,
+    pub emissive_triangles: usize,
+}
+
+pub struct Scene {
+    accel: Accel,
+    meshes: Vec<MeshRuntime>,
+    /// Triangle id → mesh index.
+    triangle_mesh: Vec<u32>,
+    /// Triangle id → light index or NO_LIGHT.
+    triangle_light: Vec<u32>,
+    spheres: Vec<SphereRuntime>,
+    materials: Vec<Material>,
+    pub lights: LightSet,
+    pub camera: Camera,
+    pub filter: Filter,
+    pub film: FilmDesc,
+    pub integrator: IntegratorDesc,
+    /// Bounding sphere of all geometry.
+    pub center: Vec3A,
+    pub radius: f32,
+    pub stats: SceneStats,
+}
+
+impl Scene {
+    pub fn build(desc: &SceneDesc) -> Scene {
+        let mut triangles: Vec<[Vec3A; 3]> = Vec::new();
+        let mut meshes = Vec::with_capacity(desc.meshes.len());
+        let mut triangle_mesh = Vec::new();
+        let mut triangle_light = Vec::new();
+        let mut lights = Vec::new();
+        let mut emissive_triangles = 0;
+        for (mi, m) in desc.meshes.iter().enumerate() {
+            let first_triangle = triangles.len() as u32;
+            let normals: Option<Vec<Vec3A>> = m
+                .normals
+                .as_ref()
+                .map(|n| n.iter().map(|&v| Vec3A::from(v)).collect());
+            let mut indices = Vec::with_capacity(m.triangles.len());
+            for &[a, b, c] in &m.triangles {
+                let v = [a, b, c].map(|i| Vec3A::from(m.positions[i as usize]));
+                // With vertex normals, the normals decide the front face: wind to agree.
+                let winding = (v[1] - v[0]).cross(v[2] - v[0]);
+                let flip = normals.as_ref().is_some_and(|n| {
+                    winding.dot(n[a as usize] + n[b as usize] + n[c as usize]) < 0.0
+                });
+                let (v, idx) = if flip {
+                    ([v[0], v[2], v[1]], [a, c, b])
+                } else {
+                    (v, [a, b, c])
+                };
+                indices.push(idx);
+                triangles.push(v);
+                triangle_mesh.push(mi as u32);
+                let light = match &m.emission {
+                    Some(e) if winding.length_squared() > 0.0 => {
+                        lights.push(Light::Triangle(TriangleLight::new(
+                            v,
+                            Vec3A::from(e.radiance),
+                            e.two_sided,
+                        )));
+                        emissive_triangles += 1;
+                        lights.len() as u32 - 1
+                    }
+                    _ => NO_LIGHT,
+                };
+                triangle_light.push(light);
+            }
+            meshes.push(MeshRuntime {
+                material: m.material,
+                first_triangle,
+                normals: normals.map(|n| (n, indices)),
+            });
+        }
+
+        let mut sphere_geometry = Vec::with_capacity(desc.spheres.len());
+        let mut spheres = Vec::with_capacity(desc.spheres.len());
+        for s in &desc.spheres {
+            let center = Vec3A::from(s.center);
+            sphere_geometry.push((center, s.radius));
+            let light = match &s.emission {
+                Some(e) => {
+                    lights.push(Light::Sphere(SphereLight::new(
+                        center,
+                        s.radius,
+                        Vec3A::from(e.radiance),
+                        e.two_sided,
+                    )));
+                    lights.len() as u32 - 1
+                }
+                None => NO_LIGHT,
+            };
+            spheres.push(SphereRuntime {
+                material: s.material,
+                light,
+            });
+        }
+
+        let (mut lo, mut hi) = (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY));
+        for v in triangles.iter().flatten() {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
+        }
+        for &(c, r) in &sphere_geometry {
+            lo = lo.min(c - Vec3A::splat(r));
+            hi = hi.max(c + Vec3A::splat(r));
+        }
+        let (center, radius) = if lo.x <= hi.x {
+            (0.5 * (lo + hi), 0.5 * (hi - lo).length())
+        } else {
+            (Vec3A::ZERO, 1.0)
+        };
+
+        for l in &desc.lights {
+            lights.push(match l {
+                LightDesc::Point {
+                    position,
+                    intensity,
+                } => Light::Point(PointLight::new((*position).into(), (*intensity).into())),
+                LightDesc::Spot {
+                    position,
+                    direction,
+                    intensity,
+                    cos_falloff_start,
+                    cos_cone,
+                } => Light::Spot(SpotLight::new(
+                    (*position).into(),
+                    (*direction).into(),
+                    (*intensity).into(),
+                    *cos_falloff_start,
+                    *cos_cone,
+                )),
+                LightDesc::Directional {
+                    direction,
+                    irradiance,
+                } => Light::Directional(DirectionalLight::new(
+                    (*direction).into(),
+                    (*irradiance).into(),
+                )),
+                LightDesc::Environment {
+                    image,
+                    scale,
+                    to_world,
+                } => Light::Environment(EnvironmentLight::new(
+                    image.as_ref(),
+                    (*scale).into(),
+                    Mat3A::from(*to_world),
+                )),
+            });
+        }
+
+        let stats = SceneStats {
+            triangles: triangles.len(),
+            spheres: spheres.len(),
+            lights: lights.len(),
+            emissive_triangles,
+        };
+        let materials = desc
+            .materials
+            .iter()
+            .map(|m| {
+                let bsdf = bsdf::from_desc(&m.kind);
+                Material {
+                    flags: bsdf.flags(),
+                    bsdf,
+                }
+            })
+            .collect();
+        Scene {
+            accel: Accel::build(&triangles, &sphere_geometry),
+            meshes,
+            triangle_mesh,
+            triangle_light,
+            spheres,
+            materials,
+            lights: LightSet::new(lights, radius),
+            camera: Camera::new(&desc.camera, &desc.film),
+            filter: Filter::new(desc.film.filter),
+            film: desc.film,
+            integrator: desc.integrator,
+            center,
+            radius,
+            stats,
+        }
+    }
+
+    #[inline]
+    pub fn material(&self, i: u32) -> &Material {
+        &self.materials[i as usize]
+    }
+
+    /// The closest surface along `ray`.
+    pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
+        let hit = self.accel.intersect(ray, f32::INFINITY)?;
+        let (ns, material, light) = match hit.prim {
+            Prim::Triangle { id, b } => {
+                let mesh = &self.meshes[self.triangle_mesh[id as usize] as usize];
+                let ns = match &mesh.normals {
+                    Some((normals, indices)) => {
+                        let [i0, i1, i2] = indices[(id - mesh.first_triangle) as usize];
+                        let n = normals[i0 as usize] * b[0]
+                            + normals[i1 as usize] * b[1]
+                            + normals[i2 as usize] * b[2];
+                        // Zero or opposing normals (bad input) fall back to flat shading.
+                        let n = n.normalize_or_zero();
+                        if n.dot(hit.n) > 0.0 { n } else { hit.n }
+                    }
+                    None => hit.n,
+                };
+                (ns, mesh.material, self.triangle_light[id as usize])
+            }
+            Prim::Sphere { id } => {
+                let s = &self.spheres[id as usize];
+                (hit.n, s.material, s.light)
+            }
+        };
+        Some(SurfaceInteraction {
+            p: hit.p,
+            p_error: hit.p_error,
+            t: hit.t,
+            ng: hit.n,
+            ns,
+            material,
+            light,
+        })
+    }
+
+    /// Whether nothing blocks the light sample `ls` as seen from `si`.
+    pub fn unoccluded(&self, si: &SurfaceInteraction, ls: &LightSample) -> bool {
+        let o = offset_ray_origin(si.p, si.p_error, si.ng, ls.wi);
+        match ls.target {
+            ShadowTarget::Infinite => !self.accel.occluded(&Ray::new(o, ls.wi), f32::INFINITY),
+            ShadowTarget::Point { p, p_error, n } => {
+                let target = if n == Vec3A::ZERO {
+                    p
+                } else {
+                    offset_ray_origin(p, p_error, n, o - p)
+                };
+                let d = target - o;
+                let dist = d.length();
+                dist == 0.0
+                    || !self
+                        .accel
+                        .occluded(&Ray::new(o, d / dist), dist * (1.0 - SHADOW_EPSILON))
+            }
+        }
+    }
+}

@@ -1,0 +1,175 @@
+//! `tessera render`: one machine, all its cores.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use tessera_render::output::{ExrMetadata, write_exr, write_png};
+use tessera_render::{SampleRange, Scene, integrator, render};
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    /// The scene file (scene.json); meshes and images it names are read from its folder.
+    pub scene: PathBuf,
+    /// Output OpenEXR file; a PNG preview is written beside it. Default: <scene folder>.exr.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Samples per pixel (overrides the scene's integrator.spp).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Tile size in pixels; it does not change the image, only the work units.
+    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub tile: u32,
+    /// Random seed (overrides the scene's integrator.seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// Largest sample count per pixel (the film's fixed-point sums are sized for 2^24).
+const MAX_SPP: u32 = 1 << 24;
+
+pub fn run(args: RenderArgs) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let mut desc = tessera_scene::load(&args.scene)?;
+    if let Some(spp) = args.spp {
+        anyhow::ensure!(
+            (1..=MAX_SPP).contains(&spp),
+            "--spp: expected 1 to {MAX_SPP} samples per pixel, got {spp}"
+        );
+        desc.integrator.spp = spp;
+    }
+    if let Some(seed) = args.seed {
+        desc.integrator.seed = seed;
+    }
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| default_output(&args.scene));
+
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    anyhow::ensure!(threads >= 1, "--threads: expected at least 1");
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("cannot start worker threads")?;
+
+    let load_time = start.elapsed();
+    let built = Instant::now();
+    let scene = pool.install(|| Scene::build(&desc));
+    let build_time = built.elapsed();
+    tracing::info!(
+        scene = %desc.name,
+        triangles = scene.stats.triangles,
+        spheres = scene.stats.spheres,
+        lights = scene.stats.lights,
+        load_s = load_time.as_secs_f64(),
+        build_s = build_time.as_secs_f64(),
+        "scene ready"
+    );
+    let integrator = integrator::from_desc(&desc.integrator);
+    let (w, h, spp) = (desc.film.width, desc.film.height, desc.integrator.spp);
+
+    let progress = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(w as u64 * h as u64)
+    };
+    progress.set_style(
+        ProgressStyle::with_template(
+            "{spinner} {wide_bar} {percent:>3}% {elapsed_precise} eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let rendering = Instant::now();
+    let cpu_start = cpu_seconds();
+    let (image, stats) = pool.install(|| {
+        render::render_frame(
+            &scene,
+            integrator.as_ref(),
+            args.tile,
+            SampleRange { start: 0, end: spp },
+            &|tile| progress.inc(tile.pixel_count() as u64),
+        )
+    });
+    let render_s = rendering.elapsed().as_secs_f64();
+    let cpu_s = cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
+    progress.finish_and_clear();
+
+    let metadata = ExrMetadata {
+        entries: vec![
+            ("scene".into(), desc.name.clone()),
+            (
+                "integrator".into(),
+                format!("{:?}", desc.integrator.kind).to_lowercase(),
+            ),
+            ("spp".into(), spp.to_string()),
+            ("seed".into(), desc.integrator.seed.to_string()),
+            (
+                "sampler".into(),
+                format!("{:?}", desc.integrator.sampler).to_lowercase(),
+            ),
+            ("max_depth".into(), desc.integrator.max_depth.to_string()),
+            (
+                "nonfinite_samples_dropped".into(),
+                stats.nonfinite.to_string(),
+            ),
+        ],
+    };
+    write_exr(&output, &image, &metadata)?;
+    let preview = output.with_extension("png");
+    write_png(&preview, &image)?;
+
+    let mut report = format!("{}: {w}×{h}, {spp} spp, {threads} threads\n", desc.name);
+    report += &format!(
+        "render {render_s:.2} s wall{}; {:.3} M samples/s, {:.2} M rays/s\n",
+        cpu_s.map(|c| format!(", {c:.2} s CPU")).unwrap_or_default(),
+        stats.samples as f64 / render_s / 1e6,
+        stats.rays as f64 / render_s / 1e6,
+    );
+    report += &format!(
+        "setup {:.2} s (load {:.2} s, BVH and lights {:.2} s)\n",
+        (load_time + build_time).as_secs_f64(),
+        load_time.as_secs_f64(),
+        build_time.as_secs_f64()
+    );
+    if stats.nonfinite > 0 {
+        report += &format!(
+            "dropped {} non-finite samples (NaN/Inf) before the film\n",
+            stats.nonfinite
+        );
+    }
+    report += &format!("wrote {} and {}\n", output.display(), preview.display());
+    crate::print(&report)
+}
+
+fn default_output(scene: &Path) -> PathBuf {
+    let name = scene
+        .canonicalize()
+        .ok()
+        .and_then(|p| {
+            p.parent()
+                .and_then(|d| d.file_name())
+                .map(|n| n.to_os_string())
+        })
+        .unwrap_or_else(|| "render".into());
+    PathBuf::from(name).with_extension("exr")
+}
+
+/// CPU time of this process (user + system), where the platform tells it.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which is in parentheses and may contain spaces).
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}

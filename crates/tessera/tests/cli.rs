@@ -1,0 +1,236 @@
+//! The `tessera` binary as a user runs it: renders write their files, bad input exits with a
+//! message naming file, field and expectation (and never panics), images are independent of
+//! threads and tiles, and the Cornell box agrees with the Mitsuba reference.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn tessera(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tessera"))
+        .args(args)
+        .output()
+        .expect("run tessera")
+}
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn cornell() -> String {
+    repo()
+        .join("scenes/cornell-box/scene.json")
+        .display()
+        .to_string()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn render_writes_exr_and_png_and_reports_throughput() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("cb.exr");
+    let o = tessera(&[
+        "render",
+        &cornell(),
+        "--spp",
+        "1",
+        "-o",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("M samples/s") && stdout.contains("M rays/s") && stdout.contains(" s wall"),
+        "{stdout}"
+    );
+    let img = tessera_render::read_exr(&out).expect("readable EXR");
+    assert_eq!((img.width, img.height), (256, 256));
+    assert!(dir.path().join("cb.png").exists());
+}
+
+fn bad_scene(json: &str) -> (i32, String) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("scene.json");
+    std::fs::write(&path, json).expect("write");
+    let o = tessera(&[
+        "render",
+        path.to_str().unwrap(),
+        "-o",
+        dir.path().join("x.exr").to_str().unwrap(),
+        "-q",
+    ]);
+    let err = stderr(&o);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        !dir.path().join("x.exr").exists(),
+        "no image may be written for a bad scene"
+    );
+    (o.status.code().unwrap_or(-1), err)
+}
+
+#[test]
+fn bad_scenes_exit_with_code_2_and_a_message_naming_file_field_and_expectation() {
+    let base = r#"{ "units": "m", "camera": { "type": "pinhole", "position": [0, 0, -3], "look_at": [0, 0, 0], "fov_deg": 40 },
+                   "film": { "width": 8, "height": 8 }, "materials": { "m": { "type": "diffuse", "albedo": 0.5 } },
+                   "shapes": [ SHAPE ] }"#;
+    let cases = [
+        (
+            r#"{ "type": "mesh", "file": "missing.obj", "material": "m" }"#,
+            "shapes[0].file",
+            "cannot read mesh file",
+        ),
+        (
+            r#"{ "type": "sphere", "center": [0, 0, 0], "radius": -1, "material": "m" }"#,
+            "shapes[0].radius",
+            "expected a positive number",
+        ),
+        (
+            r#"{ "type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "steel" }"#,
+            "shapes[0].material",
+            "unknown material \"steel\"",
+        ),
+        (
+            r#"{ "type": "mesh", "file": "../../etc/passwd", "material": "m" }"#,
+            "shapes[0].file",
+            "leaves it",
+        ),
+    ];
+    for (shape, field, expected) in cases {
+        let (code, err) = bad_scene(&base.replace("SHAPE", shape));
+        assert_eq!(code, 2, "{err}");
+        assert!(
+            err.contains("scene.json") && err.contains(field) && err.contains(expected),
+            "{err}"
+        );
+    }
+    let (code, err) = bad_scene(
+        &base
+            .replace("SHAPE", "")
+            .replace(r#""width": 8"#, r#""width": 0"#),
+    );
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("film.width") && err.contains("expected a size"),
+        "{err}"
+    );
+    let (code, err) = bad_scene("{ not json");
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("scene.json") && err.contains("line 1"),
+        "{err}"
+    );
+}
+
+#[test]
+fn missing_scene_file_and_bad_arguments_fail_cleanly() {
+    let o = tessera(&["render", "/nonexistent/scene.json", "-q"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("/nonexistent/scene.json") && stderr(&o).contains("cannot read"),
+        "{}",
+        stderr(&o)
+    );
+    for args in [
+        ["--spp", "0"],
+        ["--spp", "99999999999"],
+        ["--tile", "0"],
+        ["--threads", "x"],
+    ] {
+        let o = tessera(&["render", &cornell(), args[0], args[1], "-q"]);
+        assert!(
+            !o.status.success() && !stderr(&o).contains("panicked"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+    }
+}
+
+#[test]
+fn images_are_bit_identical_for_any_threads_and_tile_size() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut files = Vec::new();
+    for (threads, tile) in [("1", "16"), ("2", "64"), ("2", "16"), ("1", "64")] {
+        let out = dir.path().join(format!("t{threads}-{tile}.exr"));
+        let o = tessera(&[
+            "render",
+            &cornell(),
+            "--spp",
+            "3",
+            "--threads",
+            threads,
+            "--tile",
+            tile,
+            "-o",
+            out.to_str().unwrap(),
+            "-q",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        files.push(std::fs::read(&out).expect("exr"));
+    }
+    assert!(
+        files.windows(2).all(|w| w[0] == w[1]),
+        "EXR files differ between thread counts or tile sizes"
+    );
+}
+
+#[test]
+fn cornell_box_matches_the_mitsuba_reference_without_bias() {
+    // At 64 spp Mitsuba 3 reaches relMSE 4.77e-3 on this frame; the bar for 1024 spp is 1.25×
+    // Mitsuba's figure, so the same factor at 64 spp. The mean must agree within 0.5 % (the
+    // issue asks for 1 %; the mean over 196 608 values at this noise level is good to 0.02 %).
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("cb.exr");
+    let o = tessera(&[
+        "render",
+        &cornell(),
+        "--spp",
+        "64",
+        "-o",
+        out.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = tessera_render::read_exr(&out).expect("render");
+    let reference = tessera_render::read_exr(&repo().join("scenes/cornell-box/reference.exr"))
+        .expect("reference");
+    let a = |v: &[glam::Vec3]| v.iter().map(|&p| p.into()).collect::<Vec<glam::Vec3A>>();
+    let e = tessera_render::metrics::compare(&a(&img.pixels), &a(&reference.pixels));
+    assert!(e.rel_mse <= 1.25 * 4.77e-3, "relMSE {:.3e}", e.rel_mse);
+    assert!(
+        (e.mean_ratio - 1.0).abs() < 0.005,
+        "mean ratio {}",
+        e.mean_ratio
+    );
+    assert!(img.pixels.iter().all(|p| p.is_finite()));
+}
+
+#[test]
+fn compare_reports_errors_and_refuses_mismatched_sizes() {
+    let reference = repo().join("scenes/cornell-box/reference.exr");
+    let o = tessera(&[
+        "compare",
+        reference.to_str().unwrap(),
+        reference.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("relMSE 0.0000e0"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let sky = repo().join("scenes/material-spheres/sky.exr");
+    let o = tessera(&[
+        "compare",
+        sky.to_str().unwrap(),
+        reference.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("differs from the reference"),
+        "{}",
+        stderr(&o)
+    );
+}
