@@ -44,6 +44,11 @@ impl Camera {
         }
     }
 
+    /// Whether rays depend on a lens sample (a pinhole camera needs none).
+    pub fn has_aperture(&self) -> bool {
+        matches!(self.lens, Lens::Thin { aperture_radius, .. } if aperture_radius > 0.0)
+    }
+
     /// The ray through raster position `film`, using `u_lens` for the aperture.
     #[inline]
     pub fn generate_ray(&self, film: Vec2, u_lens: Vec2) -> Ray {

@@ -22,12 +22,14 @@ pub fn render_tile(
     let mut stats = RayStats::default();
     let mut sampler = PixelSampler::new(scene.integrator.sampler, scene.integrator.seed);
     let exposure = scene.camera.exposure;
+    let lens = scene.camera.has_aperture();
     for (pixel, acc) in tile.pixels().zip(sums.pixels.iter_mut()) {
         for index in range.start..range.end {
             sampler.start_pixel_sample(pixel, index);
             let (offset, w) = scene.filter.sample(sampler.get_2d());
             let film = pixel.as_vec2() + Vec2::splat(0.5) + offset;
-            let ray = scene.camera.generate_ray(film, sampler.get_2d());
+            let u_lens = if lens { sampler.get_2d() } else { Vec2::ZERO };
+            let ray = scene.camera.generate_ray(film, u_lens);
             let out = integrator.li(scene, ray, &mut sampler, &mut stats);
             stats.samples += 1;
             let l = out.l * exposure;

@@ -12,40 +12,51 @@
 //! 10⁹ times tighter. Without that, a ray leaving a surface next to a corner passes through
 //! the neighbouring face.
 
-use glam::{DVec3, Vec3A, Vec3Swizzles};
+use glam::{DVec3, Vec3A, Vec3Swizzles, Vec4};
 
 use crate::math::gamma;
 
-/// A triangle stored as structure-of-arrays: lane i of `x`, `y`, `z` holds vertex i. The
-/// intersection test then transforms all three vertices at once and computes the three edge
-/// functions in one multiply–subtract on rotated lanes.
+/// Four triangles stored as structure-of-arrays: `v[i][axis]` holds coordinate `axis` of
+/// vertex i of each triangle, one per lane. The test transforms all twelve vertices and
+/// computes all twelve edge functions with a few SIMD operations. Unused lanes are NaN, which
+/// fails every comparison and so never hits.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Triangle {
-    pub x: Vec3A,
-    pub y: Vec3A,
-    pub z: Vec3A,
+#[repr(C, align(16))]
+pub struct Triangle4 {
+    v: [[Vec4; 3]; 3],
 }
 
-impl Triangle {
-    pub fn new(v: [Vec3A; 3]) -> Self {
-        Triangle {
-            x: Vec3A::new(v[0].x, v[1].x, v[2].x),
-            y: Vec3A::new(v[0].y, v[1].y, v[2].y),
-            z: Vec3A::new(v[0].z, v[1].z, v[2].z),
+impl Triangle4 {
+    /// Packs one to four triangles.
+    pub fn new(tris: &[[Vec3A; 3]]) -> Self {
+        assert!(
+            (1..=4).contains(&tris.len()),
+            "a block holds one to four triangles"
+        );
+        let mut v = [[Vec4::NAN; 3]; 3];
+        for (lane, t) in tris.iter().enumerate() {
+            for (i, vertex) in t.iter().enumerate() {
+                for axis in 0..3 {
+                    v[i][axis][lane] = vertex[axis];
+                }
+            }
         }
+        Triangle4 { v }
     }
 
-    pub fn vertices(&self) -> [Vec3A; 3] {
-        [0, 1, 2].map(|i| Vec3A::new(self.x[i], self.y[i], self.z[i]))
+    /// The vertices of the triangle in `lane`.
+    pub fn triangle(&self, lane: usize) -> [Vec3A; 3] {
+        [0, 1, 2].map(|i| Vec3A::new(self.v[i][0][lane], self.v[i][1][lane], self.v[i][2][lane]))
     }
 
-    /// The lanes in permuted order: axis `KZ` last, cyclic order kept.
+    /// The three coordinate arrays of vertex i in permuted order: axis `KZ` last.
     #[inline(always)]
-    fn permuted<const KZ: usize>(&self) -> (Vec3A, Vec3A, Vec3A) {
+    fn permuted<const KZ: usize>(&self, i: usize) -> (Vec4, Vec4, Vec4) {
+        let [x, y, z] = self.v[i];
         match KZ {
-            0 => (self.y, self.z, self.x),
-            1 => (self.z, self.x, self.y),
-            _ => (self.x, self.y, self.z),
+            0 => (y, z, x),
+            1 => (z, x, y),
+            _ => (x, y, z),
         }
     }
 }
@@ -88,10 +99,11 @@ impl<const KZ: usize> TriangleRay<KZ> {
     #[inline]
     pub fn new(o: Vec3A, d: Vec3A) -> Self {
         let (o, d) = (permute::<KZ>(o), permute::<KZ>(d));
+        let inv_z = 1.0 / d.z;
         TriangleRay {
             o,
             d,
-            shear: Vec3A::new(-d.x / d.z, -d.y / d.z, 1.0 / d.z),
+            shear: Vec3A::new(-d.x * inv_z, -d.y * inv_z, inv_z),
         }
     }
 }
@@ -103,76 +115,118 @@ pub struct TriangleHit {
     pub b: [f32; 3],
 }
 
-/// Intersects the ray with `tri` for 0 < t < `t_max`. Both faces are hit; degenerate
-/// (zero-area) triangles never are.
-#[inline]
-pub fn intersect<const KZ: usize>(
+/// Intersects the ray with the four triangles of `block` for 0 < t < `t_max`: the nearest
+/// hit's lane and its distance and barycentrics. Both faces are hit; degenerate (zero-area)
+/// triangles never are.
+#[inline(always)]
+pub fn intersect4<const KZ: usize>(
     ray: &TriangleRay<KZ>,
-    tri: &Triangle,
+    block: &Triangle4,
     t_max: f32,
-) -> Option<TriangleHit> {
-    let (vx, vy, vz) = tri.permuted::<KZ>();
-    // Translate to the origin and shear: lanes are the three transformed vertices.
-    let qz = vz - Vec3A::splat(ray.o.z);
-    let px = (vx - Vec3A::splat(ray.o.x)) + Vec3A::splat(ray.shear.x) * qz;
-    let py = (vy - Vec3A::splat(ray.o.y)) + Vec3A::splat(ray.shear.y) * qz;
-    // Edge functions e_i = p_{i+1}.x p_{i+2}.y − p_{i+1}.y p_{i+2}.x, all three at once.
-    let mut e = px.yzx() * py.zxy() - py.yzx() * px.zxy();
-    if e.cmpeq(Vec3A::ZERO).any() {
-        let v = |i: usize| (px[i] as f64, py[i] as f64);
-        let dop = |a: (f64, f64), b: (f64, f64)| (a.0 * b.1 - a.1 * b.0) as f32;
-        e = Vec3A::new(dop(v(1), v(2)), dop(v(2), v(0)), dop(v(0), v(1)));
+) -> Option<(usize, TriangleHit)> {
+    let (ox, oy, oz) = (
+        Vec4::splat(ray.o.x),
+        Vec4::splat(ray.o.y),
+        Vec4::splat(ray.o.z),
+    );
+    let (sx, sy, sz) = (
+        Vec4::splat(ray.shear.x),
+        Vec4::splat(ray.shear.y),
+        Vec4::splat(ray.shear.z),
+    );
+    // Translate to the origin and shear: vertex i of the four triangles.
+    let transform = |i: usize| {
+        let (x, y, z) = block.permuted::<KZ>(i);
+        let qz = z - oz;
+        ((x - ox) + sx * qz, (y - oy) + sy * qz, qz * sz)
+    };
+    let (x0, y0, z0) = transform(0);
+    let (x1, y1, z1) = transform(1);
+    let (x2, y2, z2) = transform(2);
+    let mut e0 = x1 * y2 - y1 * x2;
+    let mut e1 = x2 * y0 - y2 * x0;
+    let mut e2 = x0 * y1 - y0 * x1;
+    let zero = e0.cmpeq(Vec4::ZERO) | e1.cmpeq(Vec4::ZERO) | e2.cmpeq(Vec4::ZERO);
+    if zero.any() {
+        // Edge functions that rounded to zero are recomputed in f64, lane by lane.
+        let mut m = zero.bitmask();
+        while m != 0 {
+            let lane = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let p = |x: Vec4, y: Vec4| (x[lane] as f64, y[lane] as f64);
+            let dop = |a: (f64, f64), b: (f64, f64)| (a.0 * b.1 - a.1 * b.0) as f32;
+            let (p0, p1, p2) = (p(x0, y0), p(x1, y1), p(x2, y2));
+            e0[lane] = dop(p1, p2);
+            e1[lane] = dop(p2, p0);
+            e2[lane] = dop(p0, p1);
+        }
     }
-    if e.cmplt(Vec3A::ZERO).any() && e.cmpgt(Vec3A::ZERO).any() {
+    let negative = e0.cmplt(Vec4::ZERO) | e1.cmplt(Vec4::ZERO) | e2.cmplt(Vec4::ZERO);
+    let positive = e0.cmpgt(Vec4::ZERO) | e1.cmpgt(Vec4::ZERO) | e2.cmpgt(Vec4::ZERO);
+    let det = e0 + e1 + e2;
+    let t_scaled = e0 * z0 + e1 * z1 + e2 * z2;
+    // Compare t·|det| with 0 and t_max·|det| without dividing: flip signs where det < 0.
+    let sign = Vec4::select(det.cmplt(Vec4::ZERO), Vec4::NEG_ONE, Vec4::ONE);
+    let (t_signed, det_abs) = (t_scaled * sign, det.abs());
+    let inside = !(negative & positive);
+    let valid = inside
+        & det.cmpne(Vec4::ZERO)
+        & t_signed.cmpgt(Vec4::ZERO)
+        & t_signed.cmplt(Vec4::splat(t_max) * det_abs);
+    if !valid.any() {
         return None;
     }
-    let det = e.x + e.y + e.z;
-    if det == 0.0 {
-        return None;
-    }
-    let pz = qz * ray.shear.z;
-    let ez = e * pz;
-    let t_scaled = ez.x + ez.y + ez.z;
-    if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
-        return None;
-    }
-    if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
-        return None;
-    }
-    let inv_det = 1.0 / det;
-    let t = t_scaled * inv_det;
+    let t = t_scaled / det;
 
-    // Reject hits whose t is not certainly positive given the rounding above (pbrt-v3 §3.9.2).
-    let max_zt = pz.abs().max_element();
-    let max_xt = px.abs().max_element();
-    let max_yt = py.abs().max_element();
+    // Reject hits whose t is not certainly positive given the rounding above (pbrt-v3 §3.9.2);
+    // where f32 cannot decide, the distance is recomputed in f64.
+    let max3 = |a: Vec4, b: Vec4, c: Vec4| a.abs().max(b.abs()).max(c.abs());
+    let (max_xt, max_yt, max_zt) = (max3(x0, x1, x2), max3(y0, y1, y2), max3(z0, z1, z2));
     let delta_z = gamma(3) * max_zt;
     let delta_x = gamma(5) * (max_xt + max_zt);
     let delta_y = gamma(5) * (max_yt + max_zt);
     let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
-    let max_e = e.abs().max_element();
-    let delta_t =
-        3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
-    let t = if t > delta_t {
-        t
-    } else {
-        distance_f64(ray, tri)?
-    };
-    let b = e * inv_det;
-    Some(TriangleHit {
-        t,
-        b: [b.x, b.y, b.z],
-    })
+    let max_e = max3(e0, e1, e2);
+    let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) / det_abs;
+
+    let (t, delta_t) = (t.to_array(), delta_t.to_array());
+    let mut best: Option<(usize, f32)> = None;
+    let mut m = valid.bitmask();
+    while m != 0 {
+        let lane = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let t_lane = if t[lane] > delta_t[lane] {
+            t[lane]
+        } else {
+            match distance_f64(ray, &block.triangle(lane)) {
+                Some(t) => t,
+                None => continue,
+            }
+        };
+        if best.is_none_or(|(_, b)| t_lane < b) {
+            best = Some((lane, t_lane));
+        }
+    }
+    let (lane, t) = best?;
+    let (e0, e1, e2, det) = (e0.to_array(), e1.to_array(), e2.to_array(), det.to_array());
+    let inv_det = 1.0 / det[lane];
+    Some((
+        lane,
+        TriangleHit {
+            t,
+            b: [e0[lane] * inv_det, e1[lane] * inv_det, e2[lane] * inv_det],
+        },
+    ))
 }
 
 /// The same transform, edge functions and distance in f64, with the same error bound in f64
 /// unit roundoff: the distance, if the hit is certainly in front of the origin.
 #[cold]
-fn distance_f64<const KZ: usize>(ray: &TriangleRay<KZ>, tri: &Triangle) -> Option<f32> {
+fn distance_f64<const KZ: usize>(ray: &TriangleRay<KZ>, tri: &[Vec3A; 3]) -> Option<f32> {
     let g = |n: f64| n * f64::EPSILON * 0.5 / (1.0 - n * f64::EPSILON * 0.5);
     let d = ray.d.as_dvec3();
     let (sx, sy, sz) = (-d.x / d.z, -d.y / d.z, 1.0 / d.z);
-    let p = tri.vertices().map(|v| {
+    let p = tri.map(|v| {
         let q = permute::<KZ>(v).as_dvec3() - ray.o.as_dvec3();
         DVec3::new(q.x + sx * q.z, q.y + sy * q.z, q.z * sz)
     });
@@ -207,21 +261,23 @@ fn distance_f64<const KZ: usize>(ray: &TriangleRay<KZ>, tri: &Triangle) -> Optio
 #[inline]
 pub fn point_off_edges(v: &[Vec3A; 3], b: [f32; 3]) -> (Vec3A, Vec3A) {
     let (p, err) = point_and_error(v, b);
-    let twice_area = (v[1] - v[0]).cross(v[2] - v[0]).length();
-    let margin = 2.0 * err.length();
-    // Distance to the edge opposite vertex i is b_i · 2A / |edge_i|.
-    let edge_len2 = [
+    // Distance to the edge opposite vertex i is b_i · 2A / |edge_i|; compare squares, so the
+    // common case (far from every edge) needs no square root.
+    let twice_area2 = (v[1] - v[0]).cross(v[2] - v[0]).length_squared();
+    let margin2 = 4.0 * err.length_squared();
+    let edge2 = [
         (v[2] - v[1]).length_squared(),
         (v[0] - v[2]).length_squared(),
         (v[1] - v[0]).length_squared(),
     ];
-    let near = |i: usize| b[i] * twice_area < margin * edge_len2[i].sqrt();
-    if !(near(0) || near(1) || near(2)) || twice_area == 0.0 {
+    let near = |i: usize| b[i] * b[i] * twice_area2 < margin2 * edge2[i];
+    if twice_area2 == 0.0 || !(near(0) || near(1) || near(2)) {
         return (p, err);
     }
+    let (twice_area, margin) = (twice_area2.sqrt(), margin2.sqrt());
     let mut b2 = b;
     for (i, bi) in b2.iter_mut().enumerate() {
-        let min = (margin * edge_len2[i].sqrt() / twice_area).min(1.0 / 3.0);
+        let min = (margin * edge2[i].sqrt() / twice_area).min(1.0 / 3.0);
         *bi = bi.max(min);
     }
     let sum = b2[0] + b2[1] + b2[2];
@@ -241,12 +297,36 @@ mod tests {
     use super::*;
 
     fn hit(o: Vec3A, d: Vec3A, v: &[Vec3A; 3]) -> Option<TriangleHit> {
-        let v = &Triangle::new(*v);
-        match dominant_axis(d) {
-            0 => intersect(&TriangleRay::<0>::new(o, d), v, f32::INFINITY),
-            1 => intersect(&TriangleRay::<1>::new(o, d), v, f32::INFINITY),
-            _ => intersect(&TriangleRay::<2>::new(o, d), v, f32::INFINITY),
-        }
+        let block = Triangle4::new(&[*v]);
+        let h = match dominant_axis(d) {
+            0 => intersect4(&TriangleRay::<0>::new(o, d), &block, f32::INFINITY),
+            1 => intersect4(&TriangleRay::<1>::new(o, d), &block, f32::INFINITY),
+            _ => intersect4(&TriangleRay::<2>::new(o, d), &block, f32::INFINITY),
+        };
+        h.map(|(lane, h)| {
+            assert_eq!(lane, 0);
+            h
+        })
+    }
+
+    #[test]
+    fn a_block_reports_its_nearest_lane() {
+        let tri = |z: f32| {
+            [
+                Vec3A::new(-1.0, -1.0, z),
+                Vec3A::new(1.0, -1.0, z),
+                Vec3A::new(0.0, 1.0, z),
+            ]
+        };
+        let block = Triangle4::new(&[tri(5.0), tri(2.0), tri(-1.0), tri(3.0)]);
+        let ray = TriangleRay::<2>::new(Vec3A::ZERO, Vec3A::Z);
+        let (lane, h) = intersect4(&ray, &block, f32::INFINITY).unwrap();
+        assert_eq!((lane, h.t), (1, 2.0));
+        assert!(intersect4(&ray, &block, 1.5).is_none());
+        // Unused lanes (NaN) never hit.
+        let partial = Triangle4::new(&[tri(4.0)]);
+        assert_eq!(intersect4(&ray, &partial, f32::INFINITY).unwrap().0, 0);
+        assert_eq!(partial.triangle(0), tri(4.0));
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! Path tracing with next-event estimation and MIS (Veach's thesis ch. 9; pbrt-v4 §13.4).
 
-use glam::Vec3A;
+use glam::{Vec2, Vec3A};
 
 use super::{Integrator, RadianceSample, RayStats};
 use crate::bsdf::TransportMode;
@@ -126,10 +126,9 @@ impl Integrator for PathIntegrator {
 
             // Next-event estimation: one light chosen by power, one point on it.
             if material.flags.smooth {
-                let u_light = sampler.get_1d();
-                let u = sampler.get_2d();
-                if let Some((li, pmf)) = scene.lights.choose(u_light)
-                    && let Some(ls) = scene.lights.get(li).sample_li(si.p, u)
+                let u = sampler.get_3d();
+                if let Some((li, pmf)) = scene.lights.choose(u.x)
+                    && let Some(ls) = scene.lights.get(li).sample_li(si.p, Vec2::new(u.y, u.z))
                 {
                     let wi_local = frame.to_local(ls.wi);
                     let f = material.bsdf.eval(wo_local, wi_local, mode) * wi_local.z.abs();
@@ -151,10 +150,12 @@ impl Integrator for PathIntegrator {
                 }
             }
 
-            // Continue the path by sampling the BSDF.
-            let u_lobe = sampler.get_1d();
-            let u = sampler.get_2d();
-            let Some(bs) = material.bsdf.sample(wo_local, u_lobe, u, mode) else {
+            // Continue the path by sampling the BSDF; the fourth value decides Russian roulette.
+            let u = sampler.get_4d();
+            let Some(bs) = material
+                .bsdf
+                .sample(wo_local, u.x, Vec2::new(u.y, u.z), mode)
+            else {
                 break;
             };
             let wi = frame.to_world(bs.wi);
@@ -180,7 +181,7 @@ impl Integrator for PathIntegrator {
             if depth >= self.rr_depth {
                 let survive = (beta * eta_scale).max_element();
                 if survive < 1.0 {
-                    if sampler.get_1d() >= survive {
+                    if u.w >= survive {
                         break;
                     }
                     beta /= survive;

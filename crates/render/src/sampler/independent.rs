@@ -1,6 +1,6 @@
 //! Independent uniform random numbers, each a hash of (seed, pixel, sample index, dimension).
 
-use glam::{UVec2, Vec2};
+use glam::{UVec2, Vec2, Vec3A, Vec4};
 
 use super::Sampler;
 use super::hash::{hash, mix64, u32_to_unit};
@@ -44,6 +44,18 @@ impl Sampler for IndependentSampler {
     fn get_2d(&mut self) -> Vec2 {
         let v = self.next();
         Vec2::new(u32_to_unit(v as u32), u32_to_unit((v >> 32) as u32))
+    }
+
+    #[inline]
+    fn get_3d(&mut self) -> Vec3A {
+        let (a, b) = (self.get_2d(), self.get_1d());
+        Vec3A::new(a.x, a.y, b)
+    }
+
+    #[inline]
+    fn get_4d(&mut self) -> Vec4 {
+        let (a, b) = (self.get_2d(), self.get_2d());
+        Vec4::new(a.x, a.y, b.x, b.y)
     }
 }
 

@@ -5,7 +5,7 @@ pub mod hash;
 mod independent;
 mod sobol;
 
-use glam::{UVec2, Vec2};
+use glam::{UVec2, Vec2, Vec3A, Vec4};
 use tessera_scene::SamplerType;
 
 pub use independent::IndependentSampler;
@@ -18,6 +18,10 @@ pub trait Sampler {
     fn start_pixel_sample(&mut self, pixel: UVec2, index: u32);
     fn get_1d(&mut self) -> f32;
     fn get_2d(&mut self) -> Vec2;
+    /// Three or four values of one request (one dimension of the sequence each), cheaper than
+    /// separate requests and stratified together.
+    fn get_3d(&mut self) -> Vec3A;
+    fn get_4d(&mut self) -> Vec4;
 }
 
 /// The samplers a scene may ask for (an enum, so integrators stay object-safe without dynamic
@@ -57,6 +61,20 @@ impl Sampler for PixelSampler {
         match self {
             PixelSampler::Sobol(s) => s.get_2d(),
             PixelSampler::Independent(s) => s.get_2d(),
+        }
+    }
+    #[inline]
+    fn get_3d(&mut self) -> Vec3A {
+        match self {
+            PixelSampler::Sobol(s) => s.get_3d(),
+            PixelSampler::Independent(s) => s.get_3d(),
+        }
+    }
+    #[inline]
+    fn get_4d(&mut self) -> Vec4 {
+        match self {
+            PixelSampler::Sobol(s) => s.get_4d(),
+            PixelSampler::Independent(s) => s.get_4d(),
         }
     }
 }

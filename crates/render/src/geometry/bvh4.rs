@@ -1,0 +1,297 @@
+//! A 4-wide BVH with uncompressed bounds (the layout of Embree's BVH4; Wald et al., "Getting
+//! Rid of Packets", 2008), built from `obvhs`'s binary BVH (PLOC, reinsertion, SAH leaf
+//! collapse): four children's bounds per node, stored axis by axis, tested with one SIMD slab
+//! test. Leaves are ranges of primitive *blocks* whose meaning belongs to the caller (four
+//! triangles, or one sphere).
+//!
+//! Traversal visits the nearest hit child next without pushing it and pushes the others
+//! farthest first; shadow rays skip the ordering. Empty child slots have bounds (+∞, −∞),
+//! which every slab test misses. The slab test's rounding is covered by the primitives'
+//! padded bounds (see `accel`).
+
+use std::mem::MaybeUninit;
+
+use glam::{Vec3A, Vec4};
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::Bvh2;
+
+/// A reference to a child: an inner node, or a leaf (first block and block count).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Ref(u32);
+
+const LEAF: u32 = 1 << 31;
+const COUNT_SHIFT: u32 = 27;
+/// Largest number of blocks in one leaf.
+pub const MAX_LEAF_BLOCKS: u32 = 1 << (31 - COUNT_SHIFT);
+const FIRST_MASK: u32 = (1 << COUNT_SHIFT) - 1;
+
+impl Ref {
+    fn leaf(first: u32, count: u32) -> Ref {
+        assert!(
+            (1..=MAX_LEAF_BLOCKS).contains(&count) && first <= FIRST_MASK,
+            "leaf of {count} blocks at {first}"
+        );
+        Ref(LEAF | ((count - 1) << COUNT_SHIFT) | first)
+    }
+    #[inline(always)]
+    fn is_leaf(self) -> bool {
+        self.0 & LEAF != 0
+    }
+    #[inline(always)]
+    fn blocks(self) -> (u32, u32) {
+        (self.0 & FIRST_MASK, ((self.0 & !LEAF) >> COUNT_SHIFT) + 1)
+    }
+}
+
+/// Four children: `b[axis]` their minima and `b[axis + 3]` their maxima along x, y, z.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+struct Node {
+    b: [Vec4; 6],
+    child: [Ref; 4],
+}
+
+/// Per-ray data for the slab tests.
+#[derive(Debug, Clone, Copy)]
+pub struct BoxRay {
+    o: [Vec4; 3],
+    inv: [Vec4; 3],
+    /// Index into `Node::b` of each axis's near and far plane (by the direction's sign).
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+/// 1/d per component, with a huge finite value for zero components so that (plane − o)·inv
+/// never becomes NaN.
+#[inline]
+pub fn safe_inverse(d: Vec3A) -> Vec3A {
+    let inv = Vec3A::ONE / d;
+    Vec3A::select(d.cmpeq(Vec3A::ZERO), Vec3A::splat(1.0e30).copysign(d), inv)
+}
+
+impl BoxRay {
+    /// `inv` is [`safe_inverse`] of the direction.
+    #[inline]
+    pub fn new(o: Vec3A, inv: Vec3A) -> Self {
+        // A negative direction enters an axis's slab through its maximum (b[axis + 3]).
+        let (nx, ny, nz) = (
+            inv.x.is_sign_negative() as usize,
+            inv.y.is_sign_negative() as usize,
+            inv.z.is_sign_negative() as usize,
+        );
+        BoxRay {
+            o: [Vec4::splat(o.x), Vec4::splat(o.y), Vec4::splat(o.z)],
+            inv: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
+            near: [3 * nx, 1 + 3 * ny, 2 + 3 * nz],
+            far: [3 * (1 - nx), 1 + 3 * (1 - ny), 2 + 3 * (1 - nz)],
+        }
+    }
+
+    /// Entry distances of a node's four children and the mask of those hit within
+    /// [0, t_max].
+    #[inline(always)]
+    fn test(&self, n: &Node, t_max: f32) -> (Vec4, u32) {
+        let t = |plane: usize, axis: usize| (n.b[plane] - self.o[axis]) * self.inv[axis];
+        let near = t(self.near[0], 0)
+            .max(t(self.near[1], 1))
+            .max(t(self.near[2], 2).max(Vec4::ZERO));
+        let far = t(self.far[0], 0)
+            .min(t(self.far[1], 1))
+            .min(t(self.far[2], 2).min(Vec4::splat(t_max)));
+        (near, near.cmple(far).bitmask())
+    }
+}
+
+#[derive(Debug, Clone, Default)]
+pub struct Bvh4 {
+    nodes: Vec<Node>,
+    root: Option<Ref>,
+}
+
+/// What a leaf callback tells the traversal.
+pub enum Visit {
+    Continue,
+    Stop,
+}
+
+impl Bvh4 {
+    /// Collapses a binary BVH into four-wide nodes. `leaf` turns a binary leaf (a range of the
+    /// binary BVH's primitive order) into a range of blocks appended to the caller's storage.
+    pub fn from_bvh2(bvh2: &Bvh2, mut leaf: impl FnMut(u32, u32) -> (u32, u32)) -> Bvh4 {
+        let mut out = Bvh4::default();
+        if !bvh2.nodes.is_empty() {
+            let root = out.convert(bvh2, 0, &mut leaf);
+            out.root = Some(root);
+        }
+        out
+    }
+
+    fn convert(
+        &mut self,
+        bvh2: &Bvh2,
+        i: usize,
+        leaf: &mut impl FnMut(u32, u32) -> (u32, u32),
+    ) -> Ref {
+        let n = &bvh2.nodes[i];
+        if n.prim_count > 0 {
+            let (first, count) = leaf(n.first_index, n.prim_count);
+            return Ref::leaf(first, count);
+        }
+        // Open the largest inner children until there are four.
+        let mut kids = vec![n.first_index as usize, n.first_index as usize + 1];
+        while kids.len() < 4 {
+            let area = |k: usize| bvh2.nodes[k].aabb.half_area();
+            let Some(pos) = (0..kids.len())
+                .filter(|&p| bvh2.nodes[kids[p]].prim_count == 0)
+                .max_by(|&a, &b| area(kids[a]).total_cmp(&area(kids[b])))
+            else {
+                break;
+            };
+            let k = kids.swap_remove(pos);
+            let first = bvh2.nodes[k].first_index as usize;
+            kids.extend([first, first + 1]);
+        }
+        let index = self.nodes.len();
+        let empty = Aabb::empty();
+        self.nodes.push(Node {
+            b: [Vec4::ZERO; 6],
+            child: [Ref(0); 4],
+        });
+        let mut node = self.nodes[index];
+        for slot in 0..4 {
+            let aabb = kids.get(slot).map_or(empty, |&k| bvh2.nodes[k].aabb);
+            for axis in 0..3 {
+                node.b[axis][slot] = aabb.min[axis];
+                node.b[axis + 3][slot] = aabb.max[axis];
+            }
+            if let Some(&k) = kids.get(slot) {
+                node.child[slot] = self.convert(bvh2, k, leaf);
+            }
+        }
+        self.nodes[index] = node;
+        Ref(index as u32)
+    }
+
+    /// Visits the leaves the ray may hit within [0, t_max], nearest first. `leaf` gets a block
+    /// range and may lower `t_max`; it returns [`Visit::Stop`] to end the traversal.
+    #[inline(always)]
+    pub fn closest(
+        &self,
+        ray: &BoxRay,
+        t_max: &mut f32,
+        mut leaf: impl FnMut(u32, u32, &mut f32) -> Visit,
+    ) {
+        let Some(root) = self.root else { return };
+        // Each level pushes at most three entries; 256 covers 85 levels. Left uninitialised:
+        // zeroing it would cost more than a whole traversal of a small scene.
+        let mut stack = [MaybeUninit::<(Ref, f32)>::uninit(); 256];
+        let mut top = 0usize;
+        let mut cur = root;
+        loop {
+            if cur.is_leaf() {
+                let (first, count) = cur.blocks();
+                if let Visit::Stop = leaf(first, count, t_max) {
+                    return;
+                }
+            } else {
+                let node = &self.nodes[cur.0 as usize];
+                let (t, mask) = ray.test(node, *t_max);
+                let t = t.to_array();
+                if mask != 0 {
+                    let a = mask.trailing_zeros() as usize;
+                    let rest = mask & (mask - 1);
+                    if rest == 0 {
+                        cur = node.child[a];
+                        continue;
+                    }
+                    let b = rest.trailing_zeros() as usize;
+                    if rest & (rest - 1) == 0 {
+                        // Two children (the common case): push the farther, visit the nearer.
+                        let (near, far) = if t[a] <= t[b] { (a, b) } else { (b, a) };
+                        stack[top].write((node.child[far], t[far]));
+                        top += 1;
+                        cur = node.child[near];
+                        continue;
+                    }
+                    // Three or four: sort by entry distance, nearest last.
+                    let mut hits = [(0.0f32, Ref(0)); 4];
+                    let mut n = 0;
+                    let mut m = mask;
+                    while m != 0 {
+                        let slot = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        let entry = (t[slot], node.child[slot]);
+                        let mut j = n;
+                        while j > 0 && hits[j - 1].0 < entry.0 {
+                            hits[j] = hits[j - 1];
+                            j -= 1;
+                        }
+                        hits[j] = entry;
+                        n += 1;
+                    }
+                    for &(d, c) in &hits[..n - 1] {
+                        stack[top].write((c, d));
+                        top += 1;
+                    }
+                    cur = hits[n - 1].1;
+                    continue;
+                }
+            }
+            // Pop the next child still in front of the closest hit.
+            loop {
+                if top == 0 {
+                    return;
+                }
+                top -= 1;
+                // SAFETY: entries below `top` were written above.
+                let (c, d) = unsafe { stack[top].assume_init() };
+                if d <= *t_max {
+                    cur = c;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Visits the leaves the ray may hit within [0, t_max], in any order, until `leaf`
+    /// returns true.
+    #[inline(always)]
+    pub fn any(&self, ray: &BoxRay, t_max: f32, mut leaf: impl FnMut(u32, u32) -> bool) -> bool {
+        let Some(root) = self.root else { return false };
+        let mut stack = [MaybeUninit::<Ref>::uninit(); 256];
+        let mut top = 0usize;
+        let mut cur = root;
+        loop {
+            if cur.is_leaf() {
+                let (first, count) = cur.blocks();
+                if leaf(first, count) {
+                    return true;
+                }
+            } else {
+                let node = &self.nodes[cur.0 as usize];
+                let (_, mut mask) = ray.test(node, t_max);
+                if mask != 0 {
+                    let slot = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    cur = node.child[slot];
+                    while mask != 0 {
+                        stack[top].write(node.child[mask.trailing_zeros() as usize]);
+                        top += 1;
+                        mask &= mask - 1;
+                    }
+                    continue;
+                }
+            }
+            if top == 0 {
+                return false;
+            }
+            top -= 1;
+            // SAFETY: entries below `top` were written above.
+            cur = unsafe { stack[top].assume_init() };
+        }
+    }
+
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+}
