@@ -57,7 +57,6 @@ pub fn write_exr(path: &Path, image: &Image, metadata: &ExrMetadata) -> Result<(
     let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, channels);
     Image::from_layer(layer)
         .write()
-        .non_parallel()
         .to_file(path)
         .map_err(|e| RenderError::Output {
             path: path.to_path_buf(),

@@ -314,3 +314,35 @@ fn no_nan_or_inf_reaches_the_film() {
             .all(|v| v.is_finite())
     }));
 }
+
+#[test]
+fn no_shadow_acne_far_from_the_origin_or_at_millimetre_scale_under_grazing_light() {
+    // A plane lit by a sun 80° from the zenith: every pixel is exactly ρ/π · E · cos 80°
+    // (a delta light, no noise); self-shadowing from a poorly offset shadow ray would darken
+    // some. At 10⁵ units from the origin and in a scene 10⁻³ units across.
+    let (s80, c80) = 80f32.to_radians().sin_cos();
+    for (offset, h) in [(1e5f32, 50.0f32), (0.0, 1e-3), (-3e4, 2.0)] {
+        let json = format!(
+            r#"{{ "units": "m",
+            "camera": {{ "type": "pinhole", "position": [{offset}, {y}, {offset}], "look_at": [{offset}, {offset}, {offset}], "up": [0, 0, 1], "fov_deg": 30 }},
+            "film": {{ "width": 32, "height": 32 }},
+            "integrator": {{ "type": "direct", "spp": 4 }},
+            "materials": {{ "paper": {{ "type": "diffuse", "albedo": 0.6 }} }},
+            "shapes": [ {{ "type": "quad", "origin": [{lo}, {offset}, {lo}], "edge_u": [0, 0, {w}], "edge_v": [{w}, 0, 0], "material": "paper" }} ],
+            "lights": [ {{ "type": "directional", "direction": [{s80}, {nc}, 0], "irradiance": 2 }} ] }}"#,
+            y = offset + h,
+            lo = offset - 4.0 * h,
+            w = 8.0 * h,
+            nc = -c80,
+        );
+        let img = render(&load(&json), 4, 2);
+        let expect = 0.6 / std::f32::consts::PI * 2.0 * c80;
+        for p in &img.pixels {
+            assert!(
+                (p.rgb[0] - expect).abs() <= 1e-5 * expect,
+                "acne at offset {offset}, scale {h}: {} vs {expect}",
+                p.rgb[0]
+            );
+        }
+    }
+}
