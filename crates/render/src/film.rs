@@ -68,18 +68,21 @@ impl SampleRange {
     }
 }
 
-/// Fractional bits of first moments and of second moments. Per-sample values are clamped to
-/// ±2³² (a guard, far above any sane radiance), so 2²⁴ samples of (2³²·2⁶⁴) fit in an i128,
+/// Fractional bits of first moments and of second moments. Per-sample first moments are
+/// clamped to ±2³² (`LIMIT`, a guard far above any sane radiance) and squares are taken of
+/// the clamped value, so at most 2⁶⁴ (`LIMIT_SQ`): 2²⁴ samples of (2³²·2⁶⁴) fit in an i128,
 /// as do 2²⁴ squares of (2⁶⁴·2³⁸).
 const FRAC: i32 = 64;
 const FRAC_SQ: i32 = 38;
 const LIMIT: f32 = 4_294_967_296.0;
+const LIMIT_SQ: f32 = LIMIT * LIMIT;
 
-/// v·2^frac as an integer, from the bits of `v`: the 24-bit significand shifted by the
-/// exponent (exact where the result is an integer, truncated toward zero below 2^−frac).
+/// v·2^frac as an integer, from the bits of `v` clamped to ±`limit`: the 24-bit significand
+/// shifted by the exponent (exact where the result is an integer, truncated toward zero below
+/// 2^−frac).
 #[inline]
-fn fixed(v: f32, frac: i32) -> i128 {
-    let v = v.clamp(-LIMIT, LIMIT);
+fn fixed(v: f32, frac: i32, limit: f32) -> i128 {
+    let v = v.clamp(-limit, limit);
     let bits = v.to_bits();
     let exponent = ((bits >> 23) & 0xff) as i32;
     if exponent == 0 {
@@ -134,19 +137,21 @@ impl PixelSums {
     /// Adds a sample of radiance `l` (already finite) with filter weight `w`.
     #[inline]
     pub fn add(&mut self, w: f32, l: Spectrum, hit: Option<&FirstHit>) {
+        let first = |v: f32| fixed(v, FRAC, LIMIT);
         let wl = l * w;
         self.samples += 1;
-        self.w += fixed(w, FRAC);
+        self.w += first(w);
         for c in 0..3 {
-            self.wl[c] += fixed(wl[c], FRAC);
-            self.wl2[c] += fixed(wl[c] * wl[c], FRAC_SQ);
+            let v = wl[c].clamp(-LIMIT, LIMIT);
+            self.wl[c] += first(v);
+            self.wl2[c] += fixed(v * v, FRAC_SQ, LIMIT_SQ);
         }
         if let Some(h) = hit {
-            self.hit_w += fixed(w, FRAC);
-            self.depth += fixed(w * h.depth, FRAC);
+            self.hit_w += first(w);
+            self.depth += first(w * h.depth);
             for c in 0..3 {
-                self.albedo[c] += fixed(w * h.albedo[c], FRAC);
-                self.normal[c] += fixed(w * h.normal[c], FRAC);
+                self.albedo[c] += first(w * h.albedo[c]);
+                self.normal[c] += first(w * h.normal[c]);
             }
         }
     }
@@ -269,10 +274,6 @@ impl Image {
             self.pixels[(p.y * self.width + p.x) as usize] = s.resolve();
         }
     }
-
-    pub fn rgb(&self) -> Vec<Vec3A> {
-        self.pixels.iter().map(|p| Vec3A::from(p.rgb)).collect()
-    }
 }
 
 #[cfg(test)]
@@ -283,13 +284,19 @@ mod tests {
     fn fixed_point_is_exact_for_representable_values() {
         for v in [0.0f32, 1.0, -1.0, 0.375, 3.0e5, -7.25e-3, 1.0e-12, 4.0e9] {
             let expect = (v as f64 * (FRAC as f64).exp2()).trunc();
-            assert_eq!(fixed(v, FRAC) as f64, expect, "{v}");
-            assert!(
-                (unfixed(fixed(v, FRAC), FRAC) - v as f64).abs() <= 1e-18 + 1e-7 * v.abs() as f64
-            );
+            assert_eq!(fixed(v, FRAC, LIMIT) as f64, expect, "{v}");
+            let back = unfixed(fixed(v, FRAC, LIMIT), FRAC);
+            assert!((back - v as f64).abs() <= 1e-18 + 1e-7 * v.abs() as f64);
         }
-        assert_eq!(fixed(f32::INFINITY, FRAC), fixed(LIMIT, FRAC));
-        assert_eq!(fixed(1.0e-30, FRAC_SQ), 0);
+        assert_eq!(fixed(f32::INFINITY, FRAC, LIMIT), fixed(LIMIT, FRAC, LIMIT));
+        assert_eq!(fixed(1.0e-30, FRAC_SQ, LIMIT_SQ), 0);
+        // Squares keep their own, larger range: 1e15 is not cut to 2³².
+        let sq = unfixed(fixed(1.0e15, FRAC_SQ, LIMIT_SQ), FRAC_SQ);
+        assert!((sq / 1.0e15 - 1.0).abs() < 1e-7, "{sq}");
+        // The worst case fits: 2²⁴ samples at the limits do not overflow an i128.
+        let top = fixed(LIMIT_SQ, FRAC_SQ, LIMIT_SQ);
+        assert!(top.checked_mul(1 << 24).is_some());
+        assert!(fixed(LIMIT, FRAC, LIMIT).checked_mul(1 << 24).is_some());
     }
 
     #[test]

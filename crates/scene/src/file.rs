@@ -515,6 +515,10 @@ pub struct MirrorMaterial {
     pub reflectance: Option<Color>,
 }
 
+// The lights repeat their brightness fields (`power`, `color`, `temperature_k`, ...) rather
+// than sharing a struct: serde cannot combine `flatten` with `deny_unknown_fields`, and
+// rejecting misspelt fields matters more.
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PointLight {

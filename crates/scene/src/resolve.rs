@@ -679,26 +679,31 @@ impl Ctx<'_> {
                     let Some(s) = self.body::<MeshShape>(&path, t) else {
                         continue;
                     };
-                    let m = parent * self.transform(&path, &s.transform);
-                    let material = self.material_ref(&path, &s.material, env);
+                    let surface = self.surface(
+                        &path,
+                        parent,
+                        &s.transform,
+                        &s.material,
+                        s.emission.as_ref(),
+                        env,
+                    );
                     let Some(raw) = self.mesh_file(&format!("{path}.file"), &s.file) else {
                         continue;
                     };
-                    let normals = if s.smooth_normals {
-                        raw.normals.as_deref()
-                    } else {
-                        None
+                    let geometry = Geometry {
+                        positions: &raw.positions,
+                        normals: if s.smooth_normals {
+                            raw.normals.as_deref()
+                        } else {
+                            None
+                        },
+                        triangles: &raw.triangles,
                     };
-                    let origin = format!("{path} ({})", s.file);
                     self.push_mesh(
                         &path,
-                        origin,
-                        &raw.positions,
-                        normals,
-                        &raw.triangles,
-                        m,
-                        material,
-                        s.emission.as_ref(),
+                        format!("{path} ({})", s.file),
+                        geometry,
+                        surface,
                         out,
                     );
                 }
@@ -706,8 +711,14 @@ impl Ctx<'_> {
                     let Some(s) = self.body::<QuadShape>(&path, t) else {
                         continue;
                     };
-                    let m = parent * self.transform(&path, &s.transform);
-                    let material = self.material_ref(&path, &s.material, env);
+                    let surface = self.surface(
+                        &path,
+                        parent,
+                        &s.transform,
+                        &s.material,
+                        s.emission.as_ref(),
+                        env,
+                    );
                     let o = self.finite3(&format!("{path}.origin"), s.origin);
                     let u = self.finite3(&format!("{path}.edge_u"), s.edge_u);
                     let v = self.finite3(&format!("{path}.edge_v"), s.edge_v);
@@ -718,24 +729,25 @@ impl Ctx<'_> {
                         );
                     }
                     let positions = [o, o + u, o + u + v, o + v];
-                    self.push_mesh(
-                        &path,
-                        path.clone(),
-                        &positions,
-                        None,
-                        &[[0, 1, 2], [0, 2, 3]],
-                        m,
-                        material,
-                        s.emission.as_ref(),
-                        out,
-                    );
+                    let geometry = Geometry {
+                        positions: &positions,
+                        normals: None,
+                        triangles: &[[0, 1, 2], [0, 2, 3]],
+                    };
+                    self.push_mesh(&path, path.clone(), geometry, surface, out);
                 }
                 "box" => {
                     let Some(s) = self.body::<BoxShape>(&path, t) else {
                         continue;
                     };
-                    let m = parent * self.transform(&path, &s.transform);
-                    let material = self.material_ref(&path, &s.material, env);
+                    let surface = self.surface(
+                        &path,
+                        parent,
+                        &s.transform,
+                        &s.material,
+                        s.emission.as_ref(),
+                        env,
+                    );
                     let lo = self.finite3(&format!("{path}.min"), s.min);
                     let hi = self.finite3(&format!("{path}.max"), s.max);
                     if !lo.cmplt(hi).all() {
@@ -745,24 +757,26 @@ impl Ctx<'_> {
                         );
                     }
                     let (positions, triangles) = box_mesh(lo, hi);
-                    self.push_mesh(
-                        &path,
-                        path.clone(),
-                        &positions,
-                        None,
-                        &triangles,
-                        m,
-                        material,
-                        s.emission.as_ref(),
-                        out,
-                    );
+                    let geometry = Geometry {
+                        positions: &positions,
+                        normals: None,
+                        triangles: &triangles,
+                    };
+                    self.push_mesh(&path, path.clone(), geometry, surface, out);
                 }
                 "sphere" => {
                     let Some(s) = self.body::<SphereShape>(&path, t) else {
                         continue;
                     };
-                    let m = parent * self.transform(&path, &s.transform);
-                    let material = self.material_ref(&path, &s.material, env);
+                    let surface = self.surface(
+                        &path,
+                        parent,
+                        &s.transform,
+                        &s.material,
+                        s.emission.as_ref(),
+                        env,
+                    );
+                    let m = surface.to_world;
                     let center = self.finite3(&format!("{path}.center"), s.center);
                     let radius = self.positive(&format!("{path}.radius"), s.radius);
                     let Some(scale) = transform::uniform_scale(&m) else {
@@ -772,15 +786,14 @@ impl Ctx<'_> {
                     let radius = radius * scale;
                     let area_m2 =
                         4.0 * std::f64::consts::PI * (radius as f64 * out.metres_per_unit).powi(2);
-                    let emission = s
+                    let emission = surface
                         .emission
-                        .as_ref()
                         .and_then(|e| self.emission(&format!("{path}.emission"), e, area_m2));
                     out.spheres.push(SphereDesc {
                         origin: path.clone(),
                         center: m.transform_point3(center),
                         radius,
-                        material,
+                        material: surface.material,
                         emission,
                     });
                 }
@@ -862,39 +875,54 @@ impl Ctx<'_> {
         loaded
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// The transform, material and emission every surface shape has.
+    fn surface<'e>(
+        &mut self,
+        path: &str,
+        parent: Affine3A,
+        steps: &[TransformStep],
+        material: &str,
+        emission: Option<&'e EmissionFile>,
+        env: &ShapeEnv,
+    ) -> Surface<'e> {
+        Surface {
+            to_world: parent * self.transform(path, steps),
+            material: self.material_ref(path, material, env),
+            emission,
+        }
+    }
+
+    /// Adds a triangle mesh given in its own coordinates.
     fn push_mesh(
         &mut self,
         path: &str,
         origin: String,
-        positions: &[Vec3],
-        normals: Option<&[Vec3]>,
-        triangles: &[[u32; 3]],
-        m: Affine3A,
-        material: u32,
-        emission: Option<&EmissionFile>,
+        g: Geometry,
+        surface: Surface,
         out: &mut Shapes,
     ) {
+        let m = surface.to_world;
         let nm = transform::normal_matrix(&m);
         let mirrored = m.matrix3.determinant() < 0.0;
         let mesh = MeshDesc {
             origin,
-            positions: positions.iter().map(|&p| m.transform_point3(p)).collect(),
-            normals: normals.map(|ns| {
+            positions: g.positions.iter().map(|&p| m.transform_point3(p)).collect(),
+            normals: g.normals.map(|ns| {
                 ns.iter()
                     .map(|&n| Vec3::from(nm * glam::Vec3A::from(n)).normalize_or_zero())
                     .collect()
             }),
             // A mirroring transform flips the winding; swap it back so the front face stays
             // on the side the (transformed) normals point to.
-            triangles: triangles
+            triangles: g
+                .triangles
                 .iter()
                 .map(|&[a, b, c]| if mirrored { [a, c, b] } else { [a, b, c] })
                 .collect(),
-            material,
+            material: surface.material,
             emission: None,
         };
-        let emission = emission.and_then(|e| {
+        let emission = surface.emission.and_then(|e| {
             let area_m2 = mesh.area() * out.metres_per_unit * out.metres_per_unit;
             self.emission(&format!("{path}.emission"), e, area_m2)
         });
@@ -1234,6 +1262,20 @@ impl Ctx<'_> {
 struct ShapeEnv<'a> {
     materials: &'a BTreeMap<String, u32>,
     objects: &'a BTreeMap<String, Vec<Tagged>>,
+}
+
+/// A shape's placement, material and emission, resolved.
+struct Surface<'e> {
+    to_world: Affine3A,
+    material: u32,
+    emission: Option<&'e EmissionFile>,
+}
+
+/// A triangle mesh in its own coordinates.
+struct Geometry<'g> {
+    positions: &'g [Vec3],
+    normals: Option<&'g [Vec3]>,
+    triangles: &'g [[u32; 3]],
 }
 
 struct Shapes {

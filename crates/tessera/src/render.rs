@@ -71,6 +71,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         triangles = scene.stats.triangles,
         spheres = scene.stats.spheres,
         lights = scene.stats.lights,
+        emissive_triangles = scene.stats.emissive_triangles,
         load_s = load_time.as_secs_f64(),
         build_s = build_time.as_secs_f64(),
         "scene ready"

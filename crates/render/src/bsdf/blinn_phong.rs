@@ -7,6 +7,7 @@
 use glam::{Vec2, Vec3A};
 
 use super::glossy::{GlossyLobe, WithDiffuse};
+use super::reflected_pdf;
 use crate::math::{INV_2PI, PI, reflect, safe_sqrt};
 
 pub type BlinnPhong = WithDiffuse<BlinnPhongLobe>;
@@ -42,12 +43,6 @@ impl GlossyLobe for BlinnPhongLobe {
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
-        let h = (wo + wi).normalize();
-        let d = wo.dot(h);
-        if d <= 0.0 {
-            0.0
-        } else {
-            self.pdf_h(h.z) / (4.0 * d)
-        }
+        reflected_pdf(wo, wi, |h| self.pdf_h(h.z))
     }
 }

@@ -5,7 +5,7 @@
 use glam::{Vec2, Vec3A};
 
 use super::microfacet::Microfacet;
-use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode, fresnel};
+use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode, fresnel, reflected_pdf};
 use crate::math::reflect;
 use crate::spectrum::Spectrum;
 
@@ -102,13 +102,7 @@ impl Bsdf for Conductor {
         if wo.z <= 0.0 || wi.z <= 0.0 {
             return 0.0;
         }
-        let h = (wo + wi).normalize();
-        let d = wo.dot(h);
-        if d <= 0.0 {
-            0.0
-        } else {
-            mf.pdf_m(wo, h) / (4.0 * d)
-        }
+        reflected_pdf(wo, wi, |h| mf.pdf_m(wo, h))
     }
 
     fn albedo(&self) -> Spectrum {

@@ -4,9 +4,8 @@
 
 use glam::{Vec2, Vec3A};
 
-use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode};
+use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode, diffuse_pdf, sample_diffuse};
 use crate::math::INV_PI;
-use crate::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use crate::spectrum::{Spectrum, luminance};
 
 /// The shape of a glossy lobe, defined for wo.z > 0.
@@ -64,7 +63,7 @@ impl<L: GlossyLobe> Bsdf for WithDiffuse<L> {
         let wi = if u_lobe < self.p_glossy {
             self.lobe.sample(wo, u)?
         } else {
-            square_to_cosine_hemisphere(u)
+            sample_diffuse(u)?
         };
         if wi.z <= 0.0 {
             return None;
@@ -89,7 +88,7 @@ impl<L: GlossyLobe> Bsdf for WithDiffuse<L> {
         } else {
             0.0
         };
-        self.p_glossy * glossy + (1.0 - self.p_glossy) * cosine_hemisphere_pdf(wi.z)
+        self.p_glossy * glossy + (1.0 - self.p_glossy) * diffuse_pdf(wo, wi)
     }
 
     fn albedo(&self) -> Spectrum {

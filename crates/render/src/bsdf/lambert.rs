@@ -2,9 +2,8 @@
 
 use glam::{Vec2, Vec3A};
 
-use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode};
+use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode, diffuse_pdf, sample_diffuse};
 use crate::math::INV_PI;
-use crate::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use crate::spectrum::{Spectrum, is_black};
 
 #[derive(Debug, Clone)]
@@ -38,14 +37,11 @@ impl Bsdf for Lambert {
         if wo.z <= 0.0 {
             return None;
         }
-        let wi = square_to_cosine_hemisphere(u);
-        if wi.z <= 0.0 {
-            return None;
-        }
+        let wi = sample_diffuse(u)?;
         Some(BsdfSample {
             wi,
             f: self.albedo * INV_PI,
-            pdf: cosine_hemisphere_pdf(wi.z),
+            pdf: diffuse_pdf(wo, wi),
             specular: false,
             transmission: false,
             eta: 1.0,
@@ -53,11 +49,7 @@ impl Bsdf for Lambert {
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            0.0
-        } else {
-            cosine_hemisphere_pdf(wi.z)
-        }
+        diffuse_pdf(wo, wi)
     }
 
     fn albedo(&self) -> Spectrum {

@@ -154,6 +154,33 @@ pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
     }
 }
 
+/// A direction for a diffuse lobe: cosine-weighted over the upper hemisphere (wo.z > 0 is the
+/// caller's to check). Shared by every BSDF with a Lambertian part.
+#[inline]
+fn sample_diffuse(u: Vec2) -> Option<Vec3A> {
+    let wi = crate::sampling::square_to_cosine_hemisphere(u);
+    (wi.z > 0.0).then_some(wi)
+}
+
+/// Density of [`sample_diffuse`] for the pair (wo, wi): cos θi / π within the upper hemisphere.
+#[inline]
+fn diffuse_pdf(wo: Vec3A, wi: Vec3A) -> f32 {
+    if wo.z <= 0.0 || wi.z <= 0.0 {
+        0.0
+    } else {
+        crate::sampling::cosine_hemisphere_pdf(wi.z)
+    }
+}
+
+/// Density of a reflection sampled through a half vector: p(wi) = p_h(h) / (4 wo·h), with
+/// h the normalised wo + wi (Walter et al. 2007, eq. 14). Zero where wo·h ≤ 0.
+#[inline]
+fn reflected_pdf(wo: Vec3A, wi: Vec3A, pdf_h: impl FnOnce(Vec3A) -> f32) -> f32 {
+    let h = (wo + wi).normalize();
+    let d = wo.dot(h);
+    if d <= 0.0 { 0.0 } else { pdf_h(h) / (4.0 * d) }
+}
+
 fn microfacet_of(r: &Roughness) -> Option<Microfacet> {
     (!r.is_smooth()).then(|| Microfacet::new(r.distribution, r.alpha_u, r.alpha_v))
 }

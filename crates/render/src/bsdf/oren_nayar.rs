@@ -5,9 +5,8 @@
 
 use glam::{Vec2, Vec3A};
 
-use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode};
+use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode, diffuse_pdf, sample_diffuse};
 use crate::math::{INV_PI, safe_sqrt};
-use crate::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use crate::spectrum::{Spectrum, is_black};
 
 #[derive(Debug, Clone)]
@@ -60,14 +59,11 @@ impl Bsdf for OrenNayar {
         if wo.z <= 0.0 {
             return None;
         }
-        let wi = square_to_cosine_hemisphere(u);
-        if wi.z <= 0.0 {
-            return None;
-        }
+        let wi = sample_diffuse(u)?;
         Some(BsdfSample {
             wi,
             f: self.eval(wo, wi, mode),
-            pdf: cosine_hemisphere_pdf(wi.z),
+            pdf: diffuse_pdf(wo, wi),
             specular: false,
             transmission: false,
             eta: 1.0,
@@ -75,11 +71,7 @@ impl Bsdf for OrenNayar {
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            0.0
-        } else {
-            cosine_hemisphere_pdf(wi.z)
-        }
+        diffuse_pdf(wo, wi)
     }
 
     fn albedo(&self) -> Spectrum {

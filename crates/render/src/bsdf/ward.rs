@@ -9,6 +9,7 @@ use tessera_scene::Distribution;
 
 use super::glossy::{GlossyLobe, WithDiffuse};
 use super::microfacet::Microfacet;
+use super::reflected_pdf;
 use crate::math::{PI, reflect};
 
 pub type Ward = WithDiffuse<WardLobe>;
@@ -47,12 +48,6 @@ impl GlossyLobe for WardLobe {
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
-        let h = (wo + wi).normalize();
-        let d = wo.dot(h);
-        if d <= 0.0 {
-            0.0
-        } else {
-            self.half_vectors.pdf_m(wo, h) / (4.0 * d)
-        }
+        reflected_pdf(wo, wi, |h| self.half_vectors.pdf_m(wo, h))
     }
 }

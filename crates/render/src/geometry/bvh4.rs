@@ -290,8 +290,4 @@ impl Bvh4 {
             cur = unsafe { stack[top].assume_init() };
         }
     }
-
-    pub fn node_count(&self) -> usize {
-        self.nodes.len()
-    }
 }

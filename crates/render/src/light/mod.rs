@@ -111,10 +111,6 @@ impl Light {
         };
         if p.is_finite() { p.max(0.0) } else { 0.0 }
     }
-
-    pub fn is_infinite(&self) -> bool {
-        matches!(self, Light::Directional(_) | Light::Environment(_))
-    }
 }
 
 /// All lights of a scene and the distribution for choosing one.
@@ -147,14 +143,6 @@ impl LightSet {
         &self.lights[i as usize]
     }
 
-    pub fn len(&self) -> usize {
-        self.lights.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.lights.is_empty()
-    }
-
     /// Chooses a light: its index and probability; `None` without emitting lights.
     #[inline]
     pub fn choose(&self, u: f32) -> Option<(u32, f32)> {
@@ -173,11 +161,6 @@ impl LightSet {
         self.environment
             .iter()
             .map(|&i| (i, &self.lights[i as usize]))
-    }
-
-    /// Total power of all lights, for reporting.
-    pub fn total_luminance_power(&self, scene_radius: f32) -> f32 {
-        self.lights.iter().map(|l| l.power(scene_radius)).sum()
     }
 }
 

@@ -3,7 +3,8 @@
 
 use glam::Vec3A;
 
-use super::{LightSample, ShadowTarget, lum};
+use super::point::from_point;
+use super::{LightSample, lum};
 use crate::math::PI;
 use crate::spectrum::Spectrum;
 
@@ -46,23 +47,8 @@ impl SpotLight {
     }
 
     pub fn sample_li(&self, p: Vec3A) -> Option<LightSample> {
-        let to = self.position - p;
-        let dist2 = to.length_squared();
-        if dist2 == 0.0 {
-            return None;
-        }
-        let wi = to / dist2.sqrt();
-        let f = self.falloff(self.direction.dot(-wi));
-        (f > 0.0).then(|| LightSample {
-            li: self.intensity * (f / dist2),
-            wi,
-            pdf: 1.0,
-            delta: true,
-            target: ShadowTarget::Point {
-                p: self.position,
-                p_error: Vec3A::ZERO,
-                n: Vec3A::ZERO,
-            },
+        from_point(self.position, p, |w| {
+            self.intensity * self.falloff(self.direction.dot(w))
         })
     }
 
