@@ -67,14 +67,7 @@ impl Bsdf for Conductor {
         }
         let Some(mf) = &self.microfacet else {
             let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
-            return Some(BsdfSample {
-                wi,
-                f: self.fresnel(wo.z) / wi.z,
-                pdf: 1.0,
-                specular: true,
-                transmission: false,
-                eta: 1.0,
-            });
+            return Some(BsdfSample::specular_reflection(wi, self.fresnel(wo.z), 1.0));
         };
         let m = mf.sample_m(wo, u);
         if wo.dot(m) <= 0.0 {
@@ -84,15 +77,7 @@ impl Bsdf for Conductor {
         if wi.z <= 0.0 {
             return None;
         }
-        let pdf = self.pdf(wo, wi, mode);
-        (pdf > 0.0).then(|| BsdfSample {
-            wi,
-            f: self.eval(wo, wi, mode),
-            pdf,
-            specular: false,
-            transmission: false,
-            eta: 1.0,
-        })
+        BsdfSample::reflection(self, wo, wi, mode)
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> f32 {

@@ -39,14 +39,7 @@ impl Bsdf for SmoothDielectric {
         let r = fresnel::dielectric(wo.z, self.eta);
         if u_lobe < r {
             let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
-            return Some(BsdfSample {
-                wi,
-                f: Spectrum::splat(r / wi.z.abs()),
-                pdf: r,
-                specular: true,
-                transmission: false,
-                eta: 1.0,
-            });
+            return Some(BsdfSample::specular_reflection(wi, Spectrum::splat(r), r));
         }
         // Relative IOR seen from wo's side, and the normal on wo's side.
         let (etap, n) = if wo.z > 0.0 {

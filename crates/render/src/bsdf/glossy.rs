@@ -68,15 +68,7 @@ impl<L: GlossyLobe> Bsdf for WithDiffuse<L> {
         if wi.z <= 0.0 {
             return None;
         }
-        let pdf = self.pdf(wo, wi, mode);
-        (pdf > 0.0).then(|| BsdfSample {
-            wi,
-            f: self.eval(wo, wi, mode),
-            pdf,
-            specular: false,
-            transmission: false,
-            eta: 1.0,
-        })
+        BsdfSample::reflection(self, wo, wi, mode)
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> f32 {

@@ -34,14 +34,7 @@ impl Bsdf for Mirror {
             return None;
         }
         let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
-        Some(BsdfSample {
-            wi,
-            f: self.reflectance / wi.z,
-            pdf: 1.0,
-            specular: true,
-            transmission: false,
-            eta: 1.0,
-        })
+        Some(BsdfSample::specular_reflection(wi, self.reflectance, 1.0))
     }
 
     fn pdf(&self, _: Vec3A, _: Vec3A, _: TransportMode) -> f32 {

@@ -75,6 +75,41 @@ pub struct BsdfSample {
 }
 
 impl BsdfSample {
+    /// A non-delta reflection toward `wi`, with f and pdf taken from the BSDF's own `eval`
+    /// and `pdf` (so MIS sees the density the sample was drawn with); `None` where the pdf
+    /// is zero.
+    #[inline]
+    pub fn reflection<B: Bsdf + ?Sized>(
+        bsdf: &B,
+        wo: Vec3A,
+        wi: Vec3A,
+        mode: TransportMode,
+    ) -> Option<Self> {
+        let pdf = bsdf.pdf(wo, wi, mode);
+        (pdf > 0.0).then(|| BsdfSample {
+            wi,
+            f: bsdf.eval(wo, wi, mode),
+            pdf,
+            specular: false,
+            transmission: false,
+            eta: 1.0,
+        })
+    }
+
+    /// A delta reflection toward `wi` chosen with discrete probability `pdf`, carrying the
+    /// lobe weight `weight` (f is weight/|cos θi|, per the convention above).
+    #[inline]
+    pub fn specular_reflection(wi: Vec3A, weight: Spectrum, pdf: f32) -> Self {
+        BsdfSample {
+            wi,
+            f: weight / wi.z.abs(),
+            pdf,
+            specular: true,
+            transmission: false,
+            eta: 1.0,
+        }
+    }
+
     /// The throughput weight f·|cos θi| / pdf.
     #[inline]
     pub fn weight(&self) -> Spectrum {

@@ -59,15 +59,7 @@ impl Bsdf for OrenNayar {
         if wo.z <= 0.0 {
             return None;
         }
-        let wi = sample_diffuse(u)?;
-        Some(BsdfSample {
-            wi,
-            f: self.eval(wo, wi, mode),
-            pdf: diffuse_pdf(wo, wi),
-            specular: false,
-            transmission: false,
-            eta: 1.0,
-        })
+        BsdfSample::reflection(self, wo, sample_diffuse(u)?, mode)
     }
 
     fn pdf(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> f32 {
