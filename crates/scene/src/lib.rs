@@ -17,7 +17,7 @@ use std::path::Path;
 
 pub use desc::*;
 pub use error::{Problem, SceneError};
-pub use resolve::MAX_FILM_SIDE;
+pub use resolve::{MAX_FILM_SIDE, box_mesh};
 pub use source::{DirSource, SceneSource};
 
 /// Loads and validates the scene file at `path` (a `scene.json`); referenced files are

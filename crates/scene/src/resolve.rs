@@ -1285,7 +1285,7 @@ struct Shapes {
 }
 
 /// An axis-aligned box as 12 triangles wound so that normals point outwards.
-fn box_mesh(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+pub fn box_mesh(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let corner = |i: u32| {
         Vec3::new(
             if i & 1 != 0 { hi.x } else { lo.x },

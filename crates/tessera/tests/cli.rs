@@ -27,20 +27,23 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// Renders the Cornell box quietly to `out` with extra arguments; panics with stderr if the
+/// render fails.
+fn render_cornell(out: &Path, extra: &[&str]) -> Output {
+    let scene = cornell();
+    let out = out.to_str().expect("utf-8 temp path");
+    let mut args = vec!["render", &scene, "-o", out, "-q"];
+    args.extend_from_slice(extra);
+    let o = tessera(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    o
+}
+
 #[test]
 fn render_writes_exr_and_png_and_reports_throughput() {
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("cb.exr");
-    let o = tessera(&[
-        "render",
-        &cornell(),
-        "--spp",
-        "1",
-        "-o",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    let o = render_cornell(&out, &["--spp", "1"]);
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
         stdout.contains("M samples/s") && stdout.contains("M rays/s") && stdout.contains(" s wall"),
@@ -154,20 +157,7 @@ fn images_are_bit_identical_for_any_threads_and_tile_size() {
     let mut files = Vec::new();
     for (threads, tile) in [("1", "16"), ("2", "64"), ("2", "16"), ("1", "64")] {
         let out = dir.path().join(format!("t{threads}-{tile}.exr"));
-        let o = tessera(&[
-            "render",
-            &cornell(),
-            "--spp",
-            "3",
-            "--threads",
-            threads,
-            "--tile",
-            tile,
-            "-o",
-            out.to_str().unwrap(),
-            "-q",
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
+        render_cornell(&out, &["--spp", "3", "--threads", threads, "--tile", tile]);
         files.push(std::fs::read(&out).expect("exr"));
     }
     assert!(
@@ -183,16 +173,7 @@ fn cornell_box_matches_the_mitsuba_reference_without_bias() {
     // issue asks for 1 %; the mean over 196 608 values at this noise level is good to 0.02 %).
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("cb.exr");
-    let o = tessera(&[
-        "render",
-        &cornell(),
-        "--spp",
-        "64",
-        "-o",
-        out.to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    render_cornell(&out, &["--spp", "64"]);
     let img = tessera_render::read_exr(&out).expect("render");
     let reference = tessera_render::read_exr(&repo().join("scenes/cornell-box/reference.exr"))
         .expect("reference");

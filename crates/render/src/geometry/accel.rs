@@ -253,20 +253,9 @@ mod tests {
 
     /// A closed unit cube (12 triangles) scaled by `size` and moved to `offset`.
     fn cube(offset: Vec3A, size: f32) -> Vec<[Vec3A; 3]> {
-        let c = |i: u32| {
-            offset + Vec3A::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32) * size
-        };
-        let quads = [
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-        ];
-        quads
-            .iter()
-            .flat_map(|q| [[c(q[0]), c(q[1]), c(q[2])], [c(q[0]), c(q[2]), c(q[3])]])
+        let (p, t) = tessera_scene::box_mesh(offset.into(), (offset + size).into());
+        t.iter()
+            .map(|t| t.map(|i| Vec3A::from(p[i as usize])))
             .collect()
     }
 
