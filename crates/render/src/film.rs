@@ -68,6 +68,9 @@ impl SampleRange {
     }
 }
 
+/// Most samples one pixel may take: the fixed-point sums are sized for 2²⁴.
+pub const MAX_SPP: u32 = 1 << 24;
+
 /// Fractional bits of first moments and of second moments. Per-sample first moments are
 /// clamped to ±2³² (`LIMIT`, a guard far above any sane radiance) and squares are taken of
 /// the clamped value, so at most 2⁶⁴ (`LIMIT_SQ`): 2²⁴ samples of (2³²·2⁶⁴) fit in an i128,
@@ -109,9 +112,9 @@ fn unfixed(v: i128, frac: i32) -> f64 {
     v as f64 * f64::from_bits(((1023 - frac) as u64) << 52)
 }
 
-/// What the first surface a camera ray hits looked like (for the AOVs).
+/// What the first surface a camera ray hits looked like: the AOVs of one sample.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FirstHit {
+pub struct Aov {
     pub albedo: Spectrum,
     /// World-space shading normal.
     pub normal: Vec3A,
@@ -136,7 +139,7 @@ pub struct PixelSums {
 impl PixelSums {
     /// Adds a sample of radiance `l` (already finite) with filter weight `w`.
     #[inline]
-    pub fn add(&mut self, w: f32, l: Spectrum, hit: Option<&FirstHit>) {
+    pub fn add(&mut self, w: f32, l: Spectrum, hit: Option<&Aov>) {
         let first = |v: f32| fixed(v, FRAC, LIMIT);
         let wl = l * w;
         self.samples += 1;
@@ -346,7 +349,7 @@ mod tests {
             s.add(
                 1.0,
                 Spectrum::splat(l),
-                Some(&FirstHit {
+                Some(&Aov {
                     albedo: Spectrum::ONE,
                     normal: Vec3A::Z,
                     depth: 4.0,

@@ -2,6 +2,8 @@
 
 use std::path::Path;
 
+use image::ImageEncoder;
+
 use crate::error::RenderError;
 use crate::film::Image;
 
@@ -73,22 +75,31 @@ fn srgb(v: f32) -> f32 {
     }
 }
 
-/// Writes an 8-bit sRGB PNG of the colour channels, clipped to [0, 1].
-pub fn write_png(path: &Path, image: &Image) -> Result<(), RenderError> {
+/// Encodes an 8-bit sRGB PNG of the colour channels, clipped to [0, 1].
+pub fn encode_png(image: &Image) -> Result<Vec<u8>, String> {
     let bytes: Vec<u8> = image
         .pixels
         .iter()
         .flat_map(|p| p.rgb.map(|c| (srgb(c.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8))
         .collect();
-    image::save_buffer(
-        path,
-        &bytes,
-        image.width,
-        image.height,
-        image::ExtendedColorType::Rgb8,
-    )
-    .map_err(|e| RenderError::Output {
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut out)
+        .write_image(
+            &bytes,
+            image.width,
+            image.height,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| e.to_string())?;
+    Ok(out)
+}
+
+/// Writes an 8-bit sRGB PNG of the colour channels, clipped to [0, 1].
+pub fn write_png(path: &Path, image: &Image) -> Result<(), RenderError> {
+    let error = |message: String| RenderError::Output {
         path: path.to_path_buf(),
-        message: e.to_string(),
-    })
+        message,
+    };
+    let bytes = encode_png(image).map_err(error)?;
+    std::fs::write(path, bytes).map_err(|e| error(e.to_string()))
 }

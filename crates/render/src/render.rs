@@ -1,19 +1,21 @@
 //! Rendering tiles and frames.
 //!
-//! [`render_tile`] is a pure function of (scene, tile, sample range): the unit of work a farm
-//! task carries. [`render_frame`] runs all tiles of a frame on the current rayon pool.
+//! [`render_tile`] is a pure function of (scene, camera, tile, sample range): the unit of work
+//! a farm task carries. [`render_frame`] runs all tiles of a frame on the current rayon pool.
 
 use glam::Vec2;
 use rayon::prelude::*;
 
-use crate::film::{Image, Pixel, SampleRange, Tile, TileSums, tiles};
+use crate::camera::Camera;
+use crate::film::{Aov, Image, SampleRange, Tile, TileSums, tiles};
 use crate::integrator::{Integrator, RayStats};
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::Scene;
 
-/// Renders samples `range` of every pixel of `tile`.
+/// Renders samples `range` of every pixel of `tile`, seen by `camera`.
 pub fn render_tile(
     scene: &Scene,
+    camera: &Camera,
     integrator: &dyn Integrator,
     tile: Tile,
     range: SampleRange,
@@ -21,15 +23,15 @@ pub fn render_tile(
     let mut sums = TileSums::new(tile, range);
     let mut stats = RayStats::default();
     let mut sampler = PixelSampler::new(scene.integrator.sampler, scene.integrator.seed);
-    let exposure = scene.camera.exposure;
-    let lens = scene.camera.has_aperture();
+    let exposure = camera.exposure;
+    let lens = camera.has_aperture();
     for (pixel, acc) in tile.pixels().zip(sums.pixels.iter_mut()) {
         for index in range.start..range.end {
             sampler.start_pixel_sample(pixel, index);
             let (offset, w) = scene.filter.sample(sampler.get_2d());
             let film = pixel.as_vec2() + Vec2::splat(0.5) + offset;
             let u_lens = if lens { sampler.get_2d() } else { Vec2::ZERO };
-            let ray = scene.camera.generate_ray(film, u_lens);
+            let ray = camera.generate_ray(film, u_lens);
             let out = integrator.li(scene, ray, &mut sampler, &mut stats);
             stats.samples += 1;
             let l = out.l * exposure;
@@ -38,40 +40,34 @@ pub fn render_tile(
                 stats.nonfinite += 1;
                 continue;
             }
-            acc.add(w, l, out.first_hit.as_ref());
+            let aov = out.first_hit.map(|h| Aov {
+                albedo: h.albedo,
+                normal: h.normal,
+                depth: camera.depth(h.p),
+            });
+            acc.add(w, l, aov.as_ref());
         }
     }
     (sums, stats)
 }
 
 /// Renders a whole frame with tiles of `tile_size` pixels, samples `range`, on the current
-/// rayon pool. `on_tile` is called as each tile finishes (from worker threads).
+/// rayon pool: the tiles of [`tiles`] rendered in parallel and put in place in a fixed order.
 pub fn render_frame(
     scene: &Scene,
+    camera: &Camera,
     integrator: &dyn Integrator,
     tile_size: u32,
     range: SampleRange,
-    on_tile: &(dyn Fn(&Tile) + Sync),
 ) -> (Image, RayStats) {
-    let tiles = tiles(scene.film.width, scene.film.height, tile_size);
-    let done: Vec<(Tile, Vec<Pixel>, RayStats)> = tiles
+    let done: Vec<(TileSums, RayStats)> = tiles(scene.film.width, scene.film.height, tile_size)
         .par_iter()
-        .map(|&tile| {
-            let (sums, stats) = render_tile(scene, integrator, tile, range);
-            on_tile(&tile);
-            (
-                tile,
-                sums.pixels.iter().map(|p| p.resolve()).collect(),
-                stats,
-            )
-        })
+        .map(|&tile| render_tile(scene, camera, integrator, tile, range))
         .collect();
     let mut image = Image::new(scene.film.width, scene.film.height);
     let mut stats = RayStats::default();
-    for (tile, pixels, s) in &done {
-        for (p, v) in tile.pixels().zip(pixels) {
-            image.pixels[(p.y * image.width + p.x) as usize] = *v;
-        }
+    for (sums, s) in &done {
+        image.put(sums);
         stats.add(s);
     }
     (image, stats)

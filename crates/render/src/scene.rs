@@ -1,11 +1,11 @@
-//! The scene at render time: acceleration structure, materials, lights, camera and film,
-//! built once from a validated [`SceneDesc`] and shared read-only by every thread.
+//! The scene at render time: acceleration structure, materials, lights and film, built once
+//! from a validated [`SceneDesc`] and shared read-only by every thread. The camera is not part
+//! of it: a camera-only fly-through builds the scene once and renders every frame from it.
 
 use glam::{Mat3A, Vec3A};
 use tessera_scene::{FilmDesc, IntegratorDesc, LightDesc, SceneDesc};
 
 use crate::bsdf::{self, Bsdf, BsdfFlags};
-use crate::camera::Camera;
 use crate::filter::Filter;
 use crate::geometry::{Accel, Prim};
 use crate::light::{
@@ -104,7 +104,6 @@ pub struct Scene {
     spheres: Vec<SphereRuntime>,
     materials: Vec<Material>,
     pub lights: LightSet,
-    pub camera: Camera,
     pub filter: Filter,
     pub film: FilmDesc,
     pub integrator: IntegratorDesc,
@@ -266,7 +265,6 @@ impl Scene {
             spheres,
             materials,
             lights: LightSet::new(lights, radius),
-            camera: Camera::new(&desc.camera, &desc.film),
             filter: Filter::new(desc.film.filter),
             film: desc.film,
             integrator: desc.integrator,

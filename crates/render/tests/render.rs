@@ -4,6 +4,7 @@
 //! film estimates (several standard errors), not from guesses.
 
 use tessera_render::Scene;
+use tessera_render::camera::Camera;
 use tessera_render::film::{Image, PixelSums, SampleRange, Tile, TileSums, tiles};
 use tessera_render::integrator::{self, Integrator};
 use tessera_render::render::{render_frame, render_tile};
@@ -26,6 +27,7 @@ fn cornell(width: u32, height: u32) -> SceneDesc {
 
 fn render(desc: &SceneDesc, spp: u32, threads: usize) -> Image {
     let scene = Scene::build(desc);
+    let camera = Camera::new(&desc.camera, &desc.film);
     let integrator = integrator::from_desc(&desc.integrator);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -34,17 +36,30 @@ fn render(desc: &SceneDesc, spp: u32, threads: usize) -> Image {
     pool.install(|| {
         render_frame(
             &scene,
+            &camera,
             integrator.as_ref(),
             16,
             SampleRange { start: 0, end: spp },
-            &|_| {},
         )
         .0
     })
 }
 
-fn sums(scene: &Scene, integrator: &dyn Integrator, tile: Tile, start: u32, end: u32) -> TileSums {
-    render_tile(scene, integrator, tile, SampleRange { start, end }).0
+fn sums(
+    scene: &(Scene, Camera),
+    integrator: &dyn Integrator,
+    tile: Tile,
+    start: u32,
+    end: u32,
+) -> TileSums {
+    render_tile(
+        &scene.0,
+        &scene.1,
+        integrator,
+        tile,
+        SampleRange { start, end },
+    )
+    .0
 }
 
 /// The sums of pixel (x, y) from a set of tiles.
@@ -64,7 +79,7 @@ fn a_tile_rendered_alone_equals_the_same_pixels_of_the_full_frame() {
         b: 1.0 / 3.0,
         c: 1.0 / 3.0,
     };
-    let scene = Scene::build(&desc);
+    let scene = (Scene::build(&desc), Camera::new(&desc.camera, &desc.film));
     let integ = integrator::from_desc(&desc.integrator);
     let full = vec![sums(
         &scene,

@@ -18,12 +18,29 @@ pub struct SceneDesc {
     pub name: String,
     pub metres_per_unit: f64,
     pub camera: CameraDesc,
+    /// A fly-through: the camera moves from frame to frame, nothing else does.
+    pub camera_path: Option<crate::animation::CameraPath>,
     pub film: FilmDesc,
     pub integrator: IntegratorDesc,
     pub materials: Vec<MaterialDesc>,
     pub meshes: Vec<MeshDesc>,
     pub spheres: Vec<SphereDesc>,
     pub lights: Vec<LightDesc>,
+}
+
+impl SceneDesc {
+    /// Frames of the scene's animation (1 without a camera path).
+    pub fn frame_count(&self) -> u32 {
+        self.camera_path.as_ref().map_or(1, |p| p.frame_count())
+    }
+
+    /// The camera of frame `frame` (1-based; the still camera without a path).
+    pub fn camera_at(&self, frame: u32) -> CameraDesc {
+        match &self.camera_path {
+            Some(path) => path.camera(frame, &self.camera),
+            None => self.camera,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]

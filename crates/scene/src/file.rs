@@ -113,6 +113,31 @@ pub struct CameraFile {
     pub focus_distance: Option<f32>,
     #[serde(default)]
     pub exposure: Option<ExposureFile>,
+    /// A fly-through: keyframes the camera moves through.
+    #[serde(default)]
+    pub path: Option<CameraPathFile>,
+}
+
+/// A camera path: frames per second and keyframes in increasing time.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraPathFile {
+    pub fps: f32,
+    pub keyframes: Vec<KeyframeFile>,
+}
+
+/// One keyframe; `up` and `fov_deg` default to the camera's.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KeyframeFile {
+    /// Seconds.
+    pub time: f32,
+    pub position: [f32; 3],
+    pub look_at: [f32; 3],
+    #[serde(default)]
+    pub up: Option<[f32; 3]>,
+    #[serde(default)]
+    pub fov_deg: Option<f32>,
 }
 
 fn default_up() -> [f32; 3] {

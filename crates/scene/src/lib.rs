@@ -3,6 +3,7 @@
 //! (`desc`). Bad input becomes a [`SceneError`] naming the file, the field path and what was
 //! expected — never a panic.
 
+pub mod animation;
 pub mod desc;
 pub mod error;
 pub mod file;
@@ -15,9 +16,10 @@ pub mod transform;
 
 use std::path::Path;
 
+pub use animation::{CameraPath, Keyframe};
 pub use desc::*;
 pub use error::{Problem, SceneError};
-pub use resolve::{MAX_FILM_SIDE, box_mesh};
+pub use resolve::{MAX_FILM_SIDE, MAX_FRAMES, box_mesh};
 pub use source::{DirSource, SceneSource};
 
 /// Loads and validates the scene file at `path` (a `scene.json`); referenced files are

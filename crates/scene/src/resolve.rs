@@ -10,6 +10,7 @@ use std::sync::Arc;
 use glam::{Affine3A, Mat3, Vec3};
 use serde::de::DeserializeOwned;
 
+use crate::animation::{CameraPath, Keyframe};
 use crate::desc::*;
 use crate::error::{Problem, SceneError};
 use crate::file::*;
@@ -22,6 +23,8 @@ use crate::transform;
 const MAX_INSTANCE_DEPTH: usize = 16;
 /// Largest film side, in pixels.
 pub const MAX_FILM_SIDE: u32 = 1 << 15;
+/// Longest camera path, in frames.
+pub const MAX_FRAMES: u32 = 1_000_000;
 
 /// Parses and validates the scene file `name` (relative to `source`).
 pub fn load(source: &dyn SceneSource, name: &Path) -> Result<SceneDesc, SceneError> {
@@ -170,6 +173,11 @@ impl Ctx<'_> {
         let metres_per_unit = f.units.metres();
         let film = self.film(&f.film);
         let camera = self.camera(&f.camera, &film);
+        let camera_path = f
+            .camera
+            .path
+            .as_ref()
+            .and_then(|p| self.camera_path(&f.camera, p, &film));
         let integrator = self.integrator(&f.integrator);
         let material_index: BTreeMap<String, u32> = f
             .materials
@@ -221,6 +229,7 @@ impl Ctx<'_> {
             name: f.name.unwrap_or(default_name),
             metres_per_unit,
             camera,
+            camera_path,
             film,
             integrator,
             materials,
@@ -307,15 +316,28 @@ impl Ctx<'_> {
         }
     }
 
-    fn camera(&mut self, c: &CameraFile, film: &FilmDesc) -> CameraDesc {
-        let position = self.finite3("camera.position", c.position);
-        let look_at = self.finite3("camera.look_at", c.look_at);
-        let up = self.finite3("camera.up", c.up);
+    /// Checks one view of the camera (the still camera or a keyframe of its path, at `path`):
+    /// finite points, a view direction, an up vector not along it, a field of view; returns
+    /// the full vertical field of view in radians.
+    #[allow(clippy::too_many_arguments)]
+    fn view(
+        &mut self,
+        path: &str,
+        position: [f32; 3],
+        look_at: [f32; 3],
+        up: [f32; 3],
+        fov_deg: f32,
+        fov_axis: FovAxis,
+        film: &FilmDesc,
+    ) -> (Vec3, Vec3, Vec3, f32) {
+        let position = self.finite3(&format!("{path}.position"), position);
+        let look_at = self.finite3(&format!("{path}.look_at"), look_at);
+        let up = self.finite3(&format!("{path}.up"), up);
         let forward = look_at - position;
         if forward.length_squared() == 0.0 {
             self.problem(
-                "camera.look_at",
-                "expected a point different from camera.position",
+                format!("{path}.look_at"),
+                format!("expected a point different from {path}.position"),
             );
         } else if forward
             .normalize()
@@ -324,23 +346,112 @@ impl Ctx<'_> {
             < 1e-8
         {
             self.problem(
-                "camera.up",
+                format!("{path}.up"),
                 "expected an up vector that is not parallel to the view direction",
             );
         }
         let fov = self.range(
-            "camera.fov_deg",
-            c.fov_deg,
+            &format!("{path}.fov_deg"),
+            fov_deg,
             f32::MIN_POSITIVE,
             179.0,
             "a field of view in (0, 179] degrees",
         );
         let aspect = film.width.max(1) as f32 / film.height.max(1) as f32;
         let half = (fov.to_radians() * 0.5).tan();
-        let fov_y = match c.fov_axis {
+        let fov_y = match fov_axis {
             FovAxis::Y => fov.to_radians(),
             FovAxis::X => 2.0 * (half / aspect).atan(),
         };
+        (position, look_at, up, fov_y)
+    }
+
+    /// A camera path: fps, keyframes in strictly increasing time, each a valid view, and a
+    /// valid view at every frame in between (an interpolated up may not turn along the view).
+    fn camera_path(
+        &mut self,
+        c: &CameraFile,
+        p: &CameraPathFile,
+        film: &FilmDesc,
+    ) -> Option<CameraPath> {
+        let fps = self.range(
+            "camera.path.fps",
+            p.fps,
+            1e-3,
+            1e4,
+            "frames per second in [0.001, 10000]",
+        );
+        if p.keyframes.is_empty() {
+            self.problem("camera.path.keyframes", "expected at least one keyframe");
+            return None;
+        }
+        let before = self.problems.len();
+        let mut keyframes = Vec::with_capacity(p.keyframes.len());
+        for (i, k) in p.keyframes.iter().enumerate() {
+            let at = format!("camera.path.keyframes[{i}]");
+            if !k.time.is_finite() {
+                self.problem(
+                    format!("{at}.time"),
+                    format!("expected a time in seconds, got {}", k.time),
+                );
+            } else if let Some(prev) = keyframes.last().map(|k: &Keyframe| k.time)
+                && k.time <= prev
+            {
+                self.problem(
+                    format!("{at}.time"),
+                    format!(
+                        "expected keyframe times to increase, got {} after {prev}",
+                        k.time
+                    ),
+                );
+            }
+            let (position, look_at, up, fov_y) = self.view(
+                &at,
+                k.position,
+                k.look_at,
+                k.up.unwrap_or(c.up),
+                k.fov_deg.unwrap_or(c.fov_deg),
+                c.fov_axis,
+                film,
+            );
+            keyframes.push(Keyframe {
+                time: k.time,
+                position,
+                look_at,
+                up: up.normalize_or_zero(),
+                fov_y,
+            });
+        }
+        if self.problems.len() > before {
+            return None;
+        }
+        let path = CameraPath { fps, keyframes };
+        let frames = path.frame_count();
+        if frames > MAX_FRAMES {
+            self.problem(
+                "camera.path",
+                format!("expected at most {MAX_FRAMES} frames, the keyframes span {frames}"),
+            );
+            return None;
+        }
+        for frame in 1..=frames {
+            let k = path.at(path.time(frame));
+            let forward = (k.look_at - k.position).normalize_or_zero();
+            if forward == Vec3::ZERO || forward.cross(k.up).length_squared() < 1e-8 {
+                self.problem(
+                    "camera.path.keyframes",
+                    format!("at frame {frame} the interpolated camera has no valid view direction (look_at on the position, or up along the view); add a keyframe there"),
+                );
+                return None;
+            }
+        }
+        Some(path)
+    }
+
+    fn camera(&mut self, c: &CameraFile, film: &FilmDesc) -> CameraDesc {
+        let (position, look_at, up, fov_y) = self.view(
+            "camera", c.position, c.look_at, c.up, c.fov_deg, c.fov_axis, film,
+        );
         let lens = match c.kind {
             CameraType::Pinhole => {
                 for (field, given) in [

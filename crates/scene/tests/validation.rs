@@ -460,3 +460,54 @@ fn example_scenes_in_the_repository_load() {
     }
     assert!(found >= 4, "expected the example scenes, found {found}");
 }
+
+/// The base scene with a camera path of the given keyframes (JSON array body).
+fn with_path(keyframes: &str) -> String {
+    scene(QUAD, POINT).replace(
+        r#""fov_deg": 40 }"#,
+        &format!(r#""fov_deg": 40, "path": {{ "fps": 10, "keyframes": [{keyframes}] }} }}"#),
+    )
+}
+
+#[test]
+fn camera_path_gives_frames_and_interpolated_cameras() {
+    let (_dir, d) = try_load(
+        &with_path(
+            r#"{ "time": 0, "position": [0, 1, -5], "look_at": [0, 1, 0] },
+               { "time": 1, "position": [2, 1, -4], "look_at": [0, 1, 0], "fov_deg": 60 }"#,
+        ),
+        &[],
+    );
+    let d = d.unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(d.frame_count(), 11);
+    assert_eq!(d.camera_at(1).position, glam::Vec3::new(0.0, 1.0, -5.0));
+    let last = d.camera_at(11);
+    assert!((last.position - glam::Vec3::new(2.0, 1.0, -4.0)).length() < 1e-5);
+    assert!((last.fov_y - 60f32.to_radians()).abs() < 1e-5);
+    let mid = d.camera_at(6).position;
+    assert!(mid.x > 0.5 && mid.x < 1.5, "{mid}");
+}
+
+#[test]
+fn bad_camera_paths_name_the_keyframe_and_field() {
+    let (file, path, msg) = one_problem(
+        &with_path(
+            r#"{ "time": 1, "position": [0, 1, -5], "look_at": [0, 1, 0] },
+               { "time": 0.5, "position": [2, 1, -4], "look_at": [0, 1, 0] }"#,
+        ),
+        &[],
+    );
+    assert_eq!(
+        (file.as_str(), path.as_str()),
+        ("scene.json", "camera.path.keyframes[1].time")
+    );
+    assert!(msg.contains("increase"), "{msg}");
+    let (_, path, msg) = one_problem(
+        &with_path(r#"{ "time": 0, "position": [0, 1, -5], "look_at": [0, 1, -5] }"#),
+        &[],
+    );
+    assert_eq!(path, "camera.path.keyframes[0].look_at");
+    assert!(msg.contains("different from"), "{msg}");
+    let (_, path, _) = one_problem(&with_path(""), &[]);
+    assert_eq!(path, "camera.path.keyframes");
+}

@@ -1,6 +1,7 @@
 //! `tessera`: the command-line interface of the Tessera render farm.
 
 mod compare;
+mod farm;
 mod render;
 
 use std::process::ExitCode;
@@ -24,6 +25,20 @@ enum Command {
     Render(render::RenderArgs),
     /// Compare an image with a reference: relMSE, RMSE and mean ratio.
     Compare(compare::CompareArgs),
+    /// Run the coordinator: HTTP API, job store, scheduler (and local workers).
+    Serve(farm::ServeArgs),
+    /// Run a worker: lease tasks from a coordinator and render them.
+    Worker(farm::WorkerArgs),
+    /// Submit a scene to a coordinator (and wait for its frames).
+    Submit(farm::SubmitArgs),
+}
+
+/// Runs an async command on a multi-threaded runtime.
+fn block_on<F: std::future::Future<Output = anyhow::Result<()>>>(f: F) -> anyhow::Result<()> {
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?
+        .block_on(f)
 }
 
 /// Writes to standard output; a reader that went away (a closed pipe) is not an error.
@@ -36,17 +51,26 @@ fn print(text: &str) -> anyhow::Result<()> {
 }
 
 fn main() -> ExitCode {
+    let cli = Cli::parse();
+    // Services log what they do; one-shot commands only warnings. RUST_LOG overrides.
+    let default = match cli.command {
+        Command::Serve(_) | Command::Worker(_) => "info",
+        _ => "warn",
+    };
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default)),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
-    let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render::run(args),
         Command::Compare(args) => compare::run(args),
+        Command::Serve(args) => block_on(farm::serve(args)),
+        Command::Worker(args) => block_on(farm::worker(args)),
+        Command::Submit(args) => block_on(farm::submit(args)),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -5,8 +5,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use tessera_render::output::{ExrMetadata, write_exr, write_png};
-use tessera_render::{SampleRange, Scene, integrator, render};
+use rayon::prelude::*;
+use tessera_farm::job::{self, FrameRange, Limits, Prepared, RenderSettings, TaskOutput};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -22,32 +22,38 @@ pub struct RenderArgs {
     #[arg(long)]
     pub threads: Option<usize>,
     /// Tile size in pixels; it does not change the image, only the work units.
-    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, default_value_t = job::DEFAULT_TILE)]
     pub tile: u32,
     /// Random seed (overrides the scene's integrator.seed).
     #[arg(long)]
     pub seed: Option<u64>,
+    /// The frame of the scene's camera path to render (1-based).
+    #[arg(long, default_value_t = 1)]
+    pub frame: u32,
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
 }
 
-/// Largest sample count per pixel (the film's fixed-point sums are sized for 2^24).
-const MAX_SPP: u32 = 1 << 24;
-
+/// Renders one frame in this process, through the same plan → tasks → stitch path as the
+/// farm (`tessera_farm::job`), with the tasks spread over a thread pool.
 pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let mut desc = tessera_scene::load(&args.scene)?;
-    if let Some(spp) = args.spp {
-        anyhow::ensure!(
-            (1..=MAX_SPP).contains(&spp),
-            "--spp: expected 1 to {MAX_SPP} samples per pixel, got {spp}"
-        );
-        desc.integrator.spp = spp;
-    }
-    if let Some(seed) = args.seed {
-        desc.integrator.seed = seed;
-    }
+    let settings = RenderSettings {
+        spp: args.spp,
+        seed: args.seed,
+        tile: Some(args.tile),
+        samples_per_task: None,
+    };
+    let frame = args.frame;
+    job::apply(
+        &mut desc,
+        &settings,
+        FrameRange::single(frame),
+        &Limits::default(),
+    )
+    .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
     let output = args
         .output
         .clone()
@@ -63,20 +69,21 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         .context("cannot start worker threads")?;
 
     let load_time = start.elapsed();
-    let built = Instant::now();
-    let scene = pool.install(|| Scene::build(&desc));
-    let build_time = built.elapsed();
+    let tasks = job::plan_frame(&desc, &settings, frame);
+    let prepared = pool.install(|| Prepared::new(desc));
+    let build_time = prepared.build_seconds;
+    let desc = &prepared.desc;
+    let stats = &prepared.scene.stats;
     tracing::info!(
         scene = %desc.name,
-        triangles = scene.stats.triangles,
-        spheres = scene.stats.spheres,
-        lights = scene.stats.lights,
-        emissive_triangles = scene.stats.emissive_triangles,
+        triangles = stats.triangles,
+        spheres = stats.spheres,
+        lights = stats.lights,
+        emissive_triangles = stats.emissive_triangles,
         load_s = load_time.as_secs_f64(),
-        build_s = build_time.as_secs_f64(),
+        build_s = build_time,
         "scene ready"
     );
-    let integrator = integrator::from_desc(&desc.integrator);
     let (w, h, spp) = (desc.film.width, desc.film.height, desc.integrator.spp);
 
     let progress = if args.quiet {
@@ -92,42 +99,24 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     );
     let rendering = Instant::now();
     let cpu_start = cpu_seconds();
-    let (image, stats) = pool.install(|| {
-        render::render_frame(
-            &scene,
-            integrator.as_ref(),
-            args.tile,
-            SampleRange { start: 0, end: spp },
-            &|tile| progress.inc(tile.pixel_count() as u64),
-        )
+    let camera = prepared.camera(frame);
+    let outputs: Vec<TaskOutput> = pool.install(|| {
+        tasks
+            .par_iter()
+            .map(|task| {
+                let out = prepared.execute_with(&camera, task);
+                progress.inc(out.sums.tile.pixel_count() as u64);
+                out
+            })
+            .collect()
     });
+    let (image, stats) = job::stitch(w, h, &outputs);
     let render_s = rendering.elapsed().as_secs_f64();
     let cpu_s = cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
     progress.finish_and_clear();
 
-    let metadata = ExrMetadata {
-        entries: vec![
-            ("scene".into(), desc.name.clone()),
-            (
-                "integrator".into(),
-                format!("{:?}", desc.integrator.kind).to_lowercase(),
-            ),
-            ("spp".into(), spp.to_string()),
-            ("seed".into(), desc.integrator.seed.to_string()),
-            (
-                "sampler".into(),
-                format!("{:?}", desc.integrator.sampler).to_lowercase(),
-            ),
-            ("max_depth".into(), desc.integrator.max_depth.to_string()),
-            (
-                "nonfinite_samples_dropped".into(),
-                stats.nonfinite.to_string(),
-            ),
-        ],
-    };
-    write_exr(&output, &image, &metadata)?;
+    job::write_frame(&output, desc, frame, &image, &stats)?;
     let preview = output.with_extension("png");
-    write_png(&preview, &image)?;
 
     let mut report = format!("{}: {w}×{h}, {spp} spp, {threads} threads\n", desc.name);
     report += &format!(
@@ -138,9 +127,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     );
     report += &format!(
         "setup {:.2} s (load {:.2} s, BVH and lights {:.2} s)\n",
-        (load_time + build_time).as_secs_f64(),
+        load_time.as_secs_f64() + build_time,
         load_time.as_secs_f64(),
-        build_time.as_secs_f64()
+        build_time
     );
     if stats.nonfinite > 0 {
         report += &format!(

@@ -8,9 +8,9 @@
 
 mod path;
 
+use glam::Vec3A;
 use tessera_scene::{IntegratorDesc, IntegratorKind};
 
-use crate::film::FirstHit;
 use crate::ray::Ray;
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
@@ -34,6 +34,16 @@ impl RayStats {
         self.samples += o.samples;
         self.nonfinite += o.nonfinite;
     }
+}
+
+/// The first surface a camera ray hit, for the AOVs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FirstHit {
+    pub albedo: Spectrum,
+    /// World-space shading normal.
+    pub normal: Vec3A,
+    /// World-space position (the film turns it into depth along the camera axis).
+    pub p: Vec3A,
 }
 
 /// Radiance along a camera ray, and what it hit first.

@@ -4,7 +4,7 @@ use glam::{Vec2, Vec3A};
 
 use super::{Integrator, RadianceSample, RayStats};
 use crate::bsdf::TransportMode;
-use crate::film::FirstHit;
+use crate::integrator::FirstHit;
 use crate::ray::Ray;
 use crate::sampler::{PixelSampler, Sampler};
 use crate::sampling::power_heuristic;
@@ -97,7 +97,7 @@ impl Integrator for PathIntegrator {
                 first_hit = Some(FirstHit {
                     albedo: material.bsdf.albedo(),
                     normal: si.ns,
-                    depth: scene.camera.depth(si.p),
+                    p: si.p,
                 });
             }
             let wo = -ray.d;

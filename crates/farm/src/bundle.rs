@@ -1,0 +1,194 @@
+//! Scene bundles: a scene file and every file it references, as one tar archive that a client
+//! uploads and workers download, addressed by the SHA-256 of its bytes.
+//!
+//! A bundle is packed deterministically (files sorted, no times or owners), so the same scene
+//! always gives the same hash. Unpacking confines every entry to the bundle: absolute paths,
+//! `..` that leaves it, links and devices are refused.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use sha2::{Digest, Sha256};
+use tessera_scene::source::confine;
+use tessera_scene::{DirSource, SceneDesc, SceneError, SceneSource};
+
+/// The files of an unpacked bundle, by confined relative path.
+#[derive(Debug, Clone, Default)]
+pub struct Bundle {
+    pub files: BTreeMap<PathBuf, Vec<u8>>,
+}
+
+impl SceneSource for Bundle {
+    fn read(&self, relative: &Path) -> std::io::Result<Vec<u8>> {
+        self.files.get(relative).cloned().ok_or_else(|| {
+            std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                "no such file in the uploaded scene bundle",
+            )
+        })
+    }
+    fn display_path(&self, relative: &Path) -> PathBuf {
+        relative.to_path_buf()
+    }
+}
+
+impl Bundle {
+    /// Unpacks a tar archive, refusing entries that leave the bundle or are not plain files.
+    pub fn from_tar(bytes: &[u8]) -> Result<Bundle, String> {
+        let mut archive = tar::Archive::new(bytes);
+        let mut files = BTreeMap::new();
+        let entries = archive
+            .entries()
+            .map_err(|e| format!("expected a tar archive: {e}"))?;
+        for entry in entries {
+            let mut entry = entry.map_err(|e| format!("expected a tar archive: {e}"))?;
+            let raw = String::from_utf8_lossy(&entry.path_bytes()).into_owned();
+            let kind = entry.header().entry_type();
+            if kind.is_dir() {
+                continue;
+            }
+            if !kind.is_file() {
+                return Err(format!(
+                    "bundle entry \"{raw}\": expected a regular file, got a {kind:?} entry"
+                ));
+            }
+            let path = confine(&raw).map_err(|e| format!("bundle entry \"{raw}\": {e}"))?;
+            let mut data = Vec::with_capacity(entry.size() as usize);
+            std::io::Read::read_to_end(&mut entry, &mut data)
+                .map_err(|e| format!("bundle entry \"{raw}\": {e}"))?;
+            files.insert(path, data);
+        }
+        Ok(Bundle { files })
+    }
+
+    /// Packs the files into a deterministic tar archive.
+    pub fn to_tar(&self) -> Vec<u8> {
+        let mut builder = tar::Builder::new(Vec::new());
+        for (path, data) in &self.files {
+            let mut header = tar::Header::new_ustar();
+            header.set_size(data.len() as u64);
+            header.set_mode(0o644);
+            header.set_mtime(0);
+            header.set_entry_type(tar::EntryType::Regular);
+            // Paths come from `confine`, so they are relative and valid UTF-8 on every
+            // platform we read them on.
+            if builder
+                .append_data(&mut header, path, data.as_slice())
+                .is_err()
+            {
+                continue;
+            }
+        }
+        builder.into_inner().unwrap_or_default()
+    }
+
+    /// Loads and validates the scene file `scene` of this bundle.
+    pub fn load(&self, scene: &str) -> Result<SceneDesc, SceneError> {
+        let name = confine(scene).map_err(|message| {
+            SceneError::Invalid(vec![tessera_scene::Problem {
+                file: PathBuf::from(scene),
+                path: String::new(),
+                message,
+            }])
+        })?;
+        tessera_scene::load_from(self, &name)
+    }
+
+    /// Bundles the scene at `path` (a scene.json) with exactly the files it reads, after
+    /// validating it as the coordinator will. Returns the bundle and the scene's file name.
+    pub fn pack_scene(path: &Path) -> Result<(Bundle, SceneDesc, String), SceneError> {
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scene.json".into());
+        let recording = Recording {
+            inner: DirSource::new(dir),
+            files: Mutex::new(BTreeMap::new()),
+        };
+        let desc = tessera_scene::load_from(&recording, Path::new(&name))?;
+        let files = recording
+            .files
+            .into_inner()
+            .unwrap_or_else(|e| e.into_inner());
+        Ok((Bundle { files }, desc, name))
+    }
+}
+
+/// A source that remembers every file read through it.
+struct Recording {
+    inner: DirSource,
+    files: Mutex<BTreeMap<PathBuf, Vec<u8>>>,
+}
+
+impl SceneSource for Recording {
+    fn read(&self, relative: &Path) -> std::io::Result<Vec<u8>> {
+        let data = self.inner.read(relative)?;
+        if let Ok(mut files) = self.files.lock() {
+            files.insert(relative.to_path_buf(), data.clone());
+        }
+        Ok(data)
+    }
+    fn display_path(&self, relative: &Path) -> PathBuf {
+        self.inner.display_path(relative)
+    }
+}
+
+/// The content address of a bundle: SHA-256 of its bytes, in lower-case hex.
+pub fn hash(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// Whether `s` looks like a bundle hash (64 hex digits), so it is safe in a file name.
+pub fn is_hash(s: &str) -> bool {
+    s.len() == 64
+        && s.bytes()
+            .all(|b| b.is_ascii_hexdigit() && !b.is_ascii_uppercase())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packs_what_the_scene_reads_and_round_trips() {
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
+        let (bundle, desc, name) = Bundle::pack_scene(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(name, "scene.json");
+        assert!(bundle.files.contains_key(Path::new("scene.json")));
+        assert!(
+            bundle.files.len() > 1,
+            "meshes are bundled: {:?}",
+            bundle.files.keys()
+        );
+        assert!(!bundle.files.keys().any(|k| k.ends_with("reference.exr")));
+        let tar = bundle.to_tar();
+        assert_eq!(hash(&tar), hash(&bundle.to_tar()), "deterministic");
+        let back = Bundle::from_tar(&tar).expect("unpack");
+        let again = back.load(&name).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(again.meshes.len(), desc.meshes.len());
+    }
+
+    #[test]
+    fn refuses_entries_that_leave_the_bundle() {
+        let mut builder = tar::Builder::new(Vec::new());
+        let mut header = tar::Header::new_gnu();
+        let data = b"v 0 0 0\n";
+        header.set_size(data.len() as u64);
+        header.set_entry_type(tar::EntryType::Regular);
+        // Write the name into the header directly: the tar crate's setters refuse "..".
+        let name = b"../../etc/evil.obj";
+        header.as_old_mut().name[..name.len()].copy_from_slice(name);
+        header.set_cksum();
+        builder.append(&header, &data[..]).expect("append");
+        let tar = builder.into_inner().expect("tar");
+        let err = Bundle::from_tar(&tar).unwrap_err();
+        assert!(err.contains("leaves"), "{err}");
+        assert!(is_hash(&hash(b"x")) && !is_hash("../x"));
+    }
+}

@@ -1,0 +1,178 @@
+//! An HTTP client of the coordinator's API, for `tessera submit`, workers and tests.
+
+use std::time::Duration;
+
+use anyhow::Context;
+use reqwest::StatusCode;
+use serde::de::DeserializeOwned;
+
+use crate::protocol::*;
+
+#[derive(Clone)]
+pub struct Client {
+    base: String,
+    token: String,
+    http: reqwest::Client,
+}
+
+/// An answer that was not a success: the status and the coordinator's message.
+#[derive(Debug, thiserror::Error)]
+#[error("{status}: {message}")]
+pub struct ApiError {
+    pub status: StatusCode,
+    pub message: String,
+}
+
+impl Client {
+    pub fn new(base: &str, token: &str) -> anyhow::Result<Client> {
+        let http = reqwest::Client::builder()
+            .connect_timeout(Duration::from_secs(5))
+            .timeout(Duration::from_secs(300))
+            .build()
+            .context("cannot create the HTTP client")?;
+        Ok(Client {
+            base: base.trim_end_matches('/').to_string(),
+            token: token.to_string(),
+            http,
+        })
+    }
+
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{path}", self.base)
+    }
+
+    fn request(&self, method: reqwest::Method, path: &str) -> reqwest::RequestBuilder {
+        self.http
+            .request(method, self.url(path))
+            .bearer_auth(&self.token)
+    }
+
+    /// Sends and turns a non-success status into an [`ApiError`] with the JSON message.
+    async fn send(rb: reqwest::RequestBuilder) -> anyhow::Result<reqwest::Response> {
+        let response = rb.send().await?;
+        let status = response.status();
+        if status.is_success() {
+            return Ok(response);
+        }
+        let text = response.text().await.unwrap_or_default();
+        let message = serde_json::from_str::<ErrorBody>(&text)
+            .map(|e| e.error)
+            .unwrap_or(text);
+        Err(ApiError { status, message }.into())
+    }
+
+    async fn json<T: DeserializeOwned>(rb: reqwest::RequestBuilder) -> anyhow::Result<T> {
+        Ok(Self::send(rb).await?.json().await?)
+    }
+
+    pub async fn upload_bundle(&self, tar: Vec<u8>) -> anyhow::Result<BundleInfo> {
+        Self::json(
+            self.request(reqwest::Method::POST, "/v1/bundles")
+                .header("content-type", "application/x-tar")
+                .body(tar),
+        )
+        .await
+    }
+
+    pub async fn download_bundle(&self, hash: &str) -> anyhow::Result<Vec<u8>> {
+        let r =
+            Self::send(self.request(reqwest::Method::GET, &format!("/v1/bundles/{hash}"))).await?;
+        Ok(r.bytes().await?.to_vec())
+    }
+
+    pub async fn submit(&self, job: &JobRequest) -> anyhow::Result<JobStatus> {
+        Self::json(self.request(reqwest::Method::POST, "/v1/jobs").json(job)).await
+    }
+
+    pub async fn job(&self, id: i64) -> anyhow::Result<JobStatus> {
+        Self::json(self.request(reqwest::Method::GET, &format!("/v1/jobs/{id}"))).await
+    }
+
+    pub async fn tasks(&self, id: i64) -> anyhow::Result<Vec<TaskStatus>> {
+        Self::json(self.request(reqwest::Method::GET, &format!("/v1/jobs/{id}/tasks"))).await
+    }
+
+    pub async fn workers(&self) -> anyhow::Result<Vec<WorkerStatus>> {
+        Self::json(self.request(reqwest::Method::GET, "/v1/workers")).await
+    }
+
+    pub async fn cancel(&self, id: i64) -> anyhow::Result<JobStatus> {
+        Self::json(self.request(reqwest::Method::POST, &format!("/v1/jobs/{id}/cancel"))).await
+    }
+
+    pub async fn frame_exr(&self, id: i64, frame: u32) -> anyhow::Result<Vec<u8>> {
+        let r = Self::send(self.request(
+            reqwest::Method::GET,
+            &format!("/v1/jobs/{id}/frames/{frame}/exr"),
+        ))
+        .await?;
+        Ok(r.bytes().await?.to_vec())
+    }
+
+    /// Leases a task, waiting up to `wait_ms`; `None` when none was queued.
+    pub async fn lease(&self, req: &LeaseRequest) -> anyhow::Result<Option<LeaseGrant>> {
+        let r = Self::send(
+            self.request(reqwest::Method::POST, "/v1/tasks/lease")
+                .json(req),
+        )
+        .await?;
+        if r.status() == StatusCode::NO_CONTENT {
+            return Ok(None);
+        }
+        Ok(Some(r.json().await?))
+    }
+
+    pub async fn heartbeat(&self, task: i64, hb: &Heartbeat) -> anyhow::Result<()> {
+        Self::send(
+            self.request(
+                reqwest::Method::POST,
+                &format!("/v1/tasks/{task}/heartbeat"),
+            )
+            .json(hb),
+        )
+        .await?;
+        Ok(())
+    }
+
+    pub async fn upload_result(
+        &self,
+        task: i64,
+        lease: i64,
+        seconds: f64,
+        body: Vec<u8>,
+    ) -> anyhow::Result<()> {
+        Self::send(
+            self.request(
+                reqwest::Method::PUT,
+                &format!("/v1/tasks/{task}/result?lease={lease}&seconds={seconds}"),
+            )
+            .header("content-type", "application/octet-stream")
+            .body(body),
+        )
+        .await?;
+        Ok(())
+    }
+
+    pub async fn fail(&self, task: i64, failure: &Failure) -> anyhow::Result<()> {
+        Self::send(
+            self.request(reqwest::Method::POST, &format!("/v1/tasks/{task}/fail"))
+                .json(failure),
+        )
+        .await?;
+        Ok(())
+    }
+}
+
+/// Whether an error is worth retrying: the coordinator could not be reached or answered 5xx
+/// (a restart, say), as opposed to a 4xx verdict.
+pub fn is_transient(e: &anyhow::Error) -> bool {
+    match e.downcast_ref::<ApiError>() {
+        Some(api) => api.status.is_server_error(),
+        None => e.downcast_ref::<reqwest::Error>().is_some(),
+    }
+}
+
+/// The status of an API error, if it was one.
+pub fn status_of(e: &anyhow::Error) -> Option<StatusCode> {
+    e.downcast_ref::<ApiError>().map(|a| a.status)
+}

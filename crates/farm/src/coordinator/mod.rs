@@ -1,0 +1,358 @@
+//! The coordinator: HTTP API, job store, scheduler, lease reaper, stitcher and the
+//! supervisor of local workers.
+//!
+//! Everything that must survive a restart is in the SQLite store and the data directory
+//! (`DIR/tessera.db`, `DIR/bundles/HASH.tar`, `DIR/jobs/ID/tiles/TASK-LEASE.tsum`,
+//! `DIR/jobs/ID/frame_NNNN.exr`). On start it stitches frames whose tiles all arrived before a
+//! restart; leases granted before it keep running and expire as usual.
+
+mod api;
+mod error;
+mod metrics;
+mod supervisor;
+
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use anyhow::Context;
+use tessera_scene::SceneDesc;
+use tokio::sync::Notify;
+
+pub use error::{AppError, AppResult};
+
+use crate::bundle::Bundle;
+use crate::codec;
+use crate::job::{self, FrameRange, Limits, TaskOutput};
+use crate::store::{Retry, Store};
+use metrics::Metrics;
+
+/// How a coordinator runs.
+#[derive(Debug, Clone)]
+pub struct Config {
+    pub listen: SocketAddr,
+    pub data: PathBuf,
+    pub client_token: String,
+    pub worker_token: String,
+    /// A lease not renewed for this long expires.
+    pub lease_ms: u64,
+    /// Leases a task may have before its job fails.
+    pub max_attempts: u32,
+    pub limits: Limits,
+    /// Largest scene bundle upload, bytes.
+    pub max_upload: usize,
+    /// Worker processes to start and supervise.
+    pub local_workers: u32,
+}
+
+impl Config {
+    pub fn new(
+        listen: SocketAddr,
+        data: PathBuf,
+        client_token: String,
+        worker_token: String,
+    ) -> Self {
+        Config {
+            listen,
+            data,
+            client_token,
+            worker_token,
+            lease_ms: 15_000,
+            max_attempts: 3,
+            limits: Limits::default(),
+            max_upload: 512 << 20,
+            local_workers: 0,
+        }
+    }
+}
+
+/// Shared state of the running coordinator.
+pub struct App {
+    pub config: Config,
+    pub store: Store,
+    metrics: Metrics,
+    /// Woken when tasks are queued, for long-polling lease requests.
+    work: Notify,
+    /// Scene descriptions of jobs (with their settings applied), for stitching.
+    descs: Mutex<HashMap<i64, Arc<SceneDesc>>>,
+}
+
+/// Milliseconds since the Unix epoch.
+pub fn now_ms() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_millis() as i64)
+}
+
+impl App {
+    fn bundle_path(&self, hash: &str) -> PathBuf {
+        self.config.data.join("bundles").join(format!("{hash}.tar"))
+    }
+    fn job_dir(&self, job: i64) -> PathBuf {
+        self.config.data.join("jobs").join(job.to_string())
+    }
+    fn tile_path(&self, job: i64, task: i64, lease: i64) -> PathBuf {
+        self.job_dir(job)
+            .join("tiles")
+            .join(format!("{task}-{lease}.tsum"))
+    }
+    fn frame_path(&self, job: i64, frame: u32) -> PathBuf {
+        self.job_dir(job).join(job::frame_file_name(frame))
+    }
+
+    /// The scene of a job with its settings applied (cached).
+    fn job_desc(&self, job: i64) -> anyhow::Result<Arc<SceneDesc>> {
+        if let Some(d) = self
+            .descs
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(&job)
+        {
+            return Ok(d.clone());
+        }
+        let (hash, scene, settings) = self
+            .store
+            .job_source(job)?
+            .with_context(|| format!("job {job} is not in the store"))?;
+        let bytes = std::fs::read(self.bundle_path(&hash))
+            .with_context(|| format!("bundle {hash} of job {job}"))?;
+        let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
+        let mut desc = bundle.load(&scene)?;
+        let frames = FrameRange {
+            first: 1,
+            last: desc.frame_count(),
+        };
+        job::apply(&mut desc, &settings, frames, &Limits::default()).map_err(anyhow::Error::msg)?;
+        let desc = Arc::new(desc);
+        self.descs
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(job, desc.clone());
+        Ok(desc)
+    }
+
+    /// Decodes the accepted results of a frame so far, in stitch order.
+    fn frame_outputs(&self, job: i64, frame: u32) -> anyhow::Result<Vec<TaskOutput>> {
+        let results = self.store.frame_results(job, frame)?;
+        results
+            .iter()
+            .map(|(task, lease, spec)| {
+                let path = self.tile_path(job, *task, *lease);
+                let bytes = std::fs::read(&path).with_context(|| path.display().to_string())?;
+                codec::decode(&bytes, spec).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+            })
+            .collect()
+    }
+
+    /// Stitches a frame whose tasks are all done and writes its EXR and PNG (blocking).
+    fn stitch(&self, job: i64, frame: u32) -> anyhow::Result<bool> {
+        let desc = self.job_desc(job)?;
+        let outputs = self.frame_outputs(job, frame)?;
+        let (image, stats) = job::stitch(desc.film.width, desc.film.height, &outputs);
+        let path = self.frame_path(job, frame);
+        let tmp = path.with_extension("tmp.exr");
+        job::write_frame(&tmp, &desc, frame, &image, &stats)?;
+        std::fs::rename(tmp.with_extension("png"), path.with_extension("png"))?;
+        std::fs::rename(&tmp, &path)?;
+        self.metrics.frames_stitched.fetch_add(1, Relaxed);
+        let job_done = self.store.frame_stitched(job, frame, now_ms())?;
+        tracing::info!(job, frame, path = %path.display(), job_done, "frame stitched");
+        if job_done {
+            self.descs
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .remove(&job);
+        }
+        Ok(job_done)
+    }
+
+    /// Stitches in the background; a failure (disk full, say) fails the job with its reason.
+    fn spawn_stitch(self: &Arc<Self>, job: i64, frame: u32) {
+        let app = self.clone();
+        tokio::task::spawn_blocking(move || {
+            if let Err(e) = app.stitch(job, frame) {
+                let message = format!("stitching frame {frame}: {e:#}");
+                tracing::error!(job, frame, error = %message, "stitch failed");
+                let _ = app.store.fail_job(job, &message, now_ms());
+            }
+        });
+    }
+
+    /// Takes back expired leases, once.
+    fn reap(&self) {
+        match self.store.expire(now_ms(), self.config.max_attempts) {
+            Ok(expired) => {
+                for (task, outcome) in expired {
+                    self.metrics.expired.fetch_add(1, Relaxed);
+                    match outcome {
+                        Retry::JobFailed(msg) => tracing::warn!(task, error = %msg, "job failed"),
+                        _ => tracing::warn!(task, "lease expired; task requeued"),
+                    }
+                    self.work.notify_waiters();
+                }
+            }
+            Err(e) => tracing::error!(error = %e, "expiring leases"),
+        }
+    }
+}
+
+/// A running coordinator: its address, its state, and a way to stop it.
+pub struct Running {
+    pub addr: SocketAddr,
+    pub app: Arc<App>,
+    shutdown: tokio::sync::watch::Sender<bool>,
+    server: tokio::task::JoinHandle<std::io::Result<()>>,
+}
+
+impl Running {
+    /// Stops serving and the local workers, and waits for the server to finish.
+    pub async fn stop(self) -> anyhow::Result<()> {
+        let _ = self.shutdown.send(true);
+        self.server.await??;
+        Ok(())
+    }
+
+    /// Serves until the server stops (Ctrl-C or SIGTERM stop it gracefully).
+    pub async fn wait(self) -> anyhow::Result<()> {
+        let tx = self.shutdown.clone();
+        tokio::spawn(async move {
+            shutdown_signal().await;
+            tracing::info!("shutting down");
+            let _ = tx.send(true);
+        });
+        self.server.await??;
+        Ok(())
+    }
+}
+
+async fn shutdown_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        if let Ok(mut term) = signal(SignalKind::terminate()) {
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => {}
+                _ = term.recv() => {}
+            }
+            return;
+        }
+    }
+    let _ = tokio::signal::ctrl_c().await;
+}
+
+/// Opens the store, resumes unfinished work, binds and starts serving.
+pub async fn start(config: Config) -> anyhow::Result<Running> {
+    for dir in ["bundles", "jobs"] {
+        std::fs::create_dir_all(config.data.join(dir))
+            .with_context(|| format!("creating {}", config.data.join(dir).display()))?;
+    }
+    let db = config.data.join("tessera.db");
+    let store =
+        Store::open(&db).with_context(|| format!("opening the job store {}", db.display()))?;
+    let listener = tokio::net::TcpListener::bind(config.listen)
+        .await
+        .with_context(|| format!("cannot listen on {}", config.listen))?;
+    let addr = listener.local_addr()?;
+    let app = Arc::new(App {
+        config,
+        store,
+        metrics: Metrics::default(),
+        work: Notify::new(),
+        descs: Mutex::new(HashMap::new()),
+    });
+
+    // Resume: frames whose last tile arrived just before a restart.
+    for (job, frame) in app.store.unstitched_frames()? {
+        tracing::info!(job, frame, "stitching a frame finished before the restart");
+        app.spawn_stitch(job, frame);
+    }
+
+    let (shutdown, mut stop) = tokio::sync::watch::channel(false);
+    // The reaper: expired leases go back to the queue.
+    {
+        let app = app.clone();
+        let mut stop = shutdown.subscribe();
+        let period = Duration::from_millis((app.config.lease_ms / 4).clamp(100, 1000));
+        tokio::spawn(async move {
+            loop {
+                tokio::select! {
+                    _ = tokio::time::sleep(period) => app.reap(),
+                    _ = stop.changed() => break,
+                }
+            }
+        });
+    }
+    if app.config.local_workers > 0 {
+        supervisor::spawn(&app, addr, shutdown.subscribe());
+    }
+    let router = api::router(app.clone());
+    let server = tokio::spawn(async move {
+        axum::serve(listener, router)
+            .with_graceful_shutdown(async move {
+                let _ = stop.changed().await;
+            })
+            .await
+    });
+    Ok(Running {
+        addr,
+        app,
+        shutdown,
+        server,
+    })
+}
+
+/// Tokens from flags or the environment, or generated once and kept in `DIR/tokens.json` so a
+/// restarted coordinator accepts the same workers and clients. Returns (client, worker, generated).
+pub fn tokens(
+    data: &Path,
+    client: Option<String>,
+    worker: Option<String>,
+) -> anyhow::Result<(String, String, bool)> {
+    if let (Some(c), Some(w)) = (&client, &worker) {
+        return Ok((c.clone(), w.clone(), false));
+    }
+    let path = data.join("tokens.json");
+    #[derive(serde::Serialize, serde::Deserialize)]
+    struct Saved {
+        client: String,
+        worker: String,
+    }
+    let saved = match std::fs::read(&path) {
+        Ok(bytes) => serde_json::from_slice::<Saved>(&bytes).with_context(|| {
+            format!(
+                "{}: expected {{\"client\": ..., \"worker\": ...}}",
+                path.display()
+            )
+        })?,
+        Err(_) => {
+            std::fs::create_dir_all(data)?;
+            let saved = Saved {
+                client: random_token()?,
+                worker: random_token()?,
+            };
+            std::fs::write(&path, serde_json::to_vec_pretty(&saved)?)
+                .with_context(|| format!("writing {}", path.display()))?;
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::PermissionsExt;
+                let _ = std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o600));
+            }
+            saved
+        }
+    };
+    Ok((
+        client.unwrap_or(saved.client),
+        worker.unwrap_or(saved.worker),
+        true,
+    ))
+}
+
+/// 128 random bits from the OS, in hex.
+pub fn random_token() -> anyhow::Result<String> {
+    let mut bytes = [0u8; 16];
+    getrandom::fill(&mut bytes).map_err(|e| anyhow::anyhow!("no OS randomness: {e}"))?;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
+}

@@ -1,0 +1,494 @@
+//! How an image is made, wherever it is made: a job's settings applied to a scene, frames cut
+//! into tasks (tile × sample range), a task rendered, and a frame stitched from its tasks in a
+//! fixed order. `tessera render` runs these in-process; the coordinator plans and stitches,
+//! workers execute. One code path, so a frame is bit-identical however it was rendered.
+
+use std::path::Path;
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use tessera_render::camera::Camera;
+use tessera_render::film::{MAX_SPP, TileSums, tiles};
+use tessera_render::output::{ExrMetadata, write_exr, write_png};
+use tessera_render::{Image, Integrator, RayStats, SampleRange, Scene, Tile, integrator, render};
+use tessera_scene::SceneDesc;
+use utoipa::ToSchema;
+
+/// Render settings a job gives on top of its scene. Every field is optional.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSettings {
+    /// Samples per pixel (default: the scene's `integrator.spp`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spp: Option<u32>,
+    /// Random seed (default: the scene's `integrator.seed`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// Tile side in pixels (default 32). Does not change the image.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tile: Option<u32>,
+    /// Samples per task (default: all of them in one task per tile). Does not change the image.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub samples_per_task: Option<u32>,
+}
+
+pub const DEFAULT_TILE: u32 = 32;
+/// Largest tile side: bounds the size of one task's result (≈ 15 MB of sums).
+pub const MAX_TILE: u32 = 256;
+
+/// Frames `first..=last` (1-based).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct FrameRange {
+    pub first: u32,
+    pub last: u32,
+}
+
+impl FrameRange {
+    pub fn single(frame: u32) -> Self {
+        FrameRange {
+            first: frame,
+            last: frame,
+        }
+    }
+    pub fn len(&self) -> u32 {
+        self.last + 1 - self.first
+    }
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+    pub fn iter(&self) -> impl Iterator<Item = u32> {
+        self.first..=self.last
+    }
+
+    /// Parses `N` or `A-B`.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        let num = |t: &str| {
+            t.trim()
+                .parse::<u32>()
+                .map_err(|_| format!("expected a frame number or a range like 1-24, got \"{s}\""))
+        };
+        let range = match s.split_once('-') {
+            Some((a, b)) => FrameRange {
+                first: num(a)?,
+                last: num(b)?,
+            },
+            None => FrameRange::single(num(s)?),
+        };
+        if range.first == 0 || range.last < range.first {
+            return Err(format!(
+                "expected frames counted from 1, first ≤ last, got \"{s}\""
+            ));
+        }
+        Ok(range)
+    }
+}
+
+impl std::fmt::Display for FrameRange {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.first == self.last {
+            write!(f, "{}", self.first)
+        } else {
+            write!(f, "{}-{}", self.first, self.last)
+        }
+    }
+}
+
+/// Limits a coordinator (or `tessera render`) puts on what a job may ask for.
+#[derive(Debug, Clone, Copy)]
+pub struct Limits {
+    /// Largest film side, pixels.
+    pub max_resolution: u32,
+    pub max_spp: u32,
+    pub max_frames: u32,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_resolution: 16384,
+            max_spp: MAX_SPP,
+            max_frames: 100_000,
+        }
+    }
+}
+
+/// Applies `settings` to `desc`, checks them and the frames against `limits` and the scene's
+/// animation. Errors name the field and what was expected.
+pub fn apply(
+    desc: &mut SceneDesc,
+    settings: &RenderSettings,
+    frames: FrameRange,
+    limits: &Limits,
+) -> Result<(), String> {
+    if let Some(spp) = settings.spp {
+        desc.integrator.spp = spp;
+    }
+    if let Some(seed) = settings.seed {
+        desc.integrator.seed = seed;
+    }
+    let spp = desc.integrator.spp;
+    let max_spp = limits.max_spp.min(MAX_SPP);
+    if !(1..=max_spp).contains(&spp) {
+        return Err(format!(
+            "spp: expected 1 to {max_spp} samples per pixel, got {spp}"
+        ));
+    }
+    let (w, h) = (desc.film.width, desc.film.height);
+    if w > limits.max_resolution || h > limits.max_resolution {
+        return Err(format!(
+            "film: expected at most {0}×{0} pixels (this farm's limit), the scene asks for {w}×{h}",
+            limits.max_resolution
+        ));
+    }
+    if let Some(tile) = settings.tile
+        && !(1..=MAX_TILE).contains(&tile)
+    {
+        return Err(format!("tile: expected 1 to {MAX_TILE} pixels, got {tile}"));
+    }
+    if settings.samples_per_task == Some(0) {
+        return Err("samples_per_task: expected at least 1".into());
+    }
+    let available = desc.frame_count();
+    if frames.first == 0 || frames.last < frames.first || frames.last > available {
+        return Err(format!(
+            "frames: expected a range within 1-{available} (the scene's {}), got {}-{}",
+            if desc.camera_path.is_some() {
+                "camera path"
+            } else {
+                "single frame: it has no camera path"
+            },
+            frames.first,
+            frames.last
+        ));
+    }
+    if frames.len() > limits.max_frames {
+        return Err(format!(
+            "frames: expected at most {} frames per job, got {}",
+            limits.max_frames,
+            frames.len()
+        ));
+    }
+    Ok(())
+}
+
+/// One unit of work: samples `samples` of the pixels of `tile` in frame `frame`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct TaskSpec {
+    pub frame: u32,
+    /// Position of the tile in the frame's tile order (the stitch order).
+    pub tile_index: u32,
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+    /// Sample indices [sample_start, sample_end).
+    pub sample_start: u32,
+    pub sample_end: u32,
+}
+
+impl TaskSpec {
+    pub fn tile(&self) -> Tile {
+        Tile {
+            x0: self.x0,
+            y0: self.y0,
+            x1: self.x1,
+            y1: self.y1,
+        }
+    }
+    pub fn samples(&self) -> SampleRange {
+        SampleRange {
+            start: self.sample_start,
+            end: self.sample_end,
+        }
+    }
+}
+
+/// The tasks of one frame, in stitch order: tiles row-major, each tile's sample ranges in
+/// increasing order.
+pub fn plan_frame(desc: &SceneDesc, settings: &RenderSettings, frame: u32) -> Vec<TaskSpec> {
+    let spp = desc.integrator.spp;
+    let chunk = settings
+        .samples_per_task
+        .unwrap_or(spp)
+        .clamp(1, spp.max(1));
+    let tile = settings.tile.unwrap_or(DEFAULT_TILE);
+    let mut out = Vec::new();
+    for (i, t) in tiles(desc.film.width, desc.film.height, tile)
+        .into_iter()
+        .enumerate()
+    {
+        let mut start = 0;
+        while start < spp {
+            let end = (start + chunk).min(spp);
+            out.push(TaskSpec {
+                frame,
+                tile_index: i as u32,
+                x0: t.x0,
+                y0: t.y0,
+                x1: t.x1,
+                y1: t.y1,
+                sample_start: start,
+                sample_end: end,
+            });
+            start = end;
+        }
+    }
+    out
+}
+
+/// A scene built for rendering: the BVH and lights once, for every frame and tile of a job.
+pub struct Prepared {
+    pub desc: SceneDesc,
+    pub scene: Scene,
+    pub integrator: Box<dyn Integrator>,
+    /// Seconds spent building.
+    pub build_seconds: f64,
+}
+
+impl Prepared {
+    pub fn new(desc: SceneDesc) -> Self {
+        let start = Instant::now();
+        let scene = Scene::build(&desc);
+        let integrator = integrator::from_desc(&desc.integrator);
+        Prepared {
+            desc,
+            scene,
+            integrator,
+            build_seconds: start.elapsed().as_secs_f64(),
+        }
+    }
+
+    /// The camera of `frame`.
+    pub fn camera(&self, frame: u32) -> Camera {
+        Camera::new(&self.desc.camera_at(frame), &self.desc.film)
+    }
+
+    /// Renders one task.
+    pub fn execute(&self, task: &TaskSpec) -> TaskOutput {
+        let camera = self.camera(task.frame);
+        self.execute_with(&camera, task)
+    }
+
+    /// Renders one task with a camera already made for its frame.
+    pub fn execute_with(&self, camera: &Camera, task: &TaskSpec) -> TaskOutput {
+        let (sums, stats) = render::render_tile(
+            &self.scene,
+            camera,
+            self.integrator.as_ref(),
+            task.tile(),
+            task.samples(),
+        );
+        TaskOutput { sums, stats }
+    }
+}
+
+/// What a task produces: the tile's fixed-point sums and its counters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TaskOutput {
+    pub sums: TileSums,
+    pub stats: RayStats,
+}
+
+/// Stitches a frame from its task outputs, given in the order of [`plan_frame`]: the sample
+/// ranges of each tile are merged in order, tiles put in place, counters summed.
+pub fn stitch<'a>(
+    width: u32,
+    height: u32,
+    outputs: impl IntoIterator<Item = &'a TaskOutput>,
+) -> (Image, RayStats) {
+    let mut image = Image::new(width, height);
+    let mut stats = RayStats::default();
+    let mut current: Option<TileSums> = None;
+    for out in outputs {
+        stats.add(&out.stats);
+        match &mut current {
+            Some(sums) if sums.tile == out.sums.tile => sums.merge(&out.sums),
+            _ => {
+                if let Some(done) = current.take() {
+                    image.put(&done);
+                }
+                current = Some(out.sums.clone());
+            }
+        }
+    }
+    if let Some(done) = current {
+        image.put(&done);
+    }
+    (image, stats)
+}
+
+/// The EXR metadata of a frame: what determines it and what was dropped. No times or hosts,
+/// so the file's bytes depend only on the job.
+pub fn frame_metadata(desc: &SceneDesc, frame: u32, stats: &RayStats) -> ExrMetadata {
+    let i = &desc.integrator;
+    let mut entries = vec![
+        ("scene".to_string(), desc.name.clone()),
+        ("integrator".into(), format!("{:?}", i.kind).to_lowercase()),
+        ("spp".into(), i.spp.to_string()),
+        ("seed".into(), i.seed.to_string()),
+        ("sampler".into(), format!("{:?}", i.sampler).to_lowercase()),
+        ("max_depth".into(), i.max_depth.to_string()),
+        (
+            "nonfinite_samples_dropped".into(),
+            stats.nonfinite.to_string(),
+        ),
+    ];
+    if desc.camera_path.is_some() {
+        entries.push(("frame".into(), frame.to_string()));
+    }
+    ExrMetadata { entries }
+}
+
+/// `frame_0001.exr`: the file name of a frame of a sequence.
+pub fn frame_file_name(frame: u32) -> String {
+    format!("frame_{frame:04}.exr")
+}
+
+/// Writes a stitched frame as EXR, and its PNG preview beside it.
+pub fn write_frame(
+    path: &Path,
+    desc: &SceneDesc,
+    frame: u32,
+    image: &Image,
+    stats: &RayStats,
+) -> Result<(), tessera_render::RenderError> {
+    write_exr(path, image, &frame_metadata(desc, frame, stats))?;
+    write_png(&path.with_extension("png"), image)
+}
+
+/// What the core will do with a scene, for the job status (DESIGN invariant 4: decisions made
+/// about a scene are shown).
+pub fn decisions(desc: &SceneDesc, scene: Option<&Scene>) -> Vec<String> {
+    let i = &desc.integrator;
+    let mut out = vec![
+        format!(
+            "integrator {:?}, max depth {}, Russian roulette from depth {}, {:?} sampler",
+            i.kind, i.max_depth, i.rr_depth, i.sampler
+        )
+        .to_lowercase(),
+    ];
+    out.push(match &desc.camera_path {
+        Some(p) => format!(
+            "camera path with {} keyframes at {} fps: {} frames; scene built once per worker, camera per frame",
+            p.keyframes.len(),
+            p.fps,
+            p.frame_count()
+        ),
+        None => "still camera: one frame".into(),
+    });
+    if let Some(s) = scene {
+        out.push(format!(
+            "{} triangles and {} spheres in one BVH; {} lights ({} emissive triangles)",
+            s.stats.triangles, s.stats.spheres, s.stats.lights, s.stats.emissive_triangles
+        ));
+    }
+    out.push("no precomputation passes: path tracing needs none".into());
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cornell() -> SceneDesc {
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
+        let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        d.film.width = 24;
+        d.film.height = 20;
+        d.integrator.spp = 5;
+        d
+    }
+
+    #[test]
+    fn any_split_into_tasks_stitches_to_the_same_image() {
+        let desc = cornell();
+        let prepared = Prepared::new(desc.clone());
+        let frame = |settings: &RenderSettings| {
+            let tasks = plan_frame(&desc, settings, 1);
+            let outs: Vec<TaskOutput> = tasks.iter().map(|t| prepared.execute(t)).collect();
+            stitch(desc.film.width, desc.film.height, &outs)
+        };
+        let whole = frame(&RenderSettings {
+            tile: Some(64),
+            ..Default::default()
+        });
+        let split = frame(&RenderSettings {
+            tile: Some(7),
+            samples_per_task: Some(2),
+            ..Default::default()
+        });
+        assert_eq!(whole, split);
+        assert_eq!(whole.1.samples, 24 * 20 * 5);
+    }
+
+    #[test]
+    fn plans_cover_every_pixel_sample_once_in_stitch_order() {
+        let desc = cornell();
+        let tasks = plan_frame(
+            &desc,
+            &RenderSettings {
+                tile: Some(10),
+                samples_per_task: Some(2),
+                ..Default::default()
+            },
+            3,
+        );
+        // 3×2 tiles, samples 0-2, 2-4, 4-5.
+        assert_eq!(tasks.len(), 6 * 3);
+        assert!(tasks.iter().all(|t| t.frame == 3));
+        assert!(
+            tasks.windows(2).all(
+                |w| (w[0].tile_index, w[0].sample_start) < (w[1].tile_index, w[1].sample_start)
+            )
+        );
+        let samples: u64 = tasks
+            .iter()
+            .map(|t| t.tile().pixel_count() as u64 * (t.sample_end - t.sample_start) as u64)
+            .sum();
+        assert_eq!(samples, 24 * 20 * 5);
+    }
+
+    #[test]
+    fn settings_are_checked_against_limits_and_frames() {
+        let limits = Limits {
+            max_resolution: 16,
+            ..Default::default()
+        };
+        let mut d = cornell();
+        let err = apply(
+            &mut d,
+            &RenderSettings::default(),
+            FrameRange::single(1),
+            &limits,
+        )
+        .unwrap_err();
+        assert!(err.contains("film") && err.contains("16×16"), "{err}");
+        let mut d = cornell();
+        let err = apply(
+            &mut d,
+            &RenderSettings {
+                spp: Some(0),
+                ..Default::default()
+            },
+            FrameRange::single(1),
+            &Limits::default(),
+        )
+        .unwrap_err();
+        assert!(err.starts_with("spp"), "{err}");
+        let mut d = cornell();
+        let err = apply(
+            &mut d,
+            &RenderSettings::default(),
+            FrameRange { first: 1, last: 3 },
+            &Limits::default(),
+        )
+        .unwrap_err();
+        assert!(err.contains("no camera path"), "{err}");
+        assert_eq!(
+            FrameRange::parse("2-24"),
+            Ok(FrameRange { first: 2, last: 24 })
+        );
+        assert!(FrameRange::parse("0").is_err() && FrameRange::parse("5-2").is_err());
+    }
+}

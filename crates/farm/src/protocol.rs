@@ -1,0 +1,230 @@
+//! The wire protocol: JSON bodies of the coordinator's HTTP API under `/v1`, shared by the
+//! coordinator, workers and clients, and described in the OpenAPI document.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::job::{FrameRange, RenderSettings, TaskSpec};
+
+/// An error, as every 4xx/5xx response carries it.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct ErrorBody {
+    /// What went wrong and what was expected.
+    pub error: String,
+}
+
+/// A stored scene bundle.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct BundleInfo {
+    /// SHA-256 of the tar archive, hex: the bundle's address.
+    pub hash: String,
+    pub bytes: u64,
+    /// The files it holds.
+    pub files: Vec<String>,
+}
+
+/// A job to submit.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct JobRequest {
+    /// Hash of an uploaded bundle (`POST /v1/bundles`).
+    pub bundle: String,
+    /// The scene file inside the bundle.
+    #[serde(default = "default_scene")]
+    pub scene: String,
+    /// A name to show (default: the scene's name).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Frames to render (default: every frame of the scene's camera path, or frame 1).
+    #[serde(default)]
+    pub frames: Option<FrameRange>,
+    #[serde(default)]
+    pub settings: RenderSettings,
+    /// Higher runs first; equal priorities run oldest first.
+    #[serde(default)]
+    pub priority: i32,
+}
+
+fn default_scene() -> String {
+    "scene.json".into()
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum JobState {
+    Queued,
+    Running,
+    Done,
+    Failed,
+    Cancelled,
+}
+
+impl JobState {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            JobState::Queued => "queued",
+            JobState::Running => "running",
+            JobState::Done => "done",
+            JobState::Failed => "failed",
+            JobState::Cancelled => "cancelled",
+        }
+    }
+    pub fn parse(s: &str) -> JobState {
+        match s {
+            "running" => JobState::Running,
+            "done" => JobState::Done,
+            "failed" => JobState::Failed,
+            "cancelled" => JobState::Cancelled,
+            _ => JobState::Queued,
+        }
+    }
+    pub fn is_final(self) -> bool {
+        matches!(
+            self,
+            JobState::Done | JobState::Failed | JobState::Cancelled
+        )
+    }
+}
+
+/// Task counts by state.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, ToSchema)]
+pub struct TaskCounts {
+    pub total: u64,
+    pub queued: u64,
+    pub leased: u64,
+    pub done: u64,
+    pub failed: u64,
+    pub cancelled: u64,
+}
+
+/// One frame of a job.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct FrameStatus {
+    pub frame: u32,
+    /// queued, running, done.
+    pub state: String,
+    pub tasks_done: u64,
+    pub tasks_total: u64,
+    /// Where to download the finished EXR (relative URL), once done.
+    pub exr: Option<String>,
+}
+
+/// A job and its progress.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct JobStatus {
+    pub id: i64,
+    pub name: String,
+    pub state: JobState,
+    pub priority: i32,
+    /// Milliseconds since the Unix epoch.
+    pub created_ms: i64,
+    pub finished_ms: Option<i64>,
+    pub bundle: String,
+    pub scene: String,
+    pub frames: FrameRange,
+    pub settings: RenderSettings,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub tasks: TaskCounts,
+    /// Leases granted for this job's tasks (more than tasks.total when some were retried).
+    pub attempts: u64,
+    /// Fraction of tasks done, 0 to 1.
+    pub progress: f64,
+    pub frame_status: Vec<FrameStatus>,
+    /// Why the job failed: the worker's error.
+    pub error: Option<String>,
+    /// What the core decided to do for this scene.
+    pub decisions: Vec<String>,
+}
+
+/// One task of a job.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct TaskStatus {
+    pub id: i64,
+    #[serde(flatten)]
+    pub spec: TaskSpec,
+    /// queued, leased, done, failed, cancelled.
+    pub state: String,
+    /// Leases granted so far.
+    pub attempts: u32,
+    pub worker: Option<String>,
+    /// Seconds the accepted result took to render.
+    pub seconds: Option<f64>,
+    pub error: Option<String>,
+}
+
+/// Who a worker is; sent with every lease request.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WorkerInfo {
+    /// Unique per worker process.
+    pub id: String,
+    pub name: String,
+    pub host: String,
+    /// Tasks it runs at once.
+    pub slots: u32,
+    /// Scenes it has loaded and built (its cache misses).
+    pub scene_builds: u64,
+    pub version: String,
+}
+
+/// A request for work.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LeaseRequest {
+    pub worker: WorkerInfo,
+    /// How long to wait for a task when none is queued (long poll), ms; at most 20000.
+    #[serde(default)]
+    pub wait_ms: u64,
+}
+
+/// A task leased to a worker.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct LeaseGrant {
+    pub task_id: i64,
+    /// The fence token: results and heartbeats must carry it.
+    pub lease: i64,
+    /// Renew (heartbeat) before this many ms pass.
+    pub lease_ms: u64,
+    pub job_id: i64,
+    pub bundle: String,
+    pub scene: String,
+    pub settings: RenderSettings,
+    pub task: TaskSpec,
+}
+
+/// A worker renewing its lease.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Heartbeat {
+    pub lease: i64,
+    pub worker: String,
+}
+
+/// A worker giving up a task.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Failure {
+    pub lease: i64,
+    pub worker: String,
+    pub error: String,
+}
+
+/// A worker as the coordinator sees it.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct WorkerStatus {
+    pub id: String,
+    pub name: String,
+    pub host: String,
+    pub slots: u32,
+    pub version: String,
+    pub first_seen_ms: i64,
+    pub last_seen_ms: i64,
+    /// Seen within the last few lease periods.
+    pub alive: bool,
+    pub scene_builds: u64,
+    pub tasks_done: u64,
+    /// Tasks it holds a lease on now.
+    pub leased_tasks: Vec<i64>,
+}

@@ -1,0 +1,316 @@
+//! The worker loop: lease a task, render it with the core, heartbeat while it runs, upload the
+//! result. Scenes are cached per job, so a job's bundle is downloaded and its BVH built once
+//! per worker, not once per tile. Workers keep no state that matters: any worker may run any
+//! task, and a task may run twice.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use tokio::sync::OnceCell;
+
+use crate::bundle::Bundle;
+use crate::client::{Client, is_transient, status_of};
+use crate::codec;
+use crate::job::{self, FrameRange, Limits, Prepared};
+use crate::protocol::{Failure, Heartbeat, LeaseGrant, LeaseRequest, WorkerInfo};
+
+#[derive(Debug, Clone)]
+pub struct WorkerConfig {
+    pub coordinator: String,
+    pub token: String,
+    pub name: String,
+    /// Tasks rendered at once (one thread each).
+    pub slots: u32,
+    /// Exit when this process is no longer our parent (started by `serve --local-workers`).
+    pub parent_pid: Option<u32>,
+}
+
+/// Scenes kept, by job: the most recent few.
+const CACHED_JOBS: usize = 4;
+
+type SceneCell = Arc<OnceCell<Arc<Prepared>>>;
+
+struct Worker {
+    config: WorkerConfig,
+    client: Client,
+    id: String,
+    host: String,
+    scene_builds: AtomicU64,
+    /// Scenes by job id, least recently used first; each built once (the cell).
+    cache: Mutex<Vec<(i64, SceneCell)>>,
+}
+
+pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
+    let client = Client::new(&config.coordinator, &config.token)?;
+    let host = std::fs::read_to_string("/etc/hostname")
+        .map(|s| s.trim().to_string())
+        .unwrap_or_else(|_| "unknown".into());
+    let id = format!(
+        "{}-{}",
+        config.name,
+        &crate::coordinator::random_token()?[..8]
+    );
+    let worker = Arc::new(Worker {
+        client,
+        id,
+        host,
+        scene_builds: AtomicU64::new(0),
+        cache: Mutex::new(Vec::new()),
+        config,
+    });
+    tracing::info!(worker = %worker.id, coordinator = %worker.config.coordinator, slots = worker.config.slots, "worker started");
+    if let Some(parent) = worker.config.parent_pid {
+        watch_parent(parent);
+    }
+    let mut slots = Vec::new();
+    for slot in 0..worker.config.slots.max(1) {
+        let w = worker.clone();
+        slots.push(tokio::spawn(async move { w.slot(slot).await }));
+    }
+    for s in slots {
+        s.await?;
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn watch_parent(parent: u32) {
+    std::thread::spawn(move || {
+        loop {
+            if std::os::unix::process::parent_id() != parent {
+                tracing::warn!(
+                    parent,
+                    "the coordinator that started this worker is gone; exiting"
+                );
+                std::process::exit(0);
+            }
+            std::thread::sleep(Duration::from_millis(500));
+        }
+    });
+}
+
+#[cfg(not(unix))]
+fn watch_parent(_parent: u32) {}
+
+/// Retries `f` while the coordinator is unreachable or answers 5xx, backing off up to 5 s,
+/// for at most `patience`.
+async fn retrying<T, F, Fut>(what: &str, patience: Duration, mut f: F) -> anyhow::Result<T>
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = anyhow::Result<T>>,
+{
+    let start = Instant::now();
+    let mut delay = Duration::from_millis(100);
+    loop {
+        match f().await {
+            Ok(v) => return Ok(v),
+            Err(e) if is_transient(&e) && start.elapsed() < patience => {
+                tracing::warn!(error = %e, retry_in_ms = delay.as_millis() as u64, "{what}: coordinator unavailable");
+                tokio::time::sleep(delay).await;
+                delay = (delay * 2).min(Duration::from_secs(5));
+            }
+            Err(e) => return Err(e),
+        }
+    }
+}
+
+impl Worker {
+    fn info(&self) -> WorkerInfo {
+        WorkerInfo {
+            id: self.id.clone(),
+            name: self.config.name.clone(),
+            host: self.host.clone(),
+            slots: self.config.slots,
+            scene_builds: self.scene_builds.load(Relaxed),
+            version: env!("CARGO_PKG_VERSION").into(),
+        }
+    }
+
+    async fn slot(self: Arc<Self>, slot: u32) {
+        loop {
+            let req = LeaseRequest {
+                worker: self.info(),
+                wait_ms: 10_000,
+            };
+            let grant = match retrying("lease", Duration::MAX, || self.client.lease(&req)).await {
+                Ok(Some(g)) => g,
+                Ok(None) => continue,
+                Err(e) => {
+                    // A 4xx: our token or protocol is wrong; waiting will not fix it quickly.
+                    tracing::error!(slot, error = %e, "cannot lease tasks");
+                    tokio::time::sleep(Duration::from_secs(5)).await;
+                    continue;
+                }
+            };
+            self.run_task(grant).await;
+        }
+    }
+
+    /// The scene of a job, loaded and built once per worker.
+    async fn prepared(&self, grant: &LeaseGrant) -> anyhow::Result<Arc<Prepared>> {
+        let cell = {
+            let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+            match cache.iter().position(|(job, _)| *job == grant.job_id) {
+                Some(i) => {
+                    let entry = cache.remove(i);
+                    cache.push(entry.clone());
+                    entry.1
+                }
+                None => {
+                    let cell = Arc::new(OnceCell::new());
+                    cache.push((grant.job_id, cell.clone()));
+                    if cache.len() > CACHED_JOBS {
+                        cache.remove(0);
+                    }
+                    cell
+                }
+            }
+        };
+        let prepared = cell
+            .get_or_try_init(|| async {
+                let bytes = retrying("bundle download", Duration::from_secs(600), || {
+                    self.client.download_bundle(&grant.bundle)
+                })
+                .await?;
+                let (scene, settings, frame) = (
+                    grant.scene.clone(),
+                    grant.settings.clone(),
+                    grant.task.frame,
+                );
+                let prepared = tokio::task::spawn_blocking(move || -> anyhow::Result<Prepared> {
+                    let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
+                    let mut desc = bundle.load(&scene)?;
+                    job::apply(
+                        &mut desc,
+                        &settings,
+                        FrameRange::single(frame),
+                        &Limits::default(),
+                    )
+                    .map_err(anyhow::Error::msg)?;
+                    Ok(Prepared::new(desc))
+                })
+                .await??;
+                self.scene_builds.fetch_add(1, Relaxed);
+                tracing::info!(
+                    job = grant.job_id,
+                    build_s = prepared.build_seconds,
+                    "scene loaded and built"
+                );
+                anyhow::Ok(Arc::new(prepared))
+            })
+            .await;
+        match prepared {
+            Ok(p) => Ok(p.clone()),
+            Err(e) => {
+                // Do not cache a failure: the next task tries again.
+                let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+                cache.retain(|(job, _)| *job != grant.job_id);
+                Err(e)
+            }
+        }
+    }
+
+    async fn run_task(&self, grant: LeaseGrant) {
+        let (task, lease, job) = (grant.task_id, grant.lease, grant.job_id);
+        let lost = Arc::new(AtomicBool::new(false));
+        let beat = self.spawn_heartbeat(&grant, lost.clone());
+        let start = Instant::now();
+        let outcome = async {
+            let prepared = self.prepared(&grant).await.context("loading the scene")?;
+            let spec = grant.task;
+            let out = tokio::task::spawn_blocking(move || {
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| prepared.execute(&spec)))
+            })
+            .await?
+            .map_err(|panic| {
+                let what = panic
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_else(|| "unknown panic".into());
+                anyhow::anyhow!("the renderer panicked: {what}")
+            })?;
+            anyhow::Ok(codec::encode(&out))
+        }
+        .await;
+        let seconds = start.elapsed().as_secs_f64();
+        beat.abort();
+        if lost.load(Relaxed) {
+            tracing::warn!(
+                job,
+                task,
+                lease,
+                "lease lost while rendering; result dropped"
+            );
+            return;
+        }
+        match outcome {
+            Ok(bytes) => {
+                let upload = retrying("result upload", Duration::from_secs(600), || {
+                    self.client
+                        .upload_result(task, lease, seconds, bytes.clone())
+                })
+                .await;
+                match upload {
+                    Ok(()) => tracing::info!(job, task, lease, seconds, "task done"),
+                    Err(e) if status_of(&e) == Some(reqwest::StatusCode::CONFLICT) => {
+                        tracing::warn!(job, task, lease, error = %e, "result not accepted: lease no longer current")
+                    }
+                    Err(e) => {
+                        self.report_failure(task, lease, format!("uploading the result: {e:#}"))
+                            .await
+                    }
+                }
+            }
+            Err(e) => self.report_failure(task, lease, format!("{e:#}")).await,
+        }
+    }
+
+    async fn report_failure(&self, task: i64, lease: i64, error: String) {
+        tracing::error!(task, lease, error = %error, "task failed");
+        let failure = Failure {
+            lease,
+            worker: self.id.clone(),
+            error,
+        };
+        if let Err(e) = retrying("failure report", Duration::from_secs(60), || {
+            self.client.fail(task, &failure)
+        })
+        .await
+        {
+            tracing::warn!(task, error = %e, "could not report the failure; the lease will expire");
+        }
+    }
+
+    /// Renews the lease every third of its period until aborted; sets `lost` on a 409.
+    fn spawn_heartbeat(
+        &self,
+        grant: &LeaseGrant,
+        lost: Arc<AtomicBool>,
+    ) -> tokio::task::JoinHandle<()> {
+        let client = self.client.clone();
+        let hb = Heartbeat {
+            lease: grant.lease,
+            worker: self.id.clone(),
+        };
+        let (task, period) = (
+            grant.task_id,
+            Duration::from_millis((grant.lease_ms / 3).max(50)),
+        );
+        tokio::spawn(async move {
+            loop {
+                tokio::time::sleep(period).await;
+                match client.heartbeat(task, &hb).await {
+                    Ok(()) => {}
+                    Err(e) if status_of(&e) == Some(reqwest::StatusCode::CONFLICT) => {
+                        lost.store(true, Relaxed);
+                        return;
+                    }
+                    Err(e) => tracing::warn!(task, error = %e, "heartbeat failed; retrying"),
+                }
+            }
+        })
+    }
+}

@@ -1,0 +1,357 @@
+//! Bad requests against a real coordinator on loopback: each gets a 4xx with a JSON message
+//! that says what was expected, and the server keeps serving.
+
+use std::path::PathBuf;
+
+use reqwest::StatusCode;
+use tessera_farm::bundle::Bundle;
+use tessera_farm::coordinator::{self, Config, Running};
+use tessera_farm::job::RenderSettings;
+use tessera_farm::protocol::{ErrorBody, JobRequest};
+
+const CLIENT: &str = "client-token";
+const WORKER: &str = "worker-token";
+
+async fn start(dir: &std::path::Path) -> Running {
+    let mut config = Config::new(
+        "127.0.0.1:0".parse().expect("addr"),
+        dir.to_path_buf(),
+        CLIENT.into(),
+        WORKER.into(),
+    );
+    config.limits.max_resolution = 512;
+    config.limits.max_spp = 1024;
+    config.max_upload = 64 * 1024;
+    coordinator::start(config).await.expect("coordinator")
+}
+
+const QUAD: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n";
+
+fn scene(mesh_file: &str, width: u32, spp: u32) -> String {
+    format!(
+        r#"{{
+  "units": "m",
+  "camera": {{ "type": "pinhole", "position": [0.5, 0.5, -2], "look_at": [0.5, 0.5, 0], "fov_deg": 40 }},
+  "film": {{ "width": {width}, "height": 16 }},
+  "integrator": {{ "type": "path", "spp": {spp} }},
+  "materials": {{ "white": {{ "type": "diffuse", "albedo": 0.5 }} }},
+  "lights": [ {{ "type": "point", "position": [0.5, 0.5, -1], "intensity": 1 }} ],
+  "shapes": [ {{ "type": "mesh", "file": "{mesh_file}", "material": "white" }} ]
+}}"#
+    )
+}
+
+fn bundle(files: &[(&str, &str)]) -> Vec<u8> {
+    Bundle {
+        files: files
+            .iter()
+            .map(|(p, d)| (PathBuf::from(p), d.as_bytes().to_vec()))
+            .collect(),
+    }
+    .to_tar()
+}
+
+struct Api {
+    http: reqwest::Client,
+    base: String,
+}
+
+impl Api {
+    fn url(&self, path: &str) -> String {
+        format!("{}{path}", self.base)
+    }
+
+    /// Sends and checks the answer: `status`, a JSON `{"error"}` containing every `needle`.
+    async fn expect(&self, rb: reqwest::RequestBuilder, status: StatusCode, needles: &[&str]) {
+        let r = rb.send().await.expect("send");
+        assert_eq!(r.status(), status);
+        let ct = r
+            .headers()
+            .get("content-type")
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or("")
+            .to_string();
+        assert!(ct.starts_with("application/json"), "content type {ct}");
+        let body: ErrorBody = r.json().await.expect("JSON error body");
+        for n in needles {
+            assert!(body.error.contains(n), "{n:?} not in {:?}", body.error);
+        }
+        // The server still serves.
+        let health = self
+            .http
+            .get(self.url("/healthz"))
+            .send()
+            .await
+            .expect("healthz");
+        assert_eq!(health.status(), StatusCode::OK);
+    }
+
+    async fn upload(&self, tar: Vec<u8>) -> String {
+        let r = self
+            .http
+            .post(self.url("/v1/bundles"))
+            .bearer_auth(CLIENT)
+            .body(tar)
+            .send()
+            .await
+            .expect("upload");
+        assert_eq!(r.status(), StatusCode::CREATED);
+        let info: serde_json::Value = r.json().await.expect("bundle info");
+        info["hash"].as_str().expect("hash").to_string()
+    }
+
+    fn submit(&self, bundle: &str, settings: RenderSettings) -> reqwest::RequestBuilder {
+        self.http
+            .post(self.url("/v1/jobs"))
+            .bearer_auth(CLIENT)
+            .json(&JobRequest {
+                bundle: bundle.into(),
+                scene: "scene.json".into(),
+                name: None,
+                frames: None,
+                settings,
+                priority: 0,
+            })
+    }
+}
+
+#[tokio::test]
+async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let running = start(dir.path()).await;
+    let api = Api {
+        http: reqwest::Client::new(),
+        base: format!("http://{}", running.addr),
+    };
+    let c = &api.http;
+    let unauthorized = StatusCode::UNAUTHORIZED;
+    let bad = StatusCode::BAD_REQUEST;
+
+    // Tokens: none, wrong, and the worker's token on a client endpoint.
+    api.expect(c.get(api.url("/v1/jobs")), unauthorized, &["missing token"])
+        .await;
+    api.expect(
+        c.get(api.url("/v1/jobs")).bearer_auth("nope"),
+        unauthorized,
+        &["wrong token"],
+    )
+    .await;
+    api.expect(
+        c.get(api.url("/v1/jobs")).bearer_auth(WORKER),
+        unauthorized,
+        &["client token"],
+    )
+    .await;
+    api.expect(
+        c.post(api.url("/v1/tasks/lease"))
+            .bearer_auth(CLIENT)
+            .body("{}"),
+        unauthorized,
+        &["worker token"],
+    )
+    .await;
+
+    // Malformed JSON, and JSON of the wrong shape.
+    api.expect(
+        c.post(api.url("/v1/jobs"))
+            .bearer_auth(CLIENT)
+            .header("content-type", "application/json")
+            .body("{\"bundle\": "),
+        bad,
+        &["request body"],
+    )
+    .await;
+    api.expect(
+        c.post(api.url("/v1/jobs"))
+            .bearer_auth(CLIENT)
+            .header("content-type", "application/json")
+            .body("{\"bundel\": \"x\"}"),
+        StatusCode::UNPROCESSABLE_ENTITY,
+        &["bundel"],
+    )
+    .await;
+    api.expect(
+        api.submit("0123", RenderSettings::default()),
+        bad,
+        &["bundle", "POST /v1/bundles"],
+    )
+    .await;
+
+    // A scene whose mesh is missing from the bundle.
+    let hash = api
+        .upload(bundle(&[("scene.json", &scene("quad.obj", 16, 4))]))
+        .await;
+    api.expect(
+        api.submit(&hash, RenderSettings::default()),
+        bad,
+        &["quad.obj", "cannot read"],
+    )
+    .await;
+
+    // A scene path that leaves the bundle, and a tar entry that does.
+    let hash = api
+        .upload(bundle(&[
+            ("scene.json", &scene("../quad.obj", 16, 4)),
+            ("quad.obj", QUAD),
+        ]))
+        .await;
+    api.expect(
+        api.submit(&hash, RenderSettings::default()),
+        bad,
+        &["scene.json", "shapes[0].file", "leaves"],
+    )
+    .await;
+    let mut builder = tar::Builder::new(Vec::new());
+    let mut header = tar::Header::new_gnu();
+    header.set_size(QUAD.len() as u64);
+    header.set_entry_type(tar::EntryType::Regular);
+    let name = b"../outside.obj";
+    header.as_old_mut().name[..name.len()].copy_from_slice(name);
+    header.set_cksum();
+    builder.append(&header, QUAD.as_bytes()).expect("append");
+    let evil = builder.into_inner().expect("tar");
+    api.expect(
+        c.post(api.url("/v1/bundles"))
+            .bearer_auth(CLIENT)
+            .body(evil),
+        bad,
+        &["../outside.obj", "leaves"],
+    )
+    .await;
+
+    // NaN in a vertex.
+    let nan = QUAD.replace("v 1 1 0", "v 1 nan 0");
+    let hash = api
+        .upload(bundle(&[
+            ("scene.json", &scene("quad.obj", 16, 4)),
+            ("quad.obj", &nan),
+        ]))
+        .await;
+    api.expect(
+        api.submit(&hash, RenderSettings::default()),
+        bad,
+        &["quad.obj", "line 3"],
+    )
+    .await;
+
+    // Resolution and sample count over this coordinator's limits.
+    let hash = api
+        .upload(bundle(&[
+            ("scene.json", &scene("quad.obj", 4096, 4)),
+            ("quad.obj", QUAD),
+        ]))
+        .await;
+    api.expect(
+        api.submit(&hash, RenderSettings::default()),
+        bad,
+        &["film", "512×512"],
+    )
+    .await;
+    let hash = api
+        .upload(bundle(&[
+            ("scene.json", &scene("quad.obj", 16, 4)),
+            ("quad.obj", QUAD),
+        ]))
+        .await;
+    let many = RenderSettings {
+        spp: Some(5000),
+        ..Default::default()
+    };
+    api.expect(api.submit(&hash, many), bad, &["spp", "1024"])
+        .await;
+
+    // An upload over the size limit.
+    let big = bundle(&[
+        ("scene.json", &scene("quad.obj", 16, 4)),
+        ("big.obj", &"#".repeat(100_000)),
+    ]);
+    api.expect(
+        c.post(api.url("/v1/bundles")).bearer_auth(CLIENT).body(big),
+        StatusCode::PAYLOAD_TOO_LARGE,
+        &[],
+    )
+    .await;
+
+    // Unknown job, frame, route; a stale lease.
+    api.expect(
+        c.get(api.url("/v1/jobs/999")).bearer_auth(CLIENT),
+        StatusCode::NOT_FOUND,
+        &["no job 999"],
+    )
+    .await;
+    api.expect(
+        c.get(api.url("/v1/jobs/999/frames/1/exr"))
+            .bearer_auth(CLIENT),
+        StatusCode::NOT_FOUND,
+        &["no job 999"],
+    )
+    .await;
+    api.expect(
+        c.get(api.url("/v1/nothing")).bearer_auth(CLIENT),
+        StatusCode::NOT_FOUND,
+        &["no such endpoint"],
+    )
+    .await;
+    api.expect(
+        c.put(api.url("/v1/tasks/1/result?lease=7"))
+            .bearer_auth(WORKER)
+            .body(vec![0u8; 10]),
+        StatusCode::CONFLICT,
+        &["no longer current"],
+    )
+    .await;
+
+    // And a good job is still accepted.
+    let r = api
+        .submit(&hash, RenderSettings::default())
+        .send()
+        .await
+        .expect("submit");
+    assert_eq!(r.status(), StatusCode::CREATED);
+    running.stop().await.expect("stop");
+}
+
+#[tokio::test]
+async fn openapi_document_describes_the_api() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let running = start(dir.path()).await;
+    let doc: serde_json::Value = reqwest::get(format!("http://{}/v1/openapi.json", running.addr))
+        .await
+        .expect("get")
+        .json()
+        .await
+        .expect("JSON");
+    let paths = doc["paths"].as_object().expect("paths");
+    for p in [
+        "/v1/bundles",
+        "/v1/jobs",
+        "/v1/jobs/{id}",
+        "/v1/jobs/{id}/cancel",
+        "/v1/jobs/{id}/frames/{frame}/exr",
+        "/v1/jobs/{id}/frames/{frame}/preview.png",
+        "/v1/workers",
+        "/v1/tasks/lease",
+        "/v1/tasks/{id}/heartbeat",
+        "/v1/tasks/{id}/result",
+        "/healthz",
+        "/metrics",
+    ] {
+        assert!(paths.contains_key(p), "{p} missing from {:?}", paths.keys());
+    }
+    assert!(doc["components"]["schemas"]["JobStatus"].is_object());
+    let metrics = reqwest::get(format!("http://{}/metrics", running.addr))
+        .await
+        .expect("get")
+        .text()
+        .await
+        .expect("text");
+    for m in [
+        "tessera_queue_depth 0",
+        "tessera_tasks_leased_total 0",
+        "tessera_workers_alive 0",
+        "tessera_tile_seconds_total",
+    ] {
+        assert!(metrics.contains(m), "{m} missing from\n{metrics}");
+    }
+    running.stop().await.expect("stop");
+}

@@ -1,0 +1,276 @@
+//! `tessera serve`, `tessera worker` and `tessera submit`: the farm from the command line.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use tessera_farm::bundle::Bundle;
+use tessera_farm::client::Client;
+use tessera_farm::coordinator::{self, Config};
+use tessera_farm::job::{self, FrameRange, RenderSettings};
+use tessera_farm::protocol::{JobRequest, JobState};
+use tessera_farm::worker::{self, WorkerConfig};
+
+#[derive(clap::Args)]
+pub struct ServeArgs {
+    /// Address to listen on (port 0: any free port; the address is printed).
+    #[arg(long, default_value = "127.0.0.1:8720")]
+    pub listen: SocketAddr,
+    /// Where the job store, bundles, tiles and frames live.
+    #[arg(long, default_value = "tessera-data")]
+    pub data: PathBuf,
+    /// Worker processes to start and supervise on this machine.
+    #[arg(long, default_value_t = 0)]
+    pub local_workers: u32,
+    /// Token clients must send (default: generated once and kept in DIR/tokens.json).
+    #[arg(long, env = "TESSERA_CLIENT_TOKEN", hide_env_values = true)]
+    pub client_token: Option<String>,
+    /// Token workers must send (default: generated once and kept in DIR/tokens.json).
+    #[arg(long, env = "TESSERA_WORKER_TOKEN", hide_env_values = true)]
+    pub worker_token: Option<String>,
+    /// Seconds a lease lasts without a heartbeat.
+    #[arg(long, default_value_t = 15.0)]
+    pub lease_seconds: f64,
+    /// Leases a task may have before its job fails.
+    #[arg(long, default_value_t = 3)]
+    pub max_attempts: u32,
+    /// Largest film side a job may ask for, pixels.
+    #[arg(long, default_value_t = 16384)]
+    pub max_resolution: u32,
+    /// Most samples per pixel a job may ask for.
+    #[arg(long, default_value_t = 1 << 20)]
+    pub max_spp: u32,
+    /// Most frames per job.
+    #[arg(long, default_value_t = 100_000)]
+    pub max_frames: u32,
+    /// Largest scene bundle upload, MiB.
+    #[arg(long, default_value_t = 512)]
+    pub max_upload_mib: usize,
+}
+
+pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    let (client_token, worker_token, generated) =
+        coordinator::tokens(&args.data, args.client_token, args.worker_token)?;
+    anyhow::ensure!(
+        args.lease_seconds > 0.0 && args.lease_seconds.is_finite(),
+        "--lease-seconds: expected a positive number of seconds"
+    );
+    anyhow::ensure!(
+        args.max_attempts >= 1,
+        "--max-attempts: expected at least 1"
+    );
+    let mut config = Config::new(
+        args.listen,
+        args.data.clone(),
+        client_token.clone(),
+        worker_token.clone(),
+    );
+    config.lease_ms = (args.lease_seconds * 1000.0) as u64;
+    config.max_attempts = args.max_attempts;
+    config.limits.max_resolution = args.max_resolution;
+    config.limits.max_spp = args.max_spp;
+    config.limits.max_frames = args.max_frames;
+    config.max_upload = args.max_upload_mib << 20;
+    config.local_workers = args.local_workers;
+    let running = coordinator::start(config).await?;
+    let url = format!("http://{}", running.addr);
+    let mut text = format!("tessera coordinator listening on {url}\n");
+    text += &format!("data: {}\n", args.data.display());
+    if generated {
+        text += &format!(
+            "tokens (kept in {}):\n  clients: export TESSERA_COORDINATOR={url} TESSERA_CLIENT_TOKEN={client_token}\n  workers: tessera worker --coordinator {url} --token {worker_token}\n",
+            args.data.join("tokens.json").display()
+        );
+    }
+    if args.local_workers > 0 {
+        text += &format!("started {} local workers\n", args.local_workers);
+    }
+    crate::print(&text)?;
+    running.wait().await
+}
+
+#[derive(clap::Args)]
+pub struct WorkerArgs {
+    /// The coordinator's URL.
+    #[arg(long, env = "TESSERA_COORDINATOR")]
+    pub coordinator: String,
+    /// The worker token.
+    #[arg(long, env = "TESSERA_WORKER_TOKEN", hide_env_values = true)]
+    pub token: String,
+    /// A name to show in the worker list (default: the host name).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Tasks to render at once (default: one per core).
+    #[arg(long)]
+    pub slots: Option<u32>,
+    /// Exit when this process stops being the parent (set by `serve --local-workers`).
+    #[arg(long, hide = true)]
+    pub parent_pid: Option<u32>,
+}
+
+pub async fn worker(args: WorkerArgs) -> anyhow::Result<()> {
+    let name = args.name.unwrap_or_else(|| {
+        std::fs::read_to_string("/etc/hostname")
+            .map(|s| s.trim().to_string())
+            .unwrap_or_else(|_| "worker".into())
+    });
+    let slots = args
+        .slots
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get() as u32));
+    anyhow::ensure!(slots >= 1, "--slots: expected at least 1");
+    worker::run(WorkerConfig {
+        coordinator: args.coordinator,
+        token: args.token,
+        name,
+        slots,
+        parent_pid: args.parent_pid,
+    })
+    .await
+}
+
+#[derive(clap::Args)]
+pub struct SubmitArgs {
+    /// The scene file (scene.json); it and every file it references are uploaded.
+    pub scene: PathBuf,
+    /// The coordinator's URL.
+    #[arg(long, env = "TESSERA_COORDINATOR")]
+    pub coordinator: String,
+    /// The client token.
+    #[arg(long, env = "TESSERA_CLIENT_TOKEN", hide_env_values = true)]
+    pub token: String,
+    /// Samples per pixel (overrides the scene's integrator.spp).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Random seed (overrides the scene's integrator.seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Frames to render: N or A-B (default: every frame of the camera path).
+    #[arg(long, value_parser = FrameRange::parse)]
+    pub frames: Option<FrameRange>,
+    /// Tile size in pixels (does not change the image).
+    #[arg(long)]
+    pub tile: Option<u32>,
+    /// Samples per task (does not change the image).
+    #[arg(long)]
+    pub samples_per_task: Option<u32>,
+    /// Higher runs first.
+    #[arg(long, default_value_t = 0)]
+    pub priority: i32,
+    /// A name to show (default: the scene's).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Wait for the job, with a progress bar, and download its frames.
+    #[arg(long)]
+    pub wait: bool,
+    /// Where --wait puts the frames (frame_0001.exr, ...).
+    #[arg(short, long, default_value = ".")]
+    pub output: PathBuf,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
+    // Validate locally first: the same checks the coordinator makes, with local paths.
+    let scene_path = args.scene.clone();
+    let (bundle, desc, scene_name) =
+        tokio::task::spawn_blocking(move || Bundle::pack_scene(&scene_path)).await??;
+    let settings = RenderSettings {
+        spp: args.spp,
+        seed: args.seed,
+        tile: args.tile,
+        samples_per_task: args.samples_per_task,
+    };
+    let frames = args.frames.unwrap_or(FrameRange {
+        first: 1,
+        last: desc.frame_count(),
+    });
+    let mut check = desc.clone();
+    job::apply(&mut check, &settings, frames, &job::Limits::default())
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
+
+    let client = Client::new(&args.coordinator, &args.token)?;
+    let tar = bundle.to_tar();
+    let size = tar.len();
+    let info = client
+        .upload_bundle(tar)
+        .await
+        .context("uploading the scene bundle")?;
+    let job = client
+        .submit(&JobRequest {
+            bundle: info.hash.clone(),
+            scene: scene_name,
+            name: args.name.clone(),
+            frames: Some(frames),
+            settings,
+            priority: args.priority,
+        })
+        .await
+        .context("submitting the job")?;
+    crate::print(&format!(
+        "job {} queued: {}, frames {}, {}×{} at {} spp, {} tasks (bundle {} files, {} bytes)\nstatus: {}\n",
+        job.id,
+        job.name,
+        job.frames,
+        job.width,
+        job.height,
+        job.spp,
+        job.tasks.total,
+        info.files.len(),
+        size,
+        client.url(&format!("/v1/jobs/{}", job.id)),
+    ))?;
+    if !args.wait {
+        return Ok(());
+    }
+    let progress = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(job.tasks.total)
+    };
+    progress.set_style(
+        ProgressStyle::with_template(
+            "{spinner} {wide_bar} {pos}/{len} tasks {elapsed_precise} eta {eta} {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let status = loop {
+        let s = match client.job(job.id).await {
+            Ok(s) => s,
+            Err(e) if tessera_farm::client::is_transient(&e) => {
+                progress.set_message("coordinator unavailable; retrying");
+                tokio::time::sleep(Duration::from_secs(1)).await;
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        progress.set_position(s.tasks.done);
+        let frames_done = s.frame_status.iter().filter(|f| f.state == "done").count();
+        progress.set_message(format!("{frames_done}/{} frames", s.frames.len()));
+        if s.state.is_final() {
+            break s;
+        }
+        tokio::time::sleep(Duration::from_millis(250)).await;
+    };
+    progress.finish_and_clear();
+    match status.state {
+        JobState::Done => {}
+        JobState::Failed => anyhow::bail!(
+            "job {} failed: {}",
+            status.id,
+            status.error.unwrap_or_default()
+        ),
+        _ => anyhow::bail!("job {} was {}", status.id, status.state.as_str()),
+    }
+    std::fs::create_dir_all(&args.output)
+        .with_context(|| format!("creating {}", args.output.display()))?;
+    for frame in status.frames.iter() {
+        let bytes = client.frame_exr(status.id, frame).await?;
+        let path = args.output.join(job::frame_file_name(frame));
+        std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+        crate::print(&format!("wrote {}\n", path.display()))?;
+    }
+    Ok(())
+}

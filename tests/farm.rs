@@ -1,0 +1,292 @@
+//! The farm end to end, with real processes on loopback: a coordinator, two workers, a
+//! 3-frame fly-through of the Cornell box. A worker is SIGKILLed while it holds a lease; the
+//! coordinator is SIGKILLed mid-job and restarted on the same data. Every frame must come out
+//! bit-identical to `tessera render` of the same frame, and no finished tile may be rendered
+//! twice.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use tessera_farm::client::Client;
+use tessera_farm::protocol::{JobState, JobStatus};
+
+const CLIENT_TOKEN: &str = "client-secret";
+const WORKER_TOKEN: &str = "worker-secret";
+
+fn exe() -> &'static str {
+    env!("CARGO_BIN_EXE_tessera")
+}
+
+fn flythrough() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-flythrough/scene.json")
+}
+
+/// A child process that is killed when dropped (a failing test leaves nothing behind).
+struct Proc(Child);
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts `tessera serve` on `listen` and returns it with its URL (read from its first line).
+fn serve(data: &Path, listen: &str, lease_seconds: &str) -> (Proc, String) {
+    let mut child = Command::new(exe())
+        .args([
+            "serve",
+            "--listen",
+            listen,
+            "--lease-seconds",
+            lease_seconds,
+        ])
+        .arg("--data")
+        .arg(data)
+        .args([
+            "--client-token",
+            CLIENT_TOKEN,
+            "--worker-token",
+            WORKER_TOKEN,
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start tessera serve");
+    let stdout = child.stdout.take().expect("stdout");
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line).expect("read");
+    let url = line
+        .trim()
+        .rsplit(' ')
+        .next()
+        .filter(|u| u.starts_with("http://"))
+        .unwrap_or_else(|| panic!("no URL in {line:?}"))
+        .to_string();
+    (Proc(child), url)
+}
+
+/// Starts `tessera worker` with one slot, logging to `log`.
+fn worker(url: &str, name: &str, log: &Path) -> Proc {
+    let log = std::fs::File::create(log).expect("log file");
+    Proc(
+        Command::new(exe())
+            .args(["worker", "--coordinator", url, "--token", WORKER_TOKEN])
+            .args(["--name", name, "--slots", "1"])
+            .env("RUST_LOG", "info")
+            .stdout(Stdio::null())
+            .stderr(log)
+            .spawn()
+            .expect("start tessera worker"),
+    )
+}
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .expect("runtime")
+}
+
+/// Submits frames 1-3 of the fly-through with `tile` and `spp`; returns the job id.
+fn submit(url: &str, tile: u32, spp: u32) -> i64 {
+    let o = Command::new(exe())
+        .arg("submit")
+        .arg(flythrough())
+        .args([
+            "--coordinator",
+            url,
+            "--token",
+            CLIENT_TOKEN,
+            "--frames",
+            "1-3",
+        ])
+        .args(["--tile", &tile.to_string(), "--spp", &spp.to_string()])
+        .output()
+        .expect("run tessera submit");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    out.split_whitespace()
+        .nth(1)
+        .and_then(|id| id.parse().ok())
+        .unwrap_or_else(|| panic!("no job id in {out}"))
+}
+
+/// Polls the job until it ends (or `timeout`), tolerating a coordinator that is down.
+fn wait_for(
+    rt: &tokio::runtime::Runtime,
+    client: &Client,
+    id: i64,
+    timeout: Duration,
+) -> JobStatus {
+    let start = Instant::now();
+    loop {
+        if let Ok(job) = rt.block_on(client.job(id))
+            && job.state.is_final()
+        {
+            return job;
+        }
+        assert!(
+            start.elapsed() < timeout,
+            "job {id} did not finish in {timeout:?}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// Each frame of the job equals `tessera render --frame N` byte for byte; frames differ.
+fn assert_frames_match_render(
+    rt: &tokio::runtime::Runtime,
+    client: &Client,
+    job: &JobStatus,
+    spp: u32,
+    dir: &Path,
+) {
+    assert_eq!(job.state, JobState::Done, "{:?}", job.error);
+    let mut frames = Vec::new();
+    for frame in job.frames.iter() {
+        let farm = rt
+            .block_on(client.frame_exr(job.id, frame))
+            .expect("download frame");
+        let path = dir.join(format!("render_{frame}.exr"));
+        let o = Command::new(exe())
+            .arg("render")
+            .arg(flythrough())
+            .arg("-o")
+            .arg(&path)
+            .args([
+                "-q",
+                "--frame",
+                &frame.to_string(),
+                "--spp",
+                &spp.to_string(),
+            ])
+            .output()
+            .expect("run tessera render");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let local = std::fs::read(&path).expect("rendered frame");
+        assert!(
+            farm == local,
+            "frame {frame}: the farm's EXR differs from tessera render's"
+        );
+        frames.push(farm);
+    }
+    assert!(
+        frames[0] != frames[1] && frames[1] != frames[2],
+        "the camera moves"
+    );
+}
+
+/// (task id) of every "task done" line in the worker logs.
+fn rendered_tasks(logs: &[PathBuf]) -> Vec<i64> {
+    let mut out = Vec::new();
+    for log in logs {
+        let text = std::fs::read_to_string(log).unwrap_or_default();
+        for line in text.lines().filter(|l| l.contains("task done")) {
+            if let Some(id) = line
+                .split_whitespace()
+                .find_map(|w| w.strip_prefix("task="))
+                .and_then(|v| v.parse().ok())
+            {
+                out.push(id);
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_worker_killed_while_holding_a_lease_does_not_change_the_frames() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (_serve, url) = serve(&dir.path().join("data"), "127.0.0.1:0", "2");
+    let logs = [dir.path().join("a.log"), dir.path().join("b.log")];
+    let mut victim = worker(&url, "victim", &logs[0]);
+    let _survivor = worker(&url, "survivor", &logs[1]);
+    let rt = runtime();
+    let client = Client::new(&url, CLIENT_TOKEN).expect("client");
+    // 64×64 tiles of 64 spp: each task takes a few hundred ms, so leases are held long.
+    let spp = 64;
+    let id = submit(&url, 64, spp);
+
+    // Kill the victim while it holds a lease.
+    let start = Instant::now();
+    while !rt
+        .block_on(client.workers())
+        .expect("workers")
+        .iter()
+        .any(|w| w.name == "victim" && !w.leased_tasks.is_empty())
+    {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "the victim never leased a task"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    victim.0.kill().expect("SIGKILL the worker");
+    let _ = victim.0.wait();
+
+    let job = wait_for(&rt, &client, id, Duration::from_secs(120));
+    let tasks = rt.block_on(client.tasks(id)).expect("tasks");
+    // The task the victim held was leased again once its lease expired, and finished.
+    let retried: Vec<_> = tasks.iter().filter(|t| t.attempts >= 2).collect();
+    assert!(!retried.is_empty(), "no task was re-leased: {tasks:?}");
+    assert!(retried.iter().all(|t| t.state == "done"), "{retried:?}");
+    assert!(job.attempts > job.tasks.total);
+    assert_frames_match_render(&rt, &client, &job, spp, dir.path());
+}
+
+#[test]
+fn a_coordinator_killed_mid_job_resumes_without_rendering_a_finished_tile_twice() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let data = dir.path().join("data");
+    let (mut serve1, url) = serve(&data, "127.0.0.1:0", "30");
+    let logs = [dir.path().join("a.log"), dir.path().join("b.log")];
+    let _a = worker(&url, "a", &logs[0]);
+    let _b = worker(&url, "b", &logs[1]);
+    let rt = runtime();
+    let client = Client::new(&url, CLIENT_TOKEN).expect("client");
+    let spp = 32;
+    let id = submit(&url, 32, spp);
+
+    // Wait until some tiles are done, note them, and kill the coordinator.
+    let start = Instant::now();
+    let done_before: Vec<i64> = loop {
+        let tasks = rt.block_on(client.tasks(id)).expect("tasks");
+        let done: Vec<i64> = tasks
+            .iter()
+            .filter(|t| t.state == "done")
+            .map(|t| t.id)
+            .collect();
+        if done.len() >= 8 {
+            assert!(done.len() < tasks.len(), "the job finished before the kill");
+            break done;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "no progress");
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    serve1.0.kill().expect("SIGKILL the coordinator");
+    let _ = serve1.0.wait();
+    std::thread::sleep(Duration::from_millis(500));
+    let listen = url.trim_start_matches("http://").to_string();
+    let (_serve2, url2) = serve(&data, &listen, "30");
+    assert_eq!(url, url2);
+
+    let job = wait_for(&rt, &client, id, Duration::from_secs(120));
+    assert_eq!(job.state, JobState::Done, "{:?}", job.error);
+    let tasks = rt.block_on(client.tasks(id)).expect("tasks");
+    for t in tasks.iter().filter(|t| done_before.contains(&t.id)) {
+        assert_eq!(
+            t.attempts, 1,
+            "finished before the kill, leased again after: {t:?}"
+        );
+    }
+    // Count renders: every task rendered exactly once, over both coordinator lifetimes.
+    let mut rendered = rendered_tasks(&logs);
+    rendered.sort_unstable();
+    let expected: Vec<i64> = tasks.iter().map(|t| t.id).collect();
+    assert_eq!(rendered, expected, "each tile rendered once");
+    assert_eq!(job.attempts, job.tasks.total);
+    assert_frames_match_render(&rt, &client, &job, spp, dir.path());
+}
