@@ -35,6 +35,11 @@ impl Drop for Proc {
 
 /// Starts `tessera serve` on `listen` and returns it with its URL (read from its first line).
 fn serve(data: &Path, listen: &str, lease_seconds: &str) -> (Proc, String) {
+    serve_with(data, listen, lease_seconds, &[])
+}
+
+/// `serve` with extra arguments.
+fn serve_with(data: &Path, listen: &str, lease_seconds: &str, extra: &[&str]) -> (Proc, String) {
     let mut child = Command::new(exe())
         .args([
             "serve",
@@ -43,6 +48,7 @@ fn serve(data: &Path, listen: &str, lease_seconds: &str) -> (Proc, String) {
             "--lease-seconds",
             lease_seconds,
         ])
+        .args(extra)
         .arg("--data")
         .arg(data)
         .args([
@@ -289,4 +295,68 @@ fn a_coordinator_killed_mid_job_resumes_without_rendering_a_finished_tile_twice(
     assert_eq!(rendered, expected, "each tile rendered once");
     assert_eq!(job.attempts, job.tasks.total);
     assert_frames_match_render(&rt, &client, &job, spp, dir.path());
+}
+
+fn alive(pid: u32) -> bool {
+    // A zombie (exited, not yet reaped) counts as gone.
+    std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .map(|s| {
+            !s.rsplit(')')
+                .next()
+                .unwrap_or("")
+                .trim_start()
+                .starts_with('Z')
+        })
+        .unwrap_or(false)
+}
+
+#[test]
+fn local_workers_are_restarted_when_they_die_and_stop_with_their_coordinator() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (mut serve, url) = serve_with(
+        &dir.path().join("data"),
+        "127.0.0.1:0",
+        "5",
+        &["--local-workers", "1"],
+    );
+    let rt = runtime();
+    let client = Client::new(&url, CLIENT_TOKEN).expect("client");
+    let wait_worker = |not: Option<u32>| {
+        let start = Instant::now();
+        loop {
+            let workers = rt.block_on(client.workers()).unwrap_or_default();
+            if let Some(w) = workers
+                .iter()
+                .find(|w| w.name == "local-1" && Some(w.pid) != not && alive(w.pid))
+            {
+                return w.pid;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(30),
+                "no local worker: {workers:?}"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    };
+    let first = wait_worker(None);
+    assert!(
+        Command::new("kill")
+            .args(["-9", &first.to_string()])
+            .status()
+            .expect("kill")
+            .success()
+    );
+    let second = wait_worker(Some(first));
+    assert_ne!(first, second);
+    // The coordinator dies without a chance to clean up; its worker notices and exits.
+    serve.0.kill().expect("SIGKILL the coordinator");
+    let _ = serve.0.wait();
+    let start = Instant::now();
+    while alive(second) {
+        assert!(
+            start.elapsed() < Duration::from_secs(10),
+            "worker {second} outlived its coordinator"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
 }

@@ -162,6 +162,8 @@ pub struct WorkerInfo {
     pub id: String,
     pub name: String,
     pub host: String,
+    /// Its process id on that host.
+    pub pid: u32,
     /// Tasks it runs at once.
     pub slots: u32,
     /// Scenes it has loaded and built (its cache misses).
@@ -217,6 +219,7 @@ pub struct WorkerStatus {
     pub id: String,
     pub name: String,
     pub host: String,
+    pub pid: u32,
     pub slots: u32,
     pub version: String,
     pub first_seen_ms: i64,

@@ -86,6 +86,7 @@ CREATE TABLE IF NOT EXISTS workers (
     id TEXT PRIMARY KEY,
     name TEXT NOT NULL,
     host TEXT NOT NULL,
+    pid INTEGER NOT NULL,
     slots INTEGER NOT NULL,
     version TEXT NOT NULL,
     first_seen_ms INTEGER NOT NULL,
@@ -247,10 +248,10 @@ impl Store {
 
     fn upsert_worker(tx: &Transaction, w: &WorkerInfo, now: i64) -> Result<()> {
         tx.execute(
-            "INSERT INTO workers (id, name, host, slots, version, first_seen_ms, last_seen_ms, scene_builds)
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?6, ?7)
+            "INSERT INTO workers (id, name, host, pid, slots, version, first_seen_ms, last_seen_ms, scene_builds)
+             VALUES (?1, ?2, ?3, ?8, ?4, ?5, ?6, ?6, ?7)
              ON CONFLICT (id) DO UPDATE SET last_seen_ms = ?6, scene_builds = ?7, slots = ?4",
-            params![w.id, w.name, w.host, w.slots, w.version, now, w.scene_builds as i64],
+            params![w.id, w.name, w.host, w.slots, w.version, now, w.scene_builds as i64, w.pid],
         )?;
         Ok(())
     }
@@ -706,17 +707,18 @@ impl Store {
         let conn = self.conn();
         let mut stmt = conn.prepare(
             "SELECT w.id, w.name, w.host, w.slots, w.version, w.first_seen_ms, w.last_seen_ms,
-                w.scene_builds, w.tasks_done,
+                w.scene_builds, w.tasks_done, w.pid,
                 (SELECT group_concat(t.id) FROM tasks t WHERE t.worker = w.id AND t.state = 'leased')
              FROM workers w ORDER BY w.last_seen_ms DESC",
         )?;
         stmt.query_map([], |r| {
             let last: i64 = r.get(6)?;
-            let leased: Option<String> = r.get(9)?;
+            let leased: Option<String> = r.get(10)?;
             Ok(WorkerStatus {
                 id: r.get(0)?,
                 name: r.get(1)?,
                 host: r.get(2)?,
+                pid: r.get(9)?,
                 slots: r.get(3)?,
                 version: r.get(4)?,
                 first_seen_ms: r.get(5)?,
@@ -773,5 +775,178 @@ impl Store {
             )?;
         }
         tx.commit()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn worker(id: &str) -> WorkerInfo {
+        WorkerInfo {
+            id: id.into(),
+            name: id.into(),
+            host: "test".into(),
+            pid: 1,
+            slots: 1,
+            scene_builds: 0,
+            version: "test".into(),
+        }
+    }
+
+    fn task(frame: u32, tile_index: u32) -> TaskSpec {
+        TaskSpec {
+            frame,
+            tile_index,
+            x0: 0,
+            y0: 0,
+            x1: 1,
+            y1: 1,
+            sample_start: 0,
+            sample_end: 1,
+        }
+    }
+
+    /// A store with one job per priority given, each of `tasks` tasks in one frame.
+    fn store(priorities: &[i32], tasks: u32) -> (tempfile::TempDir, Store, Vec<i64>) {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let s = Store::open(&dir.path().join("t.db")).expect("open");
+        s.insert_bundle("b", 1, 0).expect("bundle");
+        let ids = priorities
+            .iter()
+            .map(|&priority| {
+                s.insert_job(
+                    &NewJob {
+                        name: "j".into(),
+                        priority,
+                        bundle: "b".into(),
+                        scene: "scene.json".into(),
+                        settings: RenderSettings::default(),
+                        frames: FrameRange::single(1),
+                        width: 1,
+                        height: 1,
+                        spp: 1,
+                        decisions: vec![],
+                        tasks: vec![(0..tasks).map(|i| task(1, i)).collect()],
+                    },
+                    0,
+                )
+                .expect("job")
+            })
+            .collect();
+        (dir, s, ids)
+    }
+
+    #[test]
+    fn leases_go_by_priority_then_age_then_task_order() {
+        let (_d, s, jobs) = store(&[0, 5, 5], 2);
+        let order: Vec<(i64, u32)> = (0..6)
+            .map(|_| {
+                let g = s
+                    .lease(&worker("w"), 0, 1000)
+                    .expect("lease")
+                    .expect("a task");
+                (g.job_id, g.task.tile_index)
+            })
+            .collect();
+        let (low, high_old, high_new) = (jobs[0], jobs[1], jobs[2]);
+        assert_eq!(
+            order,
+            [
+                (high_old, 0),
+                (high_old, 1),
+                (high_new, 0),
+                (high_new, 1),
+                (low, 0),
+                (low, 1)
+            ]
+        );
+        assert!(s.lease(&worker("w"), 0, 1000).expect("lease").is_none());
+    }
+
+    #[test]
+    fn a_stale_lease_cannot_heartbeat_or_complete_after_reassignment() {
+        let (_d, s, jobs) = store(&[0], 1);
+        let first = s.lease(&worker("a"), 0, 100).expect("lease").expect("task");
+        // The lease expires and the task goes to another worker.
+        assert_eq!(s.expire(50, 3).expect("expire"), vec![]);
+        assert_eq!(
+            s.expire(101, 3).expect("expire"),
+            vec![(first.task_id, Retry::Requeued)]
+        );
+        let second = s
+            .lease(&worker("b"), 102, 100)
+            .expect("lease")
+            .expect("task");
+        assert_eq!(second.task_id, first.task_id);
+        assert_ne!(second.lease, first.lease);
+        assert!(
+            !s.heartbeat(first.task_id, first.lease, "a", 103, 100)
+                .expect("hb")
+        );
+        assert!(
+            s.current_lease(first.task_id, first.lease)
+                .expect("q")
+                .is_none()
+        );
+        assert_eq!(
+            s.complete(first.task_id, first.lease, 1.0, 104).expect("c"),
+            Completion::Stale
+        );
+        // The current holder completes; its frame is then complete.
+        assert!(
+            s.heartbeat(second.task_id, second.lease, "b", 105, 100)
+                .expect("hb")
+        );
+        assert_eq!(
+            s.complete(second.task_id, second.lease, 1.0, 106)
+                .expect("c"),
+            Completion::Accepted {
+                frame_complete: Some(1)
+            }
+        );
+        assert_eq!(
+            s.complete(second.task_id, second.lease, 1.0, 107)
+                .expect("c"),
+            Completion::Stale
+        );
+        let job = s.job(jobs[0]).expect("q").expect("job");
+        assert_eq!((job.tasks.done, job.attempts), (1, 2));
+        assert_eq!(s.frame_results(jobs[0], 1).expect("q").len(), 1);
+    }
+
+    #[test]
+    fn a_task_failing_max_attempts_times_fails_its_job_with_the_error() {
+        let (_d, s, jobs) = store(&[0], 2);
+        for attempt in 1..=3 {
+            let g = s
+                .lease(&worker("w"), 0, 1000)
+                .expect("lease")
+                .expect("task");
+            assert_eq!(g.task.tile_index, 0, "the failed task is retried first");
+            let r = s
+                .fail(g.task_id, g.lease, &format!("boom {attempt}"), 1, 3)
+                .expect("fail");
+            if attempt < 3 {
+                assert_eq!(r, Retry::Requeued);
+            } else {
+                assert!(
+                    matches!(&r, Retry::JobFailed(m) if m.contains("boom 3") && m.contains("3 times")),
+                    "{r:?}"
+                );
+            }
+        }
+        let job = s.job(jobs[0]).expect("q").expect("job");
+        assert_eq!(job.state, JobState::Failed);
+        assert!(
+            job.error
+                .as_deref()
+                .unwrap_or("")
+                .contains("worker w: boom 3"),
+            "{:?}",
+            job.error
+        );
+        assert_eq!((job.tasks.failed, job.tasks.cancelled), (1, 1));
+        assert!(s.lease(&worker("w"), 2, 1000).expect("lease").is_none());
     }
 }

@@ -122,6 +122,7 @@ impl Worker {
             id: self.id.clone(),
             name: self.config.name.clone(),
             host: self.host.clone(),
+            pid: std::process::id(),
             slots: self.config.slots,
             scene_builds: self.scene_builds.load(Relaxed),
             version: env!("CARGO_PKG_VERSION").into(),

@@ -1,5 +1,6 @@
 //! `tessera`: the command-line interface of the Tessera render farm.
 
+mod bench;
 mod compare;
 mod farm;
 mod render;
@@ -31,6 +32,9 @@ enum Command {
     Worker(farm::WorkerArgs),
     /// Submit a scene to a coordinator (and wait for its frames).
     Submit(farm::SubmitArgs),
+    /// Measure the farm: render vs farm wall time, lease throughput.
+    #[command(subcommand)]
+    Bench(bench::BenchCommand),
 }
 
 /// Runs an async command on a multi-threaded runtime.
@@ -71,6 +75,7 @@ fn main() -> ExitCode {
         Command::Serve(args) => block_on(farm::serve(args)),
         Command::Worker(args) => block_on(farm::worker(args)),
         Command::Submit(args) => block_on(farm::submit(args)),
+        Command::Bench(cmd) => block_on(bench::run(cmd)),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
