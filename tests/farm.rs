@@ -177,6 +177,14 @@ fn assert_frames_match_render(
             farm == local,
             "frame {frame}: the farm's EXR differs from tessera render's"
         );
+        let recorded = job.frame_status[(frame - job.frames.first) as usize]
+            .exr_sha256
+            .clone();
+        assert_eq!(
+            recorded,
+            Some(tessera_farm::bundle::hash(&farm)),
+            "the artifact's hash"
+        );
         frames.push(farm);
     }
     assert!(
@@ -272,6 +280,9 @@ fn a_coordinator_killed_mid_job_resumes_without_rendering_a_finished_tile_twice(
         assert!(start.elapsed() < Duration::from_secs(60), "no progress");
         std::thread::sleep(Duration::from_millis(10));
     };
+    // A preview of a frame in progress is a PNG of the tiles done so far.
+    let png = rt.block_on(client.frame_preview(id, 1)).expect("preview");
+    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
     serve1.0.kill().expect("SIGKILL the coordinator");
     let _ = serve1.0.wait();
     std::thread::sleep(Duration::from_millis(500));
@@ -294,6 +305,11 @@ fn a_coordinator_killed_mid_job_resumes_without_rendering_a_finished_tile_twice(
     let expected: Vec<i64> = tasks.iter().map(|t| t.id).collect();
     assert_eq!(rendered, expected, "each tile rendered once");
     assert_eq!(job.attempts, job.tasks.total);
+    // Each worker downloaded the scene and built its BVH once for the whole job.
+    let workers = rt.block_on(client.workers()).expect("workers");
+    for w in workers.iter().filter(|w| w.tasks_done > 0) {
+        assert_eq!(w.scene_builds, 1, "{w:?}");
+    }
     assert_frames_match_render(&rt, &client, &job, spp, dir.path());
 }
 

@@ -109,6 +109,15 @@ impl Client {
         Ok(r.bytes().await?.to_vec())
     }
 
+    pub async fn frame_preview(&self, id: i64, frame: u32) -> anyhow::Result<Vec<u8>> {
+        let r = Self::send(self.request(
+            reqwest::Method::GET,
+            &format!("/v1/jobs/{id}/frames/{frame}/preview.png"),
+        ))
+        .await?;
+        Ok(r.bytes().await?.to_vec())
+    }
+
     /// Leases a task, waiting up to `wait_ms`; `None` when none was queued.
     pub async fn lease(&self, req: &LeaseRequest) -> anyhow::Result<Option<LeaseGrant>> {
         let r = Self::send(

@@ -107,6 +107,8 @@ pub struct FrameStatus {
     pub tasks_total: u64,
     /// Where to download the finished EXR (relative URL), once done.
     pub exr: Option<String>,
+    /// SHA-256 of the finished EXR.
+    pub exr_sha256: Option<String>,
 }
 
 /// A job and its progress.

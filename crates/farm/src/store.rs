@@ -82,6 +82,16 @@ CREATE TABLE IF NOT EXISTS attempts (
     outcome TEXT,
     error TEXT
 );
+CREATE TABLE IF NOT EXISTS artifacts (
+    job_id INTEGER NOT NULL REFERENCES jobs(id),
+    frame INTEGER NOT NULL,
+    kind TEXT NOT NULL,
+    path TEXT NOT NULL,
+    bytes INTEGER NOT NULL,
+    sha256 TEXT NOT NULL,
+    created_ms INTEGER NOT NULL,
+    PRIMARY KEY (job_id, frame, kind)
+);
 CREATE TABLE IF NOT EXISTS workers (
     id TEXT PRIMARY KEY,
     name TEXT NOT NULL,
@@ -128,6 +138,17 @@ pub enum Retry {
     Requeued,
     /// Out of attempts: the job failed with this error.
     JobFailed(String),
+}
+
+/// A file the coordinator produced for a frame.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Artifact {
+    /// `exr` or `png`.
+    pub kind: String,
+    /// Relative to the data directory.
+    pub path: String,
+    pub bytes: u64,
+    pub sha256: String,
 }
 
 /// Queue gauges for `/metrics` and `/healthz`.
@@ -436,15 +457,7 @@ impl Store {
             "UPDATE tasks SET state = 'failed', lease_expires_ms = NULL, error = ?2 WHERE id = ?1",
             params![task, error],
         )?;
-        tx.execute(
-            "UPDATE tasks SET state = 'cancelled', lease_expires_ms = NULL
-             WHERE job_id = ?1 AND state IN ('queued', 'leased')",
-            [job],
-        )?;
-        tx.execute(
-            "UPDATE jobs SET state = 'failed', error = ?2, finished_ms = ?3 WHERE id = ?1",
-            params![job, message, now],
-        )?;
+        Self::end_job(tx, job, "failed", Some(&message), now)?;
         Ok(Retry::JobFailed(message))
     }
 
@@ -491,14 +504,19 @@ impl Store {
         Ok(out)
     }
 
-    /// Cancels a job that has not ended; false if it had.
-    pub fn cancel(&self, job: i64, now: i64) -> Result<bool> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
+    /// Ends a job that has not ended (`cancelled` or `failed`, with an error), cancelling its
+    /// open tasks; false if it had ended.
+    fn end_job(
+        tx: &Transaction,
+        job: i64,
+        state: &str,
+        error: Option<&str>,
+        now: i64,
+    ) -> Result<bool> {
         let n = tx.execute(
-            "UPDATE jobs SET state = 'cancelled', finished_ms = ?2
+            "UPDATE jobs SET state = ?2, error = COALESCE(?3, error), finished_ms = ?4
              WHERE id = ?1 AND state IN ('queued', 'running')",
-            params![job, now],
+            params![job, state, error, now],
         )?;
         if n == 1 {
             tx.execute(
@@ -507,8 +525,24 @@ impl Store {
                 [job],
             )?;
         }
-        tx.commit()?;
         Ok(n == 1)
+    }
+
+    /// Cancels a job that has not ended; false if it had.
+    pub fn cancel(&self, job: i64, now: i64) -> Result<bool> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        let ended = Self::end_job(&tx, job, "cancelled", None, now)?;
+        tx.commit()?;
+        Ok(ended)
+    }
+
+    /// Fails a job that has not ended (a stitch that could not be written, say).
+    pub fn fail_job(&self, job: i64, error: &str, now: i64) -> Result<()> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        Self::end_job(&tx, job, "failed", Some(error), now)?;
+        tx.commit()
     }
 
     /// Done tasks of a frame in stitch order: (task id, lease, spec).
@@ -525,11 +559,25 @@ impl Store {
         .collect()
     }
 
-    /// Marks a stitched frame done, and the job done when it was its last frame.
+    /// Marks a stitched frame done with its files (kind, path relative to the data
+    /// directory, bytes, SHA-256), and the job done when it was its last frame.
     /// Returns whether the job is now done.
-    pub fn frame_stitched(&self, job: i64, frame: u32, now: i64) -> Result<bool> {
+    pub fn frame_stitched(
+        &self,
+        job: i64,
+        frame: u32,
+        files: &[Artifact],
+        now: i64,
+    ) -> Result<bool> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
+        for a in files {
+            tx.execute(
+                "INSERT OR REPLACE INTO artifacts (job_id, frame, kind, path, bytes, sha256, created_ms)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+                params![job, frame, a.kind, a.path, a.bytes as i64, a.sha256, now],
+            )?;
+        }
         tx.execute(
             "UPDATE frames SET state = 'done', finished_ms = ?3 WHERE job_id = ?1 AND frame = ?2",
             params![job, frame, now],
@@ -649,7 +697,9 @@ impl Store {
             .collect::<Result<_>>()?;
         if frames {
             let mut stmt = conn.prepare(
-                "SELECT frame, state, tasks_done, tasks_total FROM frames WHERE job_id = ?1 ORDER BY frame",
+                "SELECT f.frame, f.state, f.tasks_done, f.tasks_total, a.sha256 FROM frames f
+                 LEFT JOIN artifacts a ON a.job_id = f.job_id AND a.frame = f.frame AND a.kind = 'exr'
+                 WHERE f.job_id = ?1 ORDER BY f.frame",
             )?;
             for job in jobs.iter_mut() {
                 job.frame_status = stmt
@@ -663,6 +713,7 @@ impl Store {
                             state,
                             tasks_done: r.get::<_, i64>(2)? as u64,
                             tasks_total: r.get::<_, i64>(3)? as u64,
+                            exr_sha256: r.get(4)?,
                         })
                     })?
                     .collect::<Result<_>>()?;
@@ -754,27 +805,6 @@ impl Store {
             leased: leased as u64,
             jobs,
         })
-    }
-}
-
-impl Store {
-    /// Fails a job that has not ended, cancelling its open tasks.
-    pub fn fail_job(&self, job: i64, error: &str, now: i64) -> Result<()> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let n = tx.execute(
-            "UPDATE jobs SET state = 'failed', error = ?2, finished_ms = ?3
-             WHERE id = ?1 AND state IN ('queued', 'running')",
-            params![job, error, now],
-        )?;
-        if n == 1 {
-            tx.execute(
-                "UPDATE tasks SET state = 'cancelled', lease_expires_ms = NULL
-                 WHERE job_id = ?1 AND state IN ('queued', 'leased')",
-                [job],
-            )?;
-        }
-        tx.commit()
     }
 }
 

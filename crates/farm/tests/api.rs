@@ -301,13 +301,38 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
     )
     .await;
 
-    // And a good job is still accepted.
+    // And a good job is still accepted; it can be cancelled once.
     let r = api
         .submit(&hash, RenderSettings::default())
         .send()
         .await
         .expect("submit");
     assert_eq!(r.status(), StatusCode::CREATED);
+    let job: serde_json::Value = r.json().await.expect("job");
+    let cancel = api.url(&format!("/v1/jobs/{}/cancel", job["id"]));
+    let r = c
+        .post(&cancel)
+        .bearer_auth(CLIENT)
+        .send()
+        .await
+        .expect("cancel");
+    assert_eq!(r.status(), StatusCode::OK);
+    let job: serde_json::Value = r.json().await.expect("job");
+    assert_eq!(job["state"], "cancelled");
+    assert_eq!(job["tasks"]["cancelled"], job["tasks"]["total"]);
+    api.expect(
+        c.post(&cancel).bearer_auth(CLIENT),
+        StatusCode::CONFLICT,
+        &["already ended"],
+    )
+    .await;
+    api.expect(
+        c.get(api.url(&format!("/v1/jobs/{}/frames/1/exr", job["id"])))
+            .bearer_auth(CLIENT),
+        StatusCode::CONFLICT,
+        &["not finished"],
+    )
+    .await;
     running.stop().await.expect("stop");
 }
 

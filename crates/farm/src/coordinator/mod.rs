@@ -27,7 +27,7 @@ pub use error::{AppError, AppResult};
 use crate::bundle::Bundle;
 use crate::codec;
 use crate::job::{self, FrameRange, Limits, TaskOutput};
-use crate::store::{Retry, Store};
+use crate::store::{Artifact, Retry, Store};
 use metrics::Metrics;
 
 /// How a coordinator runs.
@@ -157,8 +157,22 @@ impl App {
         job::write_frame(&tmp, &desc, frame, &image, &stats)?;
         std::fs::rename(tmp.with_extension("png"), path.with_extension("png"))?;
         std::fs::rename(&tmp, &path)?;
+        let mut files = Vec::new();
+        for (kind, file) in [("exr", path.clone()), ("png", path.with_extension("png"))] {
+            let bytes = std::fs::read(&file)?;
+            files.push(Artifact {
+                kind: kind.into(),
+                path: file
+                    .strip_prefix(&self.config.data)
+                    .unwrap_or(&file)
+                    .to_string_lossy()
+                    .into_owned(),
+                bytes: bytes.len() as u64,
+                sha256: crate::bundle::hash(&bytes),
+            });
+        }
         self.metrics.frames_stitched.fetch_add(1, Relaxed);
-        let job_done = self.store.frame_stitched(job, frame, now_ms())?;
+        let job_done = self.store.frame_stitched(job, frame, &files, now_ms())?;
         tracing::info!(job, frame, path = %path.display(), job_done, "frame stitched");
         if job_done {
             self.descs
