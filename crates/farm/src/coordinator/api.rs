@@ -426,8 +426,14 @@ async fn lease_task(
             return Ok(Json(grant).into_response());
         }
         let left = deadline.saturating_duration_since(Instant::now());
-        if left.is_zero() || tokio::time::timeout(left, notified).await.is_err() {
+        let mut stopping = app.stopping.clone();
+        if left.is_zero() || *stopping.borrow() {
             return Ok(StatusCode::NO_CONTENT.into_response());
+        }
+        tokio::select! {
+            _ = notified => {}
+            _ = tokio::time::sleep(left) => return Ok(StatusCode::NO_CONTENT.into_response()),
+            _ = stopping.changed() => return Ok(StatusCode::NO_CONTENT.into_response()),
         }
     }
 }

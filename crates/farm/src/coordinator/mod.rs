@@ -76,6 +76,8 @@ pub struct App {
     metrics: Metrics,
     /// Woken when tasks are queued, for long-polling lease requests.
     work: Notify,
+    /// Becomes true when the coordinator stops (ends long polls at once).
+    stopping: tokio::sync::watch::Receiver<bool>,
     /// Scene descriptions of jobs (with their settings applied), for stitching.
     descs: Mutex<HashMap<i64, Arc<SceneDesc>>>,
 }
@@ -270,7 +272,9 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         .await
         .with_context(|| format!("cannot listen on {}", config.listen))?;
     let addr = listener.local_addr()?;
+    let (shutdown, mut stop) = tokio::sync::watch::channel(false);
     let app = Arc::new(App {
+        stopping: shutdown.subscribe(),
         config,
         store,
         metrics: Metrics::default(),
@@ -284,7 +288,6 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         app.spawn_stitch(job, frame);
     }
 
-    let (shutdown, mut stop) = tokio::sync::watch::channel(false);
     // The reaper: expired leases go back to the queue.
     {
         let app = app.clone();
