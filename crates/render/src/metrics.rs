@@ -33,6 +33,21 @@ pub fn compare(image: &[Vec3A], reference: &[Vec3A]) -> ImageError {
     }
 }
 
+/// relMSE predicted by the film's own per-pixel variance of the mean, with no reference:
+/// mean over pixels and channels of Var / (x² + 0.01) — the expectation of the measured relMSE
+/// for an unbiased render (up to the noise in x² and in the variance estimate itself). Pixels
+/// with a single sample have no variance estimate and count as 0.
+pub fn estimated_rel_mse(image: &crate::Image) -> f64 {
+    let mut sum = 0.0f64;
+    for p in &image.pixels {
+        for c in 0..3 {
+            let x = p.rgb[c] as f64;
+            sum += p.variance[c] as f64 / (x * x + 0.01);
+        }
+    }
+    sum / (image.pixels.len() * 3).max(1) as f64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

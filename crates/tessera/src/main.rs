@@ -32,9 +32,8 @@ enum Command {
     Worker(farm::WorkerArgs),
     /// Submit a scene to a coordinator (and wait for its frames).
     Submit(farm::SubmitArgs),
-    /// Measure the farm: render vs farm wall time, lease throughput.
-    #[command(subcommand)]
-    Bench(bench::BenchCommand),
+    /// Measure: speed against error for a scene (or `bench farm`, `bench leases`).
+    Bench(bench::BenchArgs),
 }
 
 /// Runs an async command on a multi-threaded runtime.
@@ -75,7 +74,7 @@ fn main() -> ExitCode {
         Command::Serve(args) => block_on(farm::serve(args)),
         Command::Worker(args) => block_on(farm::worker(args)),
         Command::Submit(args) => block_on(farm::submit(args)),
-        Command::Bench(cmd) => block_on(bench::run(cmd)),
+        Command::Bench(args) => bench::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

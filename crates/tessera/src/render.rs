@@ -155,7 +155,7 @@ fn default_output(scene: &Path) -> PathBuf {
 }
 
 /// CPU time of this process (user + system), where the platform tells it.
-fn cpu_seconds() -> Option<f64> {
+pub(crate) fn cpu_seconds() -> Option<f64> {
     let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
     // Fields after the command name (which is in parentheses and may contain spaces).
     let rest = &stat[stat.rfind(')')? + 2..];

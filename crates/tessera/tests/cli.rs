@@ -215,3 +215,60 @@ fn compare_reports_errors_and_refuses_mismatched_sizes() {
         stderr(&o)
     );
 }
+
+#[test]
+fn bench_writes_a_speed_against_error_report() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("report");
+    let reference = repo().join("scenes/cornell-box/reference.exr");
+    let o = tessera(&[
+        "bench",
+        &cornell(),
+        "--reference",
+        reference.to_str().expect("utf-8"),
+        "--budgets",
+        "2,4",
+        "--integrators",
+        "path,direct",
+        "-o",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).expect("report.json"))
+            .expect("JSON");
+    let runs = json["runs"].as_array().expect("runs");
+    assert_eq!(runs.len(), 4);
+    for r in runs {
+        for key in [
+            "spp",
+            "wall_s",
+            "rel_mse",
+            "rmse",
+            "mean_ratio",
+            "estimated_rel_mse",
+        ] {
+            assert!(r[key].is_number(), "{key} in {r}");
+        }
+    }
+    // Path tracing converges: error falls with samples; direct lighting misses light (biased).
+    let err = |i: usize| runs[i]["rel_mse"].as_f64().unwrap_or(f64::NAN);
+    assert!(err(1) < err(0), "{runs:?}");
+    assert!(runs[3]["mean_ratio"].as_f64().unwrap_or(1.0) < 0.9);
+    let csv = std::fs::read_to_string(out.join("report.csv")).expect("csv");
+    assert_eq!(csv.lines().count(), 5);
+    let md = std::fs::read_to_string(out.join("report.md")).expect("md");
+    assert!(
+        md.contains("| path | 4 spp | 4 |") && md.contains("Wall seconds to reach"),
+        "{md}"
+    );
+    let png = std::fs::read(out.join("report.png")).expect("png");
+    assert!(png.starts_with(b"\x89PNG"));
+    // Without a reference, or with an unknown integrator: a clear error.
+    let o = tessera(&["bench", &cornell()]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("--reference"),
+        "{}",
+        stderr(&o)
+    );
+}

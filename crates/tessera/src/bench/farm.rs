@@ -1,4 +1,4 @@
-//! `tessera bench`: figures, not assertions.
+//! Farm benchmarks: figures, not assertions.
 //!
 //! - `bench farm`: the same frame by `tessera render --threads T` and by a coordinator with
 //!   local worker processes plus a client (upload, submit, poll, download), as wall times and
@@ -20,14 +20,6 @@ use tessera_farm::job::{RenderSettings, TaskOutput};
 use tessera_farm::protocol::{JobRequest, JobState, LeaseRequest, WorkerInfo};
 use tessera_render::RayStats;
 use tessera_render::film::TileSums;
-
-#[derive(clap::Subcommand)]
-pub enum BenchCommand {
-    /// `tessera render` against `serve --local-workers` + submit, same frame.
-    Farm(FarmArgs),
-    /// Lease throughput with many simulated workers.
-    Leases(LeaseArgs),
-}
 
 #[derive(clap::Args)]
 pub struct FarmArgs {
@@ -55,13 +47,6 @@ pub struct LeaseArgs {
     pub tile: u32,
 }
 
-pub async fn run(cmd: BenchCommand) -> anyhow::Result<()> {
-    match cmd {
-        BenchCommand::Farm(a) => farm(a).await,
-        BenchCommand::Leases(a) => leases(a).await,
-    }
-}
-
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -84,7 +69,7 @@ async fn local_coordinator(
     Ok((running, client))
 }
 
-async fn farm(args: FarmArgs) -> anyhow::Result<()> {
+pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
     let dir = tempfile_dir()?;
     let exe = std::env::current_exe()?;
     let (running, client) = local_coordinator(dir.join("data"), args.workers).await?;
@@ -172,7 +157,7 @@ async fn farm(args: FarmArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
+pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
     let dir = tempfile_dir()?;
     let (running, client) = local_coordinator(dir.join("data"), 0).await?;
     let worker_token = running.app.config.worker_token.clone();

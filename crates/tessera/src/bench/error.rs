@@ -1,0 +1,356 @@
+//! Speed against error: a scene rendered with each integrator at increasing budgets, each
+//! checkpoint compared with a reference. One progressive render per integrator: the image at a
+//! checkpoint of N samples is bit-identical to a fresh N-sample render, and the time to reach it
+//! is the render time so far.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, ensure};
+use serde::Serialize;
+use tessera_farm::job::{self, Accumulator, FrameRange, Limits, Prepared, RenderSettings};
+use tessera_render::metrics;
+use tessera_scene::IntegratorKind;
+
+#[derive(clap::Args)]
+pub struct ErrorArgs {
+    /// The scene file (scene.json).
+    pub scene: Option<PathBuf>,
+    /// The converged reference image (OpenEXR, the scene's resolution).
+    #[arg(long)]
+    pub reference: Option<PathBuf>,
+    /// Integrators to compare, comma-separated: path, direct.
+    #[arg(long, value_delimiter = ',', default_value = "path,direct")]
+    pub integrators: Vec<String>,
+    /// Budgets, comma-separated and increasing: samples per pixel (`64`) or seconds of wall
+    /// time (`30s`).
+    #[arg(long, value_delimiter = ',', default_value = "4,16,64,256,1024")]
+    pub budgets: Vec<String>,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Where report.json, report.csv, report.md and report.png go.
+    #[arg(short, long, default_value = "bench-report")]
+    pub output: PathBuf,
+}
+
+/// Error levels (relMSE) whose time to reach the report gives.
+const LEVELS: [f64; 4] = [1e-2, 3e-3, 1e-3, 3e-4];
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Budget {
+    Samples(u32),
+    Seconds(f64),
+}
+
+fn parse_budget(s: &str) -> anyhow::Result<Budget> {
+    let t = s.trim();
+    if let Some(secs) = t.strip_suffix('s') {
+        let v: f64 = secs
+            .parse()
+            .ok()
+            .filter(|v: &f64| *v > 0.0 && v.is_finite())
+            .with_context(|| format!("--budgets: expected seconds like 30s, got \"{s}\""))?;
+        return Ok(Budget::Seconds(v));
+    }
+    let v: u32 = t.parse().ok().filter(|v| *v >= 1).with_context(|| {
+        format!("--budgets: expected samples per pixel (≥ 1) or seconds like 30s, got \"{s}\"")
+    })?;
+    Ok(Budget::Samples(v))
+}
+
+fn integrator_kind(name: &str) -> anyhow::Result<IntegratorKind> {
+    match name.trim() {
+        "path" => Ok(IntegratorKind::Path),
+        "direct" => Ok(IntegratorKind::Direct),
+        other => {
+            anyhow::bail!("--integrators: unknown integrator \"{other}\"; expected path or direct")
+        }
+    }
+}
+
+/// One checkpoint of one integrator.
+#[derive(Debug, Clone, Serialize)]
+pub struct Run {
+    pub integrator: String,
+    pub budget: String,
+    pub spp: u32,
+    pub wall_s: f64,
+    pub cpu_s: Option<f64>,
+    pub rel_mse: f64,
+    pub rmse: f64,
+    pub mean_ratio: f64,
+    /// relMSE estimated from the render's own per-pixel variance (no reference needed).
+    pub estimated_rel_mse: f64,
+}
+
+/// Wall seconds an integrator needed to reach an error level (log-log interpolation between
+/// checkpoints); `None` if it never did within the budgets.
+#[derive(Debug, Clone, Serialize)]
+pub struct TimeToError {
+    pub integrator: String,
+    pub rel_mse: f64,
+    pub wall_s: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    scene: String,
+    reference: String,
+    width: u32,
+    height: u32,
+    threads: usize,
+    runs: Vec<Run>,
+    time_to_error: Vec<TimeToError>,
+}
+
+pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
+    let scene_path = args.scene.clone().context(
+        "bench: expected a scene (tessera bench SCENE --reference REF.exr), or `farm` / `leases`",
+    )?;
+    let reference_path = args
+        .reference
+        .clone()
+        .context("--reference: expected a converged reference EXR of the scene")?;
+    let budgets: Vec<Budget> = args
+        .budgets
+        .iter()
+        .map(|b| parse_budget(b))
+        .collect::<anyhow::Result<_>>()?;
+    ensure!(
+        !budgets.is_empty(),
+        "--budgets: expected at least one budget"
+    );
+    let kinds: Vec<(String, IntegratorKind)> = args
+        .integrators
+        .iter()
+        .map(|n| Ok((n.trim().to_string(), integrator_kind(n)?)))
+        .collect::<anyhow::Result<_>>()?;
+    let base = tessera_scene::load(&scene_path)?;
+    let reference = tessera_render::read_exr(&reference_path)?;
+    ensure!(
+        (reference.width, reference.height) == (base.film.width, base.film.height),
+        "{}: the reference is {}×{}, the scene renders {}×{}",
+        reference_path.display(),
+        reference.width,
+        reference.height,
+        base.film.width,
+        base.film.height
+    );
+    let reference: Vec<glam::Vec3A> = reference.pixels.iter().map(|&p| p.into()).collect();
+    let threads = args
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
+
+    let mut runs = Vec::new();
+    for (name, kind) in &kinds {
+        let mut desc = base.clone();
+        desc.integrator.kind = *kind;
+        job::apply(
+            &mut desc,
+            &RenderSettings::default(),
+            FrameRange::single(1),
+            &Limits::default(),
+        )
+        .map_err(anyhow::Error::msg)?;
+        let prepared = pool.install(|| Prepared::new(desc.clone()));
+        let camera = prepared.camera(1);
+        let mut acc = Accumulator::new(&desc, job::DEFAULT_TILE);
+        let (start, cpu0) = (Instant::now(), crate::render::cpu_seconds());
+        for budget in &budgets {
+            match *budget {
+                Budget::Samples(n) => pool.install(|| acc.render_to(&prepared, &camera, n)),
+                Budget::Seconds(limit) => {
+                    // Double the samples until the wall time reaches the budget.
+                    while start.elapsed().as_secs_f64() < limit {
+                        let next = (acc.samples * 2).max(acc.samples + 1);
+                        pool.install(|| acc.render_to(&prepared, &camera, next));
+                    }
+                }
+            }
+            let wall_s = start.elapsed().as_secs_f64();
+            let cpu_s = crate::render::cpu_seconds().zip(cpu0).map(|(b, a)| b - a);
+            let (image, _) = acc.image();
+            let rgb: Vec<glam::Vec3A> = image.pixels.iter().map(|p| p.rgb.into()).collect();
+            let e = metrics::compare(&rgb, &reference);
+            let run = Run {
+                integrator: name.clone(),
+                budget: match budget {
+                    Budget::Samples(n) => format!("{n} spp"),
+                    Budget::Seconds(s) => format!("{s} s"),
+                },
+                spp: acc.samples,
+                wall_s,
+                cpu_s,
+                rel_mse: e.rel_mse,
+                rmse: e.rmse,
+                mean_ratio: e.mean_ratio,
+                estimated_rel_mse: metrics::estimated_rel_mse(&image),
+            };
+            crate::print(&format!(
+                "{:>8} {:>6} spp  {:8.2} s wall  relMSE {:.3e} (estimated {:.3e})  RMSE {:.3e}  mean/ref {:.4}\n",
+                run.integrator,
+                run.spp,
+                run.wall_s,
+                run.rel_mse,
+                run.estimated_rel_mse,
+                run.rmse,
+                run.mean_ratio
+            ))?;
+            runs.push(run);
+        }
+    }
+    let time_to_error = time_to_error(&kinds, &runs);
+    let report = Report {
+        scene: scene_path.display().to_string(),
+        reference: reference_path.display().to_string(),
+        width: base.film.width,
+        height: base.film.height,
+        threads,
+        runs,
+        time_to_error,
+    };
+    write_report(&args.output, &report)?;
+    crate::print(&format!(
+        "wrote {0}/report.json, report.csv, report.md and report.png\n",
+        args.output.display()
+    ))
+}
+
+fn time_to_error(kinds: &[(String, IntegratorKind)], runs: &[Run]) -> Vec<TimeToError> {
+    let mut out = Vec::new();
+    for (name, _) in kinds {
+        let points: Vec<&Run> = runs.iter().filter(|r| &r.integrator == name).collect();
+        for &level in &LEVELS {
+            let mut wall_s = None;
+            for (i, r) in points.iter().enumerate() {
+                if r.rel_mse <= level {
+                    wall_s = Some(match i.checked_sub(1).map(|j| points[j]) {
+                        // Interpolate log error against log time between the two checkpoints.
+                        Some(p) if p.rel_mse > level && p.wall_s > 0.0 => {
+                            let f =
+                                (level.ln() - p.rel_mse.ln()) / (r.rel_mse.ln() - p.rel_mse.ln());
+                            (p.wall_s.ln() + f * (r.wall_s.ln() - p.wall_s.ln())).exp()
+                        }
+                        _ => r.wall_s,
+                    });
+                    break;
+                }
+            }
+            out.push(TimeToError {
+                integrator: name.clone(),
+                rel_mse: level,
+                wall_s,
+            });
+        }
+    }
+    out
+}
+
+fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let write = |name: &str, bytes: &[u8]| -> anyhow::Result<()> {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))
+    };
+    write(
+        "report.json",
+        serde_json::to_string_pretty(report)?.as_bytes(),
+    )?;
+
+    let mut csv = String::from(
+        "integrator,budget,spp,wall_s,cpu_s,rel_mse,rmse,mean_ratio,estimated_rel_mse\n",
+    );
+    for r in &report.runs {
+        let _ = writeln!(
+            csv,
+            "{},{},{},{:.4},{},{:.6e},{:.6e},{:.6},{:.6e}",
+            r.integrator,
+            r.budget,
+            r.spp,
+            r.wall_s,
+            r.cpu_s.map(|c| format!("{c:.4}")).unwrap_or_default(),
+            r.rel_mse,
+            r.rmse,
+            r.mean_ratio,
+            r.estimated_rel_mse
+        );
+    }
+    write("report.csv", csv.as_bytes())?;
+
+    let mut md = format!(
+        "# Speed against error: {}\n\nReference `{}`, {}×{}, {} threads. relMSE = mean of (x − r)² / (r² + 0.01).\n\n",
+        report.scene, report.reference, report.width, report.height, report.threads
+    );
+    md += "| integrator | budget | spp | wall s | CPU s | relMSE | estimated relMSE | RMSE | mean / ref |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
+    for r in &report.runs {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.2} | {} | {:.3e} | {:.3e} | {:.3e} | {:.4} |",
+            r.integrator,
+            r.budget,
+            r.spp,
+            r.wall_s,
+            r.cpu_s
+                .map(|c| format!("{c:.2}"))
+                .unwrap_or_else(|| "–".into()),
+            r.rel_mse,
+            r.estimated_rel_mse,
+            r.rmse,
+            r.mean_ratio
+        );
+    }
+    md += "\nWall seconds to reach a relMSE (interpolated in log-log between checkpoints; – not reached):\n\n| integrator |";
+    for l in LEVELS {
+        let _ = write!(md, " {l:.0e} |");
+    }
+    md += "\n|---|";
+    md += &"---:|".repeat(LEVELS.len());
+    md += "\n";
+    let names: Vec<&String> = {
+        let mut v: Vec<&String> = report.time_to_error.iter().map(|t| &t.integrator).collect();
+        v.dedup();
+        v
+    };
+    for name in names {
+        let _ = write!(md, "| {name} |");
+        for t in report
+            .time_to_error
+            .iter()
+            .filter(|t| &t.integrator == name)
+        {
+            match t.wall_s {
+                Some(s) => {
+                    let _ = write!(md, " {s:.2} |");
+                }
+                None => md += " – |",
+            }
+        }
+        md += "\n";
+    }
+    md += "\n![relMSE against wall time](report.png)\n";
+    write("report.md", md.as_bytes())?;
+
+    let series: Vec<(String, Vec<(f64, f64)>)> = {
+        let mut names: Vec<String> = report.runs.iter().map(|r| r.integrator.clone()).collect();
+        names.dedup();
+        names
+            .into_iter()
+            .map(|n| {
+                let pts = report
+                    .runs
+                    .iter()
+                    .filter(|r| r.integrator == n)
+                    .map(|r| (r.wall_s, r.rel_mse))
+                    .collect();
+                (n, pts)
+            })
+            .collect()
+    };
+    let png = super::plot::log_log("relMSE", "wall seconds", &series)?;
+    write("report.png", &png)
+}
