@@ -44,18 +44,30 @@ pub fn square_to_uniform_sphere(u: Vec2) -> Vec3A {
 
 pub const UNIFORM_SPHERE_PDF: f32 = INV_4PI;
 
-/// Uniform direction in the cone around +z with cos θ ≥ `cos_max`; pdf = 1 / (2π(1 − cos_max)).
+/// Uniform direction in the cone around +z with cos θ ≥ 1 − `one_minus_cos_max`;
+/// pdf = 1 / (2π · one_minus_cos_max). The cone is given by 1 − cos θ_max, not cos θ_max, so
+/// that tiny cones (a 1 mm light 2 m away: 1 − cos θ_max ≈ 1e-7, below f32's resolution near 1)
+/// keep their size; sin θ comes from (1 − cos θ)(1 + cos θ) for the same reason.
 #[inline]
-pub fn square_to_uniform_cone(u: Vec2, cos_max: f32) -> Vec3A {
-    let cos_theta = (1.0 - u.x) + u.x * cos_max;
-    let sin_theta = safe_sqrt(1.0 - cos_theta * cos_theta);
+pub fn square_to_uniform_cone(u: Vec2, one_minus_cos_max: f32) -> Vec3A {
+    let one_minus_cos = u.x * one_minus_cos_max;
+    let cos_theta = 1.0 - one_minus_cos;
+    let sin_theta = safe_sqrt(one_minus_cos * (2.0 - one_minus_cos));
     let (s, c) = (2.0 * PI * u.y).sin_cos();
     Vec3A::new(sin_theta * c, sin_theta * s, cos_theta)
 }
 
 #[inline]
-pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
-    1.0 / (2.0 * PI * (1.0 - cos_max))
+pub fn uniform_cone_pdf(one_minus_cos_max: f32) -> f32 {
+    1.0 / (2.0 * PI * one_minus_cos_max)
+}
+
+/// 1 − cos θ_max of the cone a sphere of radius² `r2` subtends from distance² `d2` (> r2),
+/// without cancellation: sin²θ_max / (1 + cos θ_max).
+#[inline]
+pub fn sphere_cone_one_minus_cos(r2: f32, d2: f32) -> f32 {
+    let sin2 = (r2 / d2).min(1.0);
+    sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt())
 }
 
 /// Uniform barycentric coordinates (b0, b1, b2) over a triangle (pbrt-v4 SampleUniformTriangle,
@@ -239,7 +251,7 @@ mod tests {
                 assert!(square_to_disk(u).length() <= 1.0 + 1e-6);
                 let w = square_to_cosine_hemisphere(u);
                 assert!((w.length() - 1.0).abs() < 1e-5 && w.z >= 0.0);
-                let c = square_to_uniform_cone(u, 0.8);
+                let c = square_to_uniform_cone(u, 0.2);
                 assert!(c.z >= 0.8 - 1e-6);
                 let b = square_to_triangle(u);
                 assert!(b.iter().all(|&x| (-1e-7..=1.0).contains(&x)));

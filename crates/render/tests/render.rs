@@ -197,29 +197,6 @@ fn inside_a_closed_emitting_sphere_radiance_is_le_over_one_minus_albedo() {
     assert!(err < 0.01, "the estimate should be good to 1 %: ±{err}");
 }
 
-#[test]
-fn an_index_of_refraction_of_one_is_exactly_invisible() {
-    // Light passes an IOR-1 sphere unbent and unattenuated: every pixel sees the sky's 1.
-    let desc = load(
-        r#"{ "units": "m",
-        "camera": { "type": "pinhole", "position": [0, 0, -4], "look_at": [0, 0, 0], "fov_deg": 35 },
-        "film": { "width": 16, "height": 16 },
-        "materials": { "air": { "type": "dielectric", "ior": 1.0 } },
-        "shapes": [ { "type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "air" } ],
-        "lights": [ { "type": "environment", "radiance": 1 } ] }"#,
-    );
-    let img = render(&desc, 4, 1);
-    assert!(
-        img.pixels
-            .iter()
-            .all(|p| p.rgb.iter().all(|&v| (v - 1.0).abs() < 1e-6))
-    );
-    assert!(
-        img.pixels.iter().any(|p| p.alpha == 1.0),
-        "the sphere is in view"
-    );
-}
-
 /// A camera looking straight down at a Lambertian plane from `h` above: the centre pixel's
 /// radiance, by the direct-lighting integrator.
 fn centre_pixel(units: &str, h: f32, lights: &str, shapes_extra: &str) -> (f32, f32) {

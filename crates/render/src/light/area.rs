@@ -8,7 +8,8 @@ use super::{LightSample, ShadowTarget, lum};
 use crate::geometry::{sphere, triangle};
 use crate::math::{Frame, PI, gamma};
 use crate::sampling::{
-    square_to_triangle, square_to_uniform_cone, square_to_uniform_sphere, uniform_cone_pdf,
+    sphere_cone_one_minus_cos, square_to_triangle, square_to_uniform_cone,
+    square_to_uniform_sphere, uniform_cone_pdf,
 };
 use crate::spectrum::Spectrum;
 
@@ -122,24 +123,24 @@ impl SphereLight {
         }
     }
 
-    /// cos of the half-angle of the cone the sphere subtends from `p`, if `p` is outside.
+    /// 1 − cos of the half-angle of the cone the sphere subtends from `p`, if `p` is outside.
     #[inline]
-    fn cos_max(&self, p: Vec3A) -> Option<f32> {
+    fn cone(&self, p: Vec3A) -> Option<f32> {
         let dist2 = (p - self.center).length_squared();
         let r2 = self.radius * self.radius;
-        (dist2 > r2 * 1.0001).then(|| (1.0 - r2 / dist2).max(0.0).sqrt())
+        (dist2 > r2 * 1.0001).then(|| sphere_cone_one_minus_cos(r2, dist2))
     }
 
     pub fn sample_li(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
-        let (pl, p_error, n, pdf) = match self.cos_max(p) {
-            Some(cos_max) => {
+        let (pl, p_error, n, pdf) = match self.cone(p) {
+            Some(cone) => {
                 let axis = (self.center - p).normalize();
-                let wi = Frame::from_normal(axis).to_world(square_to_uniform_cone(u, cos_max));
+                let wi = Frame::from_normal(axis).to_world(square_to_uniform_cone(u, cone));
                 let t = sphere::intersect(self.center, self.radius, p, wi, f32::INFINITY)
                     // Rounding can graze past the silhouette: take the closest point instead.
                     .unwrap_or_else(|| (self.center - p).dot(wi));
                 let (pl, err, n) = sphere::point_and_error(self.center, self.radius, p, wi, t);
-                (pl, err, n, uniform_cone_pdf(cos_max))
+                (pl, err, n, uniform_cone_pdf(cone))
             }
             None => {
                 let n = square_to_uniform_sphere(u);
@@ -165,8 +166,8 @@ impl SphereLight {
     }
 
     pub fn pdf_li(&self, p: Vec3A, p_light: Vec3A, n_light: Vec3A) -> f32 {
-        match self.cos_max(p) {
-            Some(cos_max) => uniform_cone_pdf(cos_max),
+        match self.cone(p) {
+            Some(cone) => uniform_cone_pdf(cone),
             None => area_to_solid_angle(
                 1.0 / (4.0 * PI * self.radius * self.radius),
                 p,
