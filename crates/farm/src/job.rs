@@ -317,77 +317,14 @@ pub fn stitch<'a>(
     (image, stats)
 }
 
-/// A frame accumulated over successive sample ranges (progressive rendering): per-tile sums
-/// merged in sample order, so the image after N samples is bit-identical to rendering
-/// [0, N) at once.
-pub struct Accumulator {
-    width: u32,
-    height: u32,
-    tiles: Vec<TileSums>,
-    stats: RayStats,
-    /// Samples per pixel so far.
-    pub samples: u32,
-}
-
-impl Accumulator {
-    pub fn new(desc: &SceneDesc, tile: u32) -> Self {
-        let empty = SampleRange { start: 0, end: 0 };
-        Accumulator {
-            width: desc.film.width,
-            height: desc.film.height,
-            tiles: tiles(desc.film.width, desc.film.height, tile)
-                .into_iter()
-                .map(|t| TileSums::new(t, empty))
-                .collect(),
-            stats: RayStats::default(),
-            samples: 0,
-        }
-    }
-
-    /// Renders samples [samples, end) of every tile on the current rayon pool and adds them.
-    pub fn render_to(&mut self, prepared: &Prepared, camera: &Camera, end: u32) {
-        use rayon::prelude::*;
-        if end <= self.samples {
-            return;
-        }
-        let range = SampleRange {
-            start: self.samples,
-            end,
-        };
-        let stats: Vec<RayStats> = self
-            .tiles
-            .par_iter_mut()
-            .map(|sums| {
-                let (more, stats) = render::render_tile(
-                    &prepared.scene,
-                    camera,
-                    prepared.integrator.as_ref(),
-                    sums.tile,
-                    range,
-                );
-                sums.merge(&more);
-                stats
-            })
-            .collect();
-        for s in &stats {
-            self.stats.add(s);
-        }
-        self.samples = end;
-    }
-
-    /// The frame so far.
-    pub fn image(&self) -> (Image, RayStats) {
-        let mut image = Image::new(self.width, self.height);
-        for t in &self.tiles {
-            image.put(t);
-        }
-        (image, self.stats)
-    }
-}
-
 /// The EXR metadata of a frame: what determines it and what was dropped. No times or hosts,
 /// so the file's bytes depend only on the job.
-pub fn frame_metadata(desc: &SceneDesc, frame: u32, stats: &RayStats) -> ExrMetadata {
+pub fn frame_metadata(
+    desc: &SceneDesc,
+    frame: u32,
+    stats: &RayStats,
+    extra: &[(String, String)],
+) -> ExrMetadata {
     let i = &desc.integrator;
     let mut entries = vec![
         ("scene".to_string(), desc.name.clone()),
@@ -404,6 +341,7 @@ pub fn frame_metadata(desc: &SceneDesc, frame: u32, stats: &RayStats) -> ExrMeta
     if desc.camera_path.is_some() {
         entries.push(("frame".into(), frame.to_string()));
     }
+    entries.extend_from_slice(extra);
     ExrMetadata { entries }
 }
 
@@ -412,15 +350,16 @@ pub fn frame_file_name(frame: u32) -> String {
     format!("frame_{frame:04}.exr")
 }
 
-/// Writes a stitched frame as EXR, and its PNG preview beside it.
+/// Writes a stitched frame as EXR (with `extra` metadata entries), and its PNG preview beside it.
 pub fn write_frame(
     path: &Path,
     desc: &SceneDesc,
     frame: u32,
     image: &Image,
     stats: &RayStats,
+    extra: &[(String, String)],
 ) -> Result<(), tessera_render::RenderError> {
-    write_exr(path, image, &frame_metadata(desc, frame, stats))?;
+    write_exr(path, image, &frame_metadata(desc, frame, stats, extra))?;
     write_png(&path.with_extension("png"), image)
 }
 
@@ -488,23 +427,6 @@ mod tests {
         });
         assert_eq!(whole, split);
         assert_eq!(whole.1.samples, 24 * 20 * 5);
-    }
-
-    #[test]
-    fn progressive_accumulation_equals_one_render() {
-        let desc = cornell();
-        let prepared = Prepared::new(desc.clone());
-        let camera = prepared.camera(1);
-        let mut acc = Accumulator::new(&desc, 16);
-        acc.render_to(&prepared, &camera, 1);
-        acc.render_to(&prepared, &camera, 3);
-        acc.render_to(&prepared, &camera, 5);
-        let tasks = plan_frame(&desc, &RenderSettings::default(), 1);
-        let outs: Vec<TaskOutput> = tasks.iter().map(|t| prepared.execute(t)).collect();
-        assert_eq!(
-            acc.image(),
-            stitch(desc.film.width, desc.film.height, &outs)
-        );
     }
 
     #[test]

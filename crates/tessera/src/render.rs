@@ -7,6 +7,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use tessera_farm::job::{self, FrameRange, Limits, Prepared, RenderSettings, TaskOutput};
+use tessera_farm::progressive::{Adaptive, render_adaptive};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -30,6 +31,13 @@ pub struct RenderArgs {
     /// The frame of the scene's camera path to render (1-based).
     #[arg(long, default_value_t = 1)]
     pub frame: u32,
+    /// Adaptive sampling: stop when the relMSE estimated from the film's own variance is at
+    /// most this; samples go to the noisiest tiles. --spp becomes the per-pixel maximum.
+    #[arg(long)]
+    pub target_error: Option<f64>,
+    /// Adaptive sampling: start no new round after this many seconds.
+    #[arg(long)]
+    pub time_limit: Option<f64>,
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
@@ -63,6 +71,18 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     anyhow::ensure!(threads >= 1, "--threads: expected at least 1");
+    if let Some(e) = args.target_error {
+        anyhow::ensure!(
+            e > 0.0 && e.is_finite(),
+            "--target-error: expected a positive relMSE, got {e}"
+        );
+    }
+    if let Some(t) = args.time_limit {
+        anyhow::ensure!(
+            t > 0.0 && t.is_finite(),
+            "--time-limit: expected positive seconds, got {t}"
+        );
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -100,25 +120,46 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let rendering = Instant::now();
     let cpu_start = cpu_seconds();
     let camera = prepared.camera(frame);
-    let outputs: Vec<TaskOutput> = pool.install(|| {
-        tasks
-            .par_iter()
-            .map(|task| {
-                let out = prepared.execute_with(&camera, task);
-                progress.inc(out.sums.tile.pixel_count() as u64);
-                out
-            })
-            .collect()
+    let adaptive = (args.target_error.is_some() || args.time_limit.is_some()).then(|| Adaptive {
+        target_rel_mse: args.target_error,
+        time_limit: args.time_limit.map(std::time::Duration::from_secs_f64),
+        first_spp: 16.min(spp),
+        max_spp: spp,
     });
-    let (image, stats) = job::stitch(w, h, &outputs);
+    let (image, stats, extra, spp_text) = match &adaptive {
+        None => {
+            let outputs: Vec<TaskOutput> = pool.install(|| {
+                tasks
+                    .par_iter()
+                    .map(|task| {
+                        let out = prepared.execute_with(&camera, task);
+                        progress.inc(out.sums.tile.pixel_count() as u64);
+                        out
+                    })
+                    .collect()
+            });
+            let (image, stats) = job::stitch(w, h, &outputs);
+            (image, stats, Vec::new(), format!("{spp} spp"))
+        }
+        Some(rule) => {
+            progress.set_length(0);
+            let r = pool.install(|| render_adaptive(&prepared, &camera, args.tile, rule));
+            let text = format!(
+                "adaptive {}–{} spp in {} rounds ({}; estimated relMSE {:.3e})",
+                r.spp_min, r.spp_max, r.rounds, r.stopped, r.estimated_rel_mse
+            );
+            let extra = r.metadata(rule);
+            (r.image, r.stats, extra, text)
+        }
+    };
     let render_s = rendering.elapsed().as_secs_f64();
     let cpu_s = cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
     progress.finish_and_clear();
 
-    job::write_frame(&output, desc, frame, &image, &stats)?;
+    job::write_frame(&output, desc, frame, &image, &stats, &extra)?;
     let preview = output.with_extension("png");
 
-    let mut report = format!("{}: {w}×{h}, {spp} spp, {threads} threads\n", desc.name);
+    let mut report = format!("{}: {w}×{h}, {spp_text}, {threads} threads\n", desc.name);
     report += &format!(
         "render {render_s:.2} s wall{}; {:.3} M samples/s, {:.2} M rays/s\n",
         cpu_s.map(|c| format!(", {c:.2} s CPU")).unwrap_or_default(),

@@ -272,3 +272,25 @@ fn bench_writes_a_speed_against_error_report() {
         stderr(&o)
     );
 }
+
+#[test]
+fn adaptive_render_writes_its_error_estimate_into_the_exr_header() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let out = dir.path().join("ad.exr");
+    let o = render_cornell(&out, &["--spp", "64", "--target-error", "0.05"]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("target error reached"), "{stdout}");
+    let bytes = std::fs::read(&out).expect("exr");
+    let header = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]);
+    for key in ["estimated_rel_mse", "target_rel_mse", "adaptive_spp_max"] {
+        assert!(header.contains(key), "{key} not in the EXR header");
+    }
+    let o = tessera(&[
+        "render",
+        &cornell(),
+        "--target-error=-1",
+        "-o",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(!o.status.success() && stderr(&o).contains("--target-error"));
+}

@@ -156,7 +156,7 @@ impl App {
         let (image, stats) = job::stitch(desc.film.width, desc.film.height, &outputs);
         let path = self.frame_path(job, frame);
         let tmp = path.with_extension("tmp.exr");
-        job::write_frame(&tmp, &desc, frame, &image, &stats)?;
+        job::write_frame(&tmp, &desc, frame, &image, &stats, &[])?;
         std::fs::rename(tmp.with_extension("png"), path.with_extension("png"))?;
         std::fs::rename(&tmp, &path)?;
         let mut files = Vec::new();

@@ -9,7 +9,8 @@ use std::time::Instant;
 
 use anyhow::{Context, ensure};
 use serde::Serialize;
-use tessera_farm::job::{self, Accumulator, FrameRange, Limits, Prepared, RenderSettings};
+use tessera_farm::job::{self, FrameRange, Limits, Prepared, RenderSettings};
+use tessera_farm::progressive::Accumulator;
 use tessera_render::metrics;
 use tessera_scene::IntegratorKind;
 
