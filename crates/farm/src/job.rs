@@ -11,7 +11,7 @@ use tessera_render::camera::Camera;
 use tessera_render::film::{MAX_SPP, TileSums, tiles};
 use tessera_render::output::{ExrMetadata, write_exr, write_png};
 use tessera_render::{Image, Integrator, RayStats, SampleRange, Scene, Tile, integrator, render};
-use tessera_scene::SceneDesc;
+use tessera_scene::{IntegratorKind, SceneDesc};
 use utoipa::ToSchema;
 
 /// Render settings a job gives on top of its scene. Every field is optional.
@@ -249,7 +249,7 @@ impl Prepared {
     pub fn new(desc: SceneDesc) -> Self {
         let start = Instant::now();
         let scene = Scene::build(&desc);
-        let integrator = integrator::from_desc(&desc.integrator);
+        let integrator = integrator::for_scene(&desc);
         Prepared {
             desc,
             scene,
@@ -326,9 +326,19 @@ pub fn frame_metadata(
     extra: &[(String, String)],
 ) -> ExrMetadata {
     let i = &desc.integrator;
+    let analysis = tessera_render::analysis::analyze(desc);
+    let integrator = match i.kind {
+        IntegratorKind::Auto => format!("auto: {:?}", analysis.integrator),
+        kind => format!("{kind:?}"),
+    };
+    let decisions: Vec<String> = analysis.decisions.iter().map(|d| d.to_string()).collect();
     let mut entries = vec![
         ("scene".to_string(), desc.name.clone()),
-        ("integrator".into(), format!("{:?}", i.kind).to_lowercase()),
+        ("integrator".into(), integrator.to_lowercase()),
+        (
+            "decisions".into(),
+            serde_json::to_string(&decisions).unwrap_or_default(),
+        ),
         ("spp".into(), i.spp.to_string()),
         ("seed".into(), i.seed.to_string()),
         ("sampler".into(), format!("{:?}", i.sampler).to_lowercase()),
@@ -363,33 +373,34 @@ pub fn write_frame(
     write_png(&path.with_extension("png"), image)
 }
 
-/// What the core will do with a scene, for the job status (DESIGN invariant 4: decisions made
-/// about a scene are shown).
+/// What the core will do with a scene, with reasons, for logs, the EXR header and the job
+/// status (DESIGN invariant 4).
 pub fn decisions(desc: &SceneDesc, scene: Option<&Scene>) -> Vec<String> {
     let i = &desc.integrator;
-    let mut out = vec![
-        format!(
-            "integrator {:?}, max depth {}, Russian roulette from depth {}, {:?} sampler",
-            i.kind, i.max_depth, i.rr_depth, i.sampler
-        )
-        .to_lowercase(),
-    ];
+    let mut out: Vec<String> = tessera_render::analysis::analyze(desc)
+        .decisions
+        .iter()
+        .map(|d| d.to_string())
+        .collect();
+    out.push(format!(
+        "sampling: {:?} sampler, max depth {}, Russian roulette from depth {}",
+        i.sampler, i.max_depth, i.rr_depth
+    ));
     out.push(match &desc.camera_path {
         Some(p) => format!(
-            "camera path with {} keyframes at {} fps: {} frames; scene built once per worker, camera per frame",
+            "camera path: {} keyframes at {} fps, {} frames — the scene is built once per worker, the camera per frame",
             p.keyframes.len(),
             p.fps,
             p.frame_count()
         ),
-        None => "still camera: one frame".into(),
+        None => "camera: still, one frame".into(),
     });
     if let Some(s) = scene {
         out.push(format!(
-            "{} triangles and {} spheres in one BVH; {} lights ({} emissive triangles)",
+            "geometry: {} triangles and {} spheres in one BVH; {} lights ({} emissive triangles)",
             s.stats.triangles, s.stats.spheres, s.stats.lights, s.stats.emissive_triangles
         ));
     }
-    out.push("no precomputation passes: path tracing needs none".into());
     out
 }
 

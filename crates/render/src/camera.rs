@@ -74,6 +74,15 @@ impl Camera {
         }
     }
 
+    /// Whether `p` lies inside the view frustum (occlusion is not considered).
+    pub fn in_view(&self, p: Vec3A) -> bool {
+        let d = p - self.position;
+        let z = d.dot(self.forward);
+        z > 0.0
+            && d.dot(self.right).abs() <= z * self.tan_half * self.aspect
+            && d.dot(self.up).abs() <= z * self.tan_half
+    }
+
     /// Depth of a point along the optical axis, in scene units.
     #[inline]
     pub fn depth(&self, p: Vec3A) -> f32 {

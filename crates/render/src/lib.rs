@@ -3,6 +3,7 @@
 //! sample indices is a pure function of the scene ([`render::render_tile`]), and gives the
 //! same numbers whether rendered alone or as part of a frame.
 
+pub mod analysis;
 pub mod bsdf;
 pub mod camera;
 pub mod error;

@@ -50,11 +50,14 @@ pub fn write_exr(path: &Path, image: &Image, metadata: &ExrMetadata) -> Result<(
             .iter()
             .map(|(k, v)| (k.clone(), serde_json::Value::String(v.clone())))
             .collect();
-        let json = serde_json::Value::Object(object).to_string();
-        attributes.other.insert(
-            Text::from("tessera"),
-            AttributeValue::Text(Text::from(json.as_str())),
-        );
+        let json = ascii_json(&serde_json::Value::Object(object).to_string());
+        let text = Text::new_or_none(json.as_str()).ok_or_else(|| RenderError::Output {
+            path: path.to_path_buf(),
+            message: "EXR metadata is not representable as EXR text".into(),
+        })?;
+        attributes
+            .other
+            .insert(Text::from("tessera"), AttributeValue::Text(text));
     }
     let layer = Layer::new(size, attributes, Encoding::SMALL_LOSSLESS, channels);
     Image::from_layer(layer)
@@ -64,6 +67,23 @@ pub fn write_exr(path: &Path, image: &Image, metadata: &ExrMetadata) -> Result<(
             path: path.to_path_buf(),
             message: e.to_string(),
         })
+}
+
+/// JSON with every non-ASCII character written as a `\uXXXX` escape (UTF-16 units): EXR text
+/// attributes hold only Latin-1, and scene names, reasons and paths may be any Unicode.
+fn ascii_json(json: &str) -> String {
+    let mut out = String::with_capacity(json.len());
+    for c in json.chars() {
+        if c.is_ascii() {
+            out.push(c);
+        } else {
+            let mut units = [0u16; 2];
+            for u in c.encode_utf16(&mut units) {
+                out.push_str(&format!("\\u{:04x}", u));
+            }
+        }
+    }
+    out
 }
 
 /// sRGB transfer function of a linear value in [0, 1].
@@ -102,4 +122,16 @@ pub fn write_png(path: &Path, image: &Image) -> Result<(), RenderError> {
     };
     let bytes = encode_png(image).map_err(error)?;
     std::fs::write(path, bytes).map_err(|e| error(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn non_ascii_metadata_is_escaped_and_stays_json() {
+        let json = serde_json::json!({ "scene": "Cornell box — 2×2 ⁻ 🎥" }).to_string();
+        let escaped = super::ascii_json(&json);
+        assert!(escaped.is_ascii());
+        let back: serde_json::Value = serde_json::from_str(&escaped).expect("JSON");
+        assert_eq!(back["scene"], "Cornell box — 2×2 ⁻ 🎥");
+    }
 }

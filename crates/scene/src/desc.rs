@@ -86,6 +86,8 @@ pub enum IntegratorKind {
     Path,
     /// Emitted plus directly reflected light (specular chains are followed).
     Direct,
+    /// Chosen from the scene by analysis before rendering.
+    Auto,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

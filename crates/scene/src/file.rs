@@ -231,6 +231,8 @@ pub enum IntegratorType {
     #[default]
     Path,
     Direct,
+    /// Chosen by scene analysis (`tessera_render::analysis`).
+    Auto,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]

@@ -530,6 +530,7 @@ impl Ctx<'_> {
             kind: match i.kind {
                 IntegratorType::Path => IntegratorKind::Path,
                 IntegratorType::Direct => IntegratorKind::Direct,
+                IntegratorType::Auto => IntegratorKind::Auto,
             },
             spp: i.spp,
             max_depth: i.max_depth,

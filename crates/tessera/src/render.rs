@@ -105,6 +105,10 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         "scene ready"
     );
     let (w, h, spp) = (desc.film.width, desc.film.height, desc.integrator.spp);
+    let analysis = tessera_render::analysis::analyze(desc);
+    for d in &analysis.decisions {
+        tracing::info!(topic = d.topic, choice = %d.choice, reason = %d.reason, "decision");
+    }
 
     let progress = if args.quiet {
         ProgressBar::hidden()
@@ -160,6 +164,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let preview = output.with_extension("png");
 
     let mut report = format!("{}: {w}×{h}, {spp_text}, {threads} threads\n", desc.name);
+    if let Some(d) = analysis.decisions.first() {
+        report += &format!("{d}\n");
+    }
     report += &format!(
         "render {render_s:.2} s wall{}; {:.3} M samples/s, {:.2} M rays/s\n",
         cpu_s.map(|c| format!(", {c:.2} s CPU")).unwrap_or_default(),

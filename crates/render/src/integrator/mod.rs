@@ -63,9 +63,22 @@ pub trait Integrator: Send + Sync {
     ) -> RadianceSample;
 }
 
+/// The integrator a description names; `auto` (which needs the scene, see [`for_scene`])
+/// means path tracing here.
 pub fn from_desc(desc: &IntegratorDesc) -> Box<dyn Integrator> {
     match desc.kind {
-        IntegratorKind::Path => Box::new(PathIntegrator::new(desc.max_depth, desc.rr_depth)),
+        IntegratorKind::Path | IntegratorKind::Auto => {
+            Box::new(PathIntegrator::new(desc.max_depth, desc.rr_depth))
+        }
         IntegratorKind::Direct => Box::new(PathIntegrator::direct_lighting(desc.max_depth)),
     }
+}
+
+/// The integrator for a scene: its own choice, or the one scene analysis makes for `auto`.
+pub fn for_scene(scene: &tessera_scene::SceneDesc) -> Box<dyn Integrator> {
+    let kind = crate::analysis::analyze(scene).integrator;
+    from_desc(&IntegratorDesc {
+        kind,
+        ..scene.integrator
+    })
 }

@@ -21,7 +21,7 @@ pub struct ErrorArgs {
     /// The converged reference image (OpenEXR, the scene's resolution).
     #[arg(long)]
     pub reference: Option<PathBuf>,
-    /// Integrators to compare, comma-separated: path, direct.
+    /// Integrators to compare, comma-separated: path, direct, auto.
     #[arg(long, value_delimiter = ',', default_value = "path,direct")]
     pub integrators: Vec<String>,
     /// Budgets, comma-separated and increasing: samples per pixel (`64`) or seconds of wall

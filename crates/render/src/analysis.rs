@@ -1,0 +1,432 @@
+//! Scene analysis: which light paths a scene can have, and so what is worth computing
+//! (DESIGN invariant 4, "only what a scene needs"). Pure: a function of the scene description,
+//! run before rendering by every process that needs it, with each decision and its reason kept
+//! for logs, the EXR header and the job status.
+//!
+//! Facts looked at: material classes (specular = mirror, smooth or nearly smooth conductors and
+//! dielectrics; diffuse/glossy otherwise; black = pure emitters; IOR 1 = invisible), whether
+//! reflective surfaces can light each other (two or more of them, or one that is neither a
+//! sphere nor planar), whether light can reach a diffuse surface through a specular one
+//! (caustics), how small the emitters are, whether they are in view.
+
+use glam::Vec3A;
+use tessera_scene::{IntegratorKind, LightDesc, MaterialKind, SceneDesc};
+
+use crate::camera::Camera;
+
+/// Below this microfacet α an interface is treated as specular (its lobe is a near-delta that
+/// next-event estimation cannot sample).
+const SPECULAR_ALPHA: f32 = 0.1;
+
+/// An emitter with less than this fraction of the scene's surface area is "small".
+const SMALL_EMITTER: f64 = 0.005;
+
+/// One decision: what was decided and why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Decision {
+    pub topic: &'static str,
+    pub choice: String,
+    pub reason: String,
+}
+
+impl std::fmt::Display for Decision {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {} — {}", self.topic, self.choice, self.reason)
+    }
+}
+
+/// What the analysis found and decided.
+#[derive(Debug, Clone)]
+pub struct Analysis {
+    /// The integrator to run (the scene's own choice unless it asked for `auto`).
+    pub integrator: IntegratorKind,
+    pub decisions: Vec<Decision>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Class {
+    /// Reflects or transmits only in (near-)delta directions.
+    Specular,
+    /// Has a diffuse or glossy lobe that light sampling can reach.
+    Diffuse,
+    /// Reflects nothing (a pure emitter).
+    Black,
+    /// Changes nothing (a dielectric of IOR 1).
+    Invisible,
+}
+
+fn class(m: &MaterialKind) -> Class {
+    let black = |v: glam::Vec3| v.max_element() <= 0.0;
+    match m {
+        MaterialKind::Diffuse { albedo } | MaterialKind::OrenNayar { albedo, .. } => {
+            if black(*albedo) {
+                Class::Black
+            } else {
+                Class::Diffuse
+            }
+        }
+        MaterialKind::Phong {
+            diffuse, specular, ..
+        }
+        | MaterialKind::BlinnPhong {
+            diffuse, specular, ..
+        }
+        | MaterialKind::Ward {
+            diffuse, specular, ..
+        } => {
+            if black(*diffuse) && black(*specular) {
+                Class::Black
+            } else {
+                Class::Diffuse
+            }
+        }
+        MaterialKind::Conductor { roughness, .. } => {
+            if roughness.alpha_u.max(roughness.alpha_v) < SPECULAR_ALPHA {
+                Class::Specular
+            } else {
+                Class::Diffuse
+            }
+        }
+        MaterialKind::Dielectric { eta, roughness } => {
+            if *eta == 1.0 {
+                Class::Invisible
+            } else if roughness.alpha_u.max(roughness.alpha_v) < SPECULAR_ALPHA {
+                Class::Specular
+            } else {
+                Class::Diffuse
+            }
+        }
+        MaterialKind::Mirror { reflectance } => {
+            if black(*reflectance) {
+                Class::Black
+            } else {
+                Class::Specular
+            }
+        }
+    }
+}
+
+/// A shape as the analysis sees it.
+struct Surface {
+    name: String,
+    class: Class,
+    emissive: bool,
+    /// A sphere or a planar mesh: cannot see itself.
+    convex_or_flat: bool,
+    centre: Vec3A,
+    area: f64,
+}
+
+fn surfaces(desc: &SceneDesc) -> Vec<Surface> {
+    let class_of = |m: u32| {
+        desc.materials
+            .get(m as usize)
+            .map_or(Class::Black, |m| class(&m.kind))
+    };
+    let mut out = Vec::new();
+    for m in &desc.meshes {
+        let normal = |t: &[u32; 3]| {
+            let [a, b, c] = t.map(|i| m.positions[i as usize]);
+            (b - a).cross(c - a).normalize_or_zero()
+        };
+        let first = m
+            .triangles
+            .iter()
+            .map(normal)
+            .find(|n| *n != glam::Vec3::ZERO);
+        let flat = first.is_none_or(|n0| {
+            m.triangles
+                .iter()
+                .map(normal)
+                .all(|n| n == glam::Vec3::ZERO || n.dot(n0).abs() > 1.0 - 1e-5)
+        });
+        let (lo, hi) = m.positions.iter().fold(
+            (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        out.push(Surface {
+            name: m.origin.clone(),
+            class: class_of(m.material),
+            emissive: m.emission.is_some(),
+            convex_or_flat: flat,
+            centre: Vec3A::from((lo + hi) * 0.5),
+            area: m.area(),
+        });
+    }
+    for s in &desc.spheres {
+        out.push(Surface {
+            name: s.origin.clone(),
+            class: class_of(s.material),
+            emissive: s.emission.is_some(),
+            convex_or_flat: true,
+            centre: Vec3A::from(s.center),
+            area: 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2),
+        });
+    }
+    out
+}
+
+fn names(list: &[&Surface]) -> String {
+    let shown: Vec<&str> = list.iter().take(3).map(|s| s.name.as_str()).collect();
+    let more = list.len().saturating_sub(3);
+    if more > 0 {
+        format!("{} and {more} more", shown.join(", "))
+    } else {
+        shown.join(", ")
+    }
+}
+
+/// Analyses the scene and decides what to compute.
+pub fn analyze(desc: &SceneDesc) -> Analysis {
+    let surfaces = surfaces(desc);
+    let reflective: Vec<&Surface> = surfaces
+        .iter()
+        .filter(|s| matches!(s.class, Class::Diffuse | Class::Specular))
+        .collect();
+    let specular: Vec<&Surface> = reflective
+        .iter()
+        .copied()
+        .filter(|s| s.class == Class::Specular)
+        .collect();
+    let diffuse: Vec<&Surface> = reflective
+        .iter()
+        .copied()
+        .filter(|s| s.class == Class::Diffuse)
+        .collect();
+    let emitters: Vec<&Surface> = surfaces.iter().filter(|s| s.emissive).collect();
+    let environment = desc
+        .lights
+        .iter()
+        .any(|l| matches!(l, LightDesc::Environment { .. }));
+    let has_light = !emitters.is_empty() || !desc.lights.is_empty();
+    let interreflection = reflective.len() >= 2 || reflective.iter().any(|s| !s.convex_or_flat);
+    let caustics = !specular.is_empty() && !diffuse.is_empty() && has_light;
+    let mut decisions = Vec::new();
+
+    // The integrator.
+    let (auto, reason) = if !has_light {
+        (
+            IntegratorKind::Direct,
+            "the scene has no light: the image is black whatever is traced".to_string(),
+        )
+    } else if caustics {
+        (
+            IntegratorKind::Path,
+            format!(
+                "light reaches diffuse surfaces through specular ones ({}): caustic paths need full path tracing",
+                names(&specular)
+            ),
+        )
+    } else if interreflection {
+        (
+            IntegratorKind::Path,
+            format!(
+                "{} reflective surfaces light each other ({}): indirect light matters",
+                reflective.len(),
+                names(&reflective)
+            ),
+        )
+    } else if reflective.is_empty() {
+        (
+            IntegratorKind::Direct,
+            "nothing reflects light: the camera sees only emitters and the environment, which direct lighting computes exactly".to_string(),
+        )
+    } else if specular.is_empty() {
+        (
+            IntegratorKind::Direct,
+            format!(
+                "one reflective surface that cannot see itself ({}), no specular surface: every light path has one bounce, direct lighting is exact and cheaper",
+                names(&reflective)
+            ),
+        )
+    } else {
+        (
+            IntegratorKind::Path,
+            "specular surfaces seen by the camera: their reflections are followed".to_string(),
+        )
+    };
+    let integrator = match desc.integrator.kind {
+        IntegratorKind::Auto => {
+            decisions.push(Decision {
+                topic: "integrator",
+                choice: format!("{auto:?} (auto)").to_lowercase(),
+                reason,
+            });
+            auto
+        }
+        kind => {
+            decisions.push(Decision {
+                topic: "integrator",
+                choice: format!("{kind:?}").to_lowercase(),
+                reason: format!(
+                    "set by the scene (auto would choose {} because {reason})",
+                    format!("{auto:?}").to_lowercase()
+                ),
+            });
+            kind
+        }
+    };
+
+    // Passes the literature would add, and whether this scene can use them.
+    decisions.push(if caustics {
+        Decision {
+            topic: "caustic photon map",
+            choice: "needed".into(),
+            reason: format!(
+                "specular surfaces ({}) can focus light onto diffuse ones; until photon mapping lands, path tracing renders these caustics with more noise",
+                names(&specular)
+            ),
+        }
+    } else {
+        Decision {
+            topic: "caustic photon map",
+            choice: "skipped".into(),
+            reason: if specular.is_empty() {
+                "no specular surface can focus light".into()
+            } else {
+                "no diffuse surface to receive focused light".into()
+            },
+        }
+    });
+    decisions.push(Decision {
+        topic: "subsurface scattering",
+        choice: "skipped".into(),
+        reason: "no translucent materials".into(),
+    });
+    if let Some(inv) = surfaces.iter().find(|s| s.class == Class::Invisible) {
+        decisions.push(Decision {
+            topic: "IOR-1 interfaces",
+            choice: "passed straight through".into(),
+            reason: format!(
+                "{} has IOR 1: it neither bends nor reflects light",
+                inv.name
+            ),
+        });
+    }
+
+    // Lights.
+    let total_area: f64 = surfaces.iter().map(|s| s.area).sum();
+    let small: Vec<&Surface> = emitters
+        .iter()
+        .copied()
+        .filter(|s| s.area < SMALL_EMITTER * total_area)
+        .collect();
+    if !small.is_empty() {
+        decisions.push(Decision {
+            topic: "small emitters",
+            choice: "sampled by next-event estimation".into(),
+            reason: format!(
+                "{} cover less than 0.5 % of the scene's surface area: BSDF sampling would rarely hit them",
+                names(&small)
+            ),
+        });
+    }
+    let camera = Camera::new(&desc.camera, &desc.film);
+    let seen: Vec<&Surface> = emitters
+        .iter()
+        .copied()
+        .filter(|s| camera.in_view(s.centre))
+        .collect();
+    decisions.push(Decision {
+        topic: "emitters in view",
+        choice: if seen.is_empty() { "none".into() } else { names(&seen) },
+        reason: if seen.is_empty() {
+            "no emitter lies in the view frustum: the camera sees only reflected light".into()
+        } else {
+            "emitted radiance reaches the camera directly (counted once, with MIS weight 1 for camera rays)".into()
+        },
+    });
+    decisions.push(Decision {
+        topic: "environment light",
+        choice: if environment {
+            "importance-sampled".into()
+        } else {
+            "none".into()
+        },
+        reason: if environment {
+            "light arrives from every direction; its distribution is built once".into()
+        } else {
+            "no environment: rays that leave the scene carry nothing".into()
+        },
+    });
+    Analysis {
+        integrator,
+        decisions,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    fn analyze_scene(rel: &str) -> (Analysis, String) {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenes")
+            .join(rel);
+        let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        d.integrator.kind = IntegratorKind::Auto;
+        let a = analyze(&d);
+        let text = a
+            .decisions
+            .iter()
+            .map(|d| d.to_string())
+            .collect::<Vec<_>>()
+            .join("\n");
+        (a, text)
+    }
+
+    fn choice<'a>(a: &'a Analysis, topic: &str) -> &'a str {
+        a.decisions
+            .iter()
+            .find(|d| d.topic == topic)
+            .map_or("", |d| d.choice.as_str())
+    }
+
+    #[test]
+    fn auto_makes_different_reasoned_choices_for_different_scenes() {
+        // The Cornell box: diffuse walls light each other; nothing specular.
+        let (cb, text) = analyze_scene("cornell-box/scene.json");
+        assert_eq!(cb.integrator, IntegratorKind::Path, "{text}");
+        assert!(text.contains("light each other"), "{text}");
+        assert_eq!(choice(&cb, "caustic photon map"), "skipped", "{text}");
+        assert!(
+            choice(&cb, "emitters in view").contains("light.obj"),
+            "{text}"
+        );
+        assert_eq!(choice(&cb, "environment light"), "none");
+
+        // Cornell glass: glass over diffuse blocks, a small bulb: caustics, small emitter.
+        let (cg, text) = analyze_scene("cornell-glass/scene.json");
+        assert_eq!(cg.integrator, IntegratorKind::Path, "{text}");
+        assert!(text.contains("caustic paths"), "{text}");
+        assert_eq!(choice(&cg, "caustic photon map"), "needed", "{text}");
+        assert!(text.contains("small emitters"), "{text}");
+
+        // One diffuse plane under a sun, nothing specular: one bounce, direct lighting is exact.
+        let (gp, text) = analyze_scene("hard/grazing-plane/scene.json");
+        assert_eq!(gp.integrator, IntegratorKind::Direct, "{text}");
+        assert!(text.contains("direct lighting is exact"), "{text}");
+        assert_eq!(choice(&gp, "caustic photon map"), "skipped");
+
+        // An IOR-1 sphere under a sky is noticed as invisible.
+        let (io, text) = analyze_scene("hard/ior-one/scene.json");
+        assert!(text.contains("IOR 1"), "{text}");
+        assert_eq!(io.integrator, IntegratorKind::Direct, "{text}");
+    }
+
+    #[test]
+    fn a_scene_that_sets_its_integrator_keeps_it_and_says_what_auto_would_do() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenes/hard/grazing-plane/scene.json");
+        let d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let a = analyze(&d);
+        assert_eq!(a.integrator, IntegratorKind::Path);
+        assert!(
+            a.decisions[0].reason.contains("auto would choose direct"),
+            "{:?}",
+            a.decisions[0]
+        );
+    }
+}
