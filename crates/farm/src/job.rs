@@ -30,6 +30,10 @@ pub struct RenderSettings {
     /// Samples per task (default: all of them in one task per tile). Does not change the image.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub samples_per_task: Option<u32>,
+    /// Film size `[width, height]` in pixels (default: the scene's). The vertical field of
+    /// view is kept, so a different aspect ratio widens or narrows the view.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub size: Option<[u32; 2]>,
 }
 
 pub const DEFAULT_TILE: u32 = 32;
@@ -125,6 +129,15 @@ pub fn apply(
     }
     if let Some(seed) = settings.seed {
         desc.integrator.seed = seed;
+    }
+    if let Some([w, h]) = settings.size {
+        if w == 0 || h == 0 {
+            return Err(format!(
+                "size: expected a film of at least 1×1 pixels, got {w}×{h}"
+            ));
+        }
+        desc.film.width = w;
+        desc.film.height = h;
     }
     let spp = desc.integrator.spp;
     let max_spp = limits.max_spp.min(MAX_SPP);

@@ -155,6 +155,9 @@ pub struct SubmitArgs {
     /// Samples per task (does not change the image).
     #[arg(long)]
     pub samples_per_task: Option<u32>,
+    /// Film size WxH (overrides the scene's film; the vertical field of view is kept).
+    #[arg(long)]
+    pub size: Option<crate::render::Size>,
     /// Higher runs first.
     #[arg(long, default_value_t = 0)]
     pub priority: i32,
@@ -182,6 +185,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         seed: args.seed,
         tile: args.tile,
         samples_per_task: args.samples_per_task,
+        size: args.size.map(|s| s.0),
     };
     let frames = args.frames.unwrap_or(FrameRange {
         first: 1,

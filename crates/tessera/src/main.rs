@@ -3,6 +3,7 @@
 mod bench;
 mod compare;
 mod farm;
+mod reference;
 mod render;
 
 use std::process::ExitCode;
@@ -26,6 +27,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Compare an image with a reference: relMSE, RMSE and mean ratio.
     Compare(compare::CompareArgs),
+    /// Render a converged reference (adaptive, with a stated stopping rule).
+    Reference(reference::ReferenceArgs),
     /// Run the coordinator: HTTP API, job store, scheduler (and local workers).
     Serve(farm::ServeArgs),
     /// Run a worker: lease tasks from a coordinator and render them.
@@ -71,6 +74,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render::run(args),
         Command::Compare(args) => compare::run(args),
+        Command::Reference(args) => reference::run(args),
         Command::Serve(args) => block_on(farm::serve(args)),
         Command::Worker(args) => block_on(farm::worker(args)),
         Command::Submit(args) => block_on(farm::submit(args)),

@@ -28,6 +28,9 @@ pub struct RenderArgs {
     /// Random seed (overrides the scene's integrator.seed).
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Film size WxH (overrides the scene's film; the vertical field of view is kept).
+    #[arg(long)]
+    pub size: Option<Size>,
     /// The frame of the scene's camera path to render (1-based).
     #[arg(long, default_value_t = 1)]
     pub frame: u32,
@@ -53,6 +56,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         seed: args.seed,
         tile: Some(args.tile),
         samples_per_task: None,
+        size: args.size.map(|s| s.0),
     };
     let frame = args.frame;
     job::apply(
@@ -210,4 +214,22 @@ pub(crate) fn cpu_seconds() -> Option<f64> {
     let fields: Vec<&str> = rest.split_whitespace().collect();
     let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
     Some(ticks / 100.0)
+}
+
+/// A film size given as `WxH`.
+#[derive(Debug, Clone, Copy)]
+pub struct Size(pub [u32; 2]);
+
+impl std::str::FromStr for Size {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = || format!("expected a size like 640x480, got \"{s}\"");
+        let (w, h) = s.split_once(['x', 'X', '×']).ok_or_else(bad)?;
+        let w: u32 = w.trim().parse().map_err(|_| bad())?;
+        let h: u32 = h.trim().parse().map_err(|_| bad())?;
+        if w == 0 || h == 0 {
+            return Err(bad());
+        }
+        Ok(Size([w, h]))
+    }
 }
