@@ -376,3 +376,60 @@ fn local_workers_are_restarted_when_they_die_and_stop_with_their_coordinator() {
         std::thread::sleep(Duration::from_millis(50));
     }
 }
+
+#[test]
+fn an_adaptive_job_adds_rounds_and_equals_an_adaptive_render() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (_serve, url) = serve(&dir.path().join("data"), "127.0.0.1:0", "30");
+    let logs = [dir.path().join("a.log"), dir.path().join("b.log")];
+    let _a = worker(&url, "a", &logs[0]);
+    let _b = worker(&url, "b", &logs[1]);
+    let rt = runtime();
+    let client = Client::new(&url, CLIENT_TOKEN).expect("client");
+    let args = ["--spp", "256", "--target-error", "0.01", "--tile", "32"];
+    let o = Command::new(exe())
+        .arg("submit")
+        .arg(flythrough())
+        .args([
+            "--coordinator",
+            &url,
+            "--token",
+            CLIENT_TOKEN,
+            "--frames",
+            "2",
+        ])
+        .args(args)
+        .output()
+        .expect("run tessera submit");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let id: i64 = out
+        .split_whitespace()
+        .nth(1)
+        .and_then(|id| id.parse().ok())
+        .unwrap_or_else(|| panic!("no job id in {out}"));
+    let job = wait_for(&rt, &client, id, Duration::from_secs(120));
+    assert_eq!(job.state, JobState::Done, "{:?}", job.error);
+    // 16 tiles in the first round, then rounds for the noisy ones.
+    assert!(job.tasks.total > 16, "{:?}", job.tasks);
+    let estimate = job.frame_status[0]
+        .estimated_rel_mse
+        .expect("estimate in the status");
+    assert!(estimate <= 0.01, "{estimate}");
+    let farm = rt.block_on(client.frame_exr(id, 2)).expect("frame");
+    let path = dir.path().join("adaptive.exr");
+    let o = Command::new(exe())
+        .arg("render")
+        .arg(flythrough())
+        .arg("-o")
+        .arg(&path)
+        .args(["-q", "--frame", "2"])
+        .args(args)
+        .output()
+        .expect("run tessera render");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        std::fs::read(&path).expect("render") == farm,
+        "the farm's adaptive frame differs from tessera render's"
+    );
+}

@@ -12,10 +12,12 @@ use tessera_render::film::{MAX_SPP, TileSums, tiles};
 use tessera_render::output::{ExrMetadata, write_exr, write_png};
 use tessera_render::{Image, Integrator, RayStats, SampleRange, Scene, Tile, integrator, render};
 use tessera_scene::{IntegratorKind, SceneDesc};
+
+use crate::progressive::Adaptive;
 use utoipa::ToSchema;
 
 /// Render settings a job gives on top of its scene. Every field is optional.
-#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RenderSettings {
     /// Samples per pixel (default: the scene's `integrator.spp`).
@@ -34,6 +36,23 @@ pub struct RenderSettings {
     /// view is kept, so a different aspect ratio widens or narrows the view.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub size: Option<[u32; 2]>,
+    /// Adaptive sampling: render rounds until the estimated relMSE is at most this; `spp`
+    /// becomes the per-pixel maximum (see `progressive`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_error: Option<f64>,
+}
+
+/// Samples per pixel of an adaptive render's first round.
+pub const ADAPTIVE_FIRST_SPP: u32 = 16;
+
+/// The adaptive rule a job's settings ask for, if any (the scene's spp is the maximum).
+pub fn adaptive_rule(desc: &SceneDesc, settings: &RenderSettings) -> Option<Adaptive> {
+    settings.target_error.map(|t| Adaptive {
+        target_rel_mse: Some(t),
+        time_limit: None,
+        first_spp: ADAPTIVE_FIRST_SPP.min(desc.integrator.spp),
+        max_spp: desc.integrator.spp,
+    })
 }
 
 pub const DEFAULT_TILE: u32 = 32;
@@ -158,6 +177,11 @@ pub fn apply(
     {
         return Err(format!("tile: expected 1 to {MAX_TILE} pixels, got {tile}"));
     }
+    if let Some(t) = settings.target_error
+        && !(t > 0.0 && t.is_finite())
+    {
+        return Err(format!("target_error: expected a positive relMSE, got {t}"));
+    }
     if settings.samples_per_task == Some(0) {
         return Err("samples_per_task: expected at least 1".into());
     }
@@ -219,11 +243,18 @@ impl TaskSpec {
 /// The tasks of one frame, in stitch order: tiles row-major, each tile's sample ranges in
 /// increasing order.
 pub fn plan_frame(desc: &SceneDesc, settings: &RenderSettings, frame: u32) -> Vec<TaskSpec> {
-    let spp = desc.integrator.spp;
-    let chunk = settings
-        .samples_per_task
-        .unwrap_or(spp)
-        .clamp(1, spp.max(1));
+    // An adaptive frame starts with one round of every tile; later rounds follow its noise.
+    let (spp, chunk) = match adaptive_rule(desc, settings) {
+        Some(rule) => (rule.first_spp, rule.first_spp),
+        None => {
+            let spp = desc.integrator.spp;
+            let chunk = settings
+                .samples_per_task
+                .unwrap_or(spp)
+                .clamp(1, spp.max(1));
+            (spp, chunk)
+        }
+    };
     let tile = settings.tile.unwrap_or(DEFAULT_TILE);
     let mut out = Vec::new();
     for (i, t) in tiles(desc.film.width, desc.film.height, tile)
@@ -309,25 +340,29 @@ pub fn stitch<'a>(
     height: u32,
     outputs: impl IntoIterator<Item = &'a TaskOutput>,
 ) -> (Image, RayStats) {
+    let (tiles, stats) = merge_tiles(outputs);
     let mut image = Image::new(width, height);
-    let mut stats = RayStats::default();
-    let mut current: Option<TileSums> = None;
-    for out in outputs {
-        stats.add(&out.stats);
-        match &mut current {
-            Some(sums) if sums.tile == out.sums.tile => sums.merge(&out.sums),
-            _ => {
-                if let Some(done) = current.take() {
-                    image.put(&done);
-                }
-                current = Some(out.sums.clone());
-            }
-        }
-    }
-    if let Some(done) = current {
-        image.put(&done);
+    for t in &tiles {
+        image.put(t);
     }
     (image, stats)
+}
+
+/// Merges task outputs given in stitch order into one sum per tile (in tile order), and adds
+/// their counters.
+pub fn merge_tiles<'a>(
+    outputs: impl IntoIterator<Item = &'a TaskOutput>,
+) -> (Vec<TileSums>, RayStats) {
+    let mut tiles: Vec<TileSums> = Vec::new();
+    let mut stats = RayStats::default();
+    for out in outputs {
+        stats.add(&out.stats);
+        match tiles.last_mut() {
+            Some(sums) if sums.tile == out.sums.tile => sums.merge(&out.sums),
+            _ => tiles.push(out.sums.clone()),
+        }
+    }
+    (tiles, stats)
 }
 
 /// The EXR metadata of a frame: what determines it and what was dropped. No times or hosts,

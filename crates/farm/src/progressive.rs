@@ -87,28 +87,6 @@ impl Accumulator {
 }
 
 impl Accumulator {
-    /// Each tile's share of the estimated relMSE numerator: Σ over its pixels and channels of
-    /// Var / (x² + 0.01).
-    fn tile_errors(&self) -> Vec<f64> {
-        self.tiles
-            .iter()
-            .map(|t| {
-                t.pixels
-                    .iter()
-                    .map(|p| {
-                        let r = p.resolve();
-                        (0..3)
-                            .map(|c| {
-                                let x = r.rgb[c] as f64;
-                                r.variance[c] as f64 / (x * x + 0.01)
-                            })
-                            .sum::<f64>()
-                    })
-                    .sum()
-            })
-            .collect()
-    }
-
     /// Renders tile `i` up to `end` samples per pixel, for each (i, end).
     fn render_tiles(&mut self, prepared: &Prepared, camera: &Camera, plan: &[(usize, u32)]) {
         let mut chosen: Vec<(&mut TileSums, u32)> = Vec::with_capacity(plan.len());
@@ -145,11 +123,110 @@ impl Accumulator {
         self.samples = self.tiles.iter().map(|t| t.samples.end).min().unwrap_or(0);
     }
 
-    /// Samples per pixel of the least and the most sampled tile.
-    pub fn spp_range(&self) -> (u32, u32) {
-        let ends = self.tiles.iter().map(|t| t.samples.end);
-        (ends.clone().min().unwrap_or(0), ends.max().unwrap_or(0))
+    pub fn tiles(&self) -> &[TileSums] {
+        &self.tiles
     }
+}
+
+/// Each tile's share of the estimated relMSE numerator: Σ over its pixels and channels of
+/// Var / (x² + 0.01).
+pub fn tile_errors(tiles: &[TileSums]) -> Vec<f64> {
+    tiles
+        .iter()
+        .map(|t| {
+            t.pixels
+                .iter()
+                .map(|p| {
+                    let r = p.resolve();
+                    (0..3)
+                        .map(|c| {
+                            let x = r.rgb[c] as f64;
+                            r.variance[c] as f64 / (x * x + 0.01)
+                        })
+                        .sum::<f64>()
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// Samples per pixel of the least and the most sampled tile.
+pub fn spp_range(tiles: &[TileSums]) -> (u32, u32) {
+    let ends = tiles.iter().map(|t| t.samples.end);
+    (ends.clone().min().unwrap_or(0), ends.max().unwrap_or(0))
+}
+
+/// What an adaptive render does after a round.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Round {
+    /// Stop, for this reason.
+    Stop(&'static str),
+    /// Render tile `i` (in [`tiles`] order) up to `end` samples per pixel, for each (i, end).
+    Render(Vec<(usize, u32)>),
+}
+
+/// The adaptive rule's next step from the tiles' sums so far. Shared by in-process renders and
+/// the coordinator, so both make the same choices and give the same image.
+pub fn next_round(tiles: &[TileSums], pixels: f64, rule: &Adaptive, elapsed: Duration) -> Round {
+    let max_spp = rule.max_spp.max(1);
+    let errors = tile_errors(tiles);
+    let total: f64 = errors.iter().sum();
+    let estimate = total / (3.0 * pixels);
+    if rule.target_rel_mse.is_some_and(|t| estimate <= t) {
+        return Round::Stop("target error reached");
+    }
+    if rule.time_limit.is_some_and(|l| elapsed >= l) {
+        return Round::Stop("time limit reached");
+    }
+    // Tiles by error, largest first; doubling a tile's samples about halves its error.
+    let mut order: Vec<usize> = (0..errors.len())
+        .filter(|&i| tiles[i].samples.end < max_spp)
+        .collect();
+    if order.is_empty() {
+        return Round::Stop("maximum samples per pixel reached");
+    }
+    order.sort_by(|&a, &b| errors[b].total_cmp(&errors[a]).then(a.cmp(&b)));
+    let goal = rule.target_rel_mse.map(|t| t * 3.0 * pixels);
+    let median = errors[order[order.len() / 2]];
+    let mut projected = total;
+    let mut plan = Vec::new();
+    for &i in &order {
+        let enough = match goal {
+            Some(g) => projected <= g,
+            // Without a target: the noisier half.
+            None => errors[i] < median,
+        };
+        if enough && !plan.is_empty() {
+            break;
+        }
+        projected -= errors[i] / 2.0;
+        plan.push((i, (tiles[i].samples.end.max(1) * 2).min(max_spp)));
+    }
+    plan.sort_unstable();
+    Round::Render(plan)
+}
+
+/// EXR header entries of a finished adaptive frame.
+pub fn adaptive_metadata(
+    image: &Image,
+    tiles: &[TileSums],
+    stopped: &str,
+    rule: &Adaptive,
+) -> Vec<(String, String)> {
+    let (spp_min, spp_max) = spp_range(tiles);
+    let mut out = vec![
+        (
+            "estimated_rel_mse".to_string(),
+            format!("{:.6e}", metrics::estimated_rel_mse(image)),
+        ),
+        ("adaptive_spp_min".into(), spp_min.to_string()),
+        ("adaptive_spp_max".into(), spp_max.to_string()),
+        ("adaptive_stopped".into(), stopped.to_string()),
+    ];
+    if let Some(t) = rule.target_rel_mse {
+        out.push(("target_rel_mse".into(), format!("{t:e}")));
+    }
+    out
 }
 
 /// When an adaptive render stops.
@@ -177,25 +254,8 @@ pub struct AdaptiveResult {
     pub rounds: u32,
     /// Why it stopped.
     pub stopped: &'static str,
-}
-
-impl AdaptiveResult {
-    /// Entries for the EXR header.
-    pub fn metadata(&self, rule: &Adaptive) -> Vec<(String, String)> {
-        let mut out = vec![
-            (
-                "estimated_rel_mse".to_string(),
-                format!("{:.6e}", self.estimated_rel_mse),
-            ),
-            ("adaptive_spp_min".into(), self.spp_min.to_string()),
-            ("adaptive_spp_max".into(), self.spp_max.to_string()),
-            ("adaptive_stopped".into(), self.stopped.to_string()),
-        ];
-        if let Some(t) = rule.target_rel_mse {
-            out.push(("target_rel_mse".into(), format!("{t:e}")));
-        }
-        out
-    }
+    /// EXR header entries: the estimate, the spp range, why it stopped, the target.
+    pub metadata: Vec<(String, String)>,
 }
 
 /// Renders a frame adaptively (see the module documentation) on the current rayon pool.
@@ -212,45 +272,16 @@ pub fn render_adaptive(
     let mut rounds = 1;
     let pixels = (prepared.desc.film.width as f64) * (prepared.desc.film.height as f64);
     let stopped = loop {
-        let errors = acc.tile_errors();
-        let total: f64 = errors.iter().sum();
-        let estimate = total / (3.0 * pixels);
-        if rule.target_rel_mse.is_some_and(|t| estimate <= t) {
-            break "target error reached";
+        match next_round(acc.tiles(), pixels, rule, start.elapsed()) {
+            Round::Stop(reason) => break reason,
+            Round::Render(plan) => acc.render_tiles(prepared, camera, &plan),
         }
-        if rule.time_limit.is_some_and(|l| start.elapsed() >= l) {
-            break "time limit reached";
-        }
-        // Tiles by error, largest first; doubling a tile's samples about halves its error.
-        let mut order: Vec<usize> = (0..errors.len())
-            .filter(|&i| acc.tiles[i].samples.end < max_spp)
-            .collect();
-        if order.is_empty() {
-            break "maximum samples per pixel reached";
-        }
-        order.sort_by(|&a, &b| errors[b].total_cmp(&errors[a]).then(a.cmp(&b)));
-        let goal = rule.target_rel_mse.map(|t| t * 3.0 * pixels);
-        let median = errors[order[order.len() / 2]];
-        let mut projected = total;
-        let mut plan = Vec::new();
-        for &i in &order {
-            let enough = match goal {
-                Some(g) => projected <= g,
-                // Without a target: the noisier half.
-                None => errors[i] < median,
-            };
-            if enough && !plan.is_empty() {
-                break;
-            }
-            projected -= errors[i] / 2.0;
-            plan.push((i, (acc.tiles[i].samples.end * 2).min(max_spp)));
-        }
-        acc.render_tiles(prepared, camera, &plan);
         rounds += 1;
     };
     let (image, stats) = acc.image();
-    let (spp_min, spp_max) = acc.spp_range();
+    let (spp_min, spp_max) = spp_range(acc.tiles());
     AdaptiveResult {
+        metadata: adaptive_metadata(&image, acc.tiles(), stopped, rule),
         estimated_rel_mse: metrics::estimated_rel_mse(&image),
         image,
         stats,

@@ -109,6 +109,8 @@ pub struct FrameStatus {
     pub exr: Option<String>,
     /// SHA-256 of the finished EXR.
     pub exr_sha256: Option<String>,
+    /// Adaptive sampling: the relMSE the finished frame estimates for itself.
+    pub estimated_rel_mse: Option<f64>,
 }
 
 /// A job and its progress.

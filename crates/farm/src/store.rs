@@ -51,6 +51,7 @@ CREATE TABLE IF NOT EXISTS frames (
     tasks_total INTEGER NOT NULL,
     tasks_done INTEGER NOT NULL DEFAULT 0,
     finished_ms INTEGER,
+    estimated_rel_mse REAL,
     PRIMARY KEY (job_id, frame)
 );
 CREATE TABLE IF NOT EXISTS tasks (
@@ -545,6 +546,37 @@ impl Store {
         tx.commit()
     }
 
+    /// Adds a round of tasks to a frame (adaptive sampling).
+    pub fn add_tasks(&self, job: i64, frame: u32, tasks: &[TaskSpec]) -> Result<()> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        {
+            let mut insert = tx.prepare(
+                "INSERT INTO tasks (job_id, priority, frame, tile_index, x0, y0, x1, y1,
+                    sample_start, sample_end, state)
+                 SELECT ?1, priority, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued' FROM jobs WHERE id = ?1",
+            )?;
+            for t in tasks {
+                insert.execute(params![
+                    job,
+                    frame,
+                    t.tile_index,
+                    t.x0,
+                    t.y0,
+                    t.x1,
+                    t.y1,
+                    t.sample_start,
+                    t.sample_end
+                ])?;
+            }
+        }
+        tx.execute(
+            "UPDATE frames SET tasks_total = tasks_total + ?3 WHERE job_id = ?1 AND frame = ?2",
+            params![job, frame, tasks.len() as i64],
+        )?;
+        tx.commit()
+    }
+
     /// Done tasks of a frame in stitch order: (task id, lease, spec).
     pub fn frame_results(&self, job: i64, frame: u32) -> Result<Vec<(i64, i64, TaskSpec)>> {
         let conn = self.conn();
@@ -567,6 +599,7 @@ impl Store {
         job: i64,
         frame: u32,
         files: &[Artifact],
+        estimated_rel_mse: Option<f64>,
         now: i64,
     ) -> Result<bool> {
         let mut conn = self.conn();
@@ -579,8 +612,9 @@ impl Store {
             )?;
         }
         tx.execute(
-            "UPDATE frames SET state = 'done', finished_ms = ?3 WHERE job_id = ?1 AND frame = ?2",
-            params![job, frame, now],
+            "UPDATE frames SET state = 'done', finished_ms = ?3, estimated_rel_mse = ?4
+             WHERE job_id = ?1 AND frame = ?2",
+            params![job, frame, now, estimated_rel_mse],
         )?;
         let left: i64 = tx.query_row(
             "SELECT COUNT(*) FROM frames WHERE job_id = ?1 AND state != 'done'",
@@ -697,7 +731,7 @@ impl Store {
             .collect::<Result<_>>()?;
         if frames {
             let mut stmt = conn.prepare(
-                "SELECT f.frame, f.state, f.tasks_done, f.tasks_total, a.sha256 FROM frames f
+                "SELECT f.frame, f.state, f.tasks_done, f.tasks_total, a.sha256, f.estimated_rel_mse FROM frames f
                  LEFT JOIN artifacts a ON a.job_id = f.job_id AND a.frame = f.frame AND a.kind = 'exr'
                  WHERE f.job_id = ?1 ORDER BY f.frame",
             )?;
@@ -714,6 +748,7 @@ impl Store {
                             tasks_done: r.get::<_, i64>(2)? as u64,
                             tasks_total: r.get::<_, i64>(3)? as u64,
                             exr_sha256: r.get(4)?,
+                            estimated_rel_mse: r.get(5)?,
                         })
                     })?
                     .collect::<Result<_>>()?;
@@ -943,6 +978,29 @@ mod tests {
         let job = s.job(jobs[0]).expect("q").expect("job");
         assert_eq!((job.tasks.done, job.attempts), (1, 2));
         assert_eq!(s.frame_results(jobs[0], 1).expect("q").len(), 1);
+        // A later round (adaptive sampling) reopens the frame until its tasks are done too.
+        s.add_tasks(
+            jobs[0],
+            1,
+            &[TaskSpec {
+                sample_start: 1,
+                sample_end: 2,
+                ..task(1, 0)
+            }],
+        )
+        .expect("add");
+        let g = s
+            .lease(&worker("b"), 110, 100)
+            .expect("lease")
+            .expect("the new round");
+        assert_eq!((g.task.sample_start, g.task.sample_end), (1, 2));
+        assert_eq!(
+            s.complete(g.task_id, g.lease, 1.0, 111).expect("c"),
+            Completion::Accepted {
+                frame_complete: Some(1)
+            }
+        );
+        assert_eq!(s.frame_results(jobs[0], 1).expect("q").len(), 2);
     }
 
     #[test]

@@ -158,6 +158,10 @@ pub struct SubmitArgs {
     /// Film size WxH (overrides the scene's film; the vertical field of view is kept).
     #[arg(long)]
     pub size: Option<crate::render::Size>,
+    /// Adaptive sampling: rounds until the estimated relMSE is at most this (--spp is the
+    /// maximum per pixel).
+    #[arg(long)]
+    pub target_error: Option<f64>,
     /// Higher runs first.
     #[arg(long, default_value_t = 0)]
     pub priority: i32,
@@ -186,6 +190,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         tile: args.tile,
         samples_per_task: args.samples_per_task,
         size: args.size.map(|s| s.0),
+        target_error: args.target_error,
     };
     let frames = args.frames.unwrap_or(FrameRange {
         first: 1,

@@ -57,6 +57,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         tile: Some(args.tile),
         samples_per_task: None,
         size: args.size.map(|s| s.0),
+        target_error: args.target_error,
     };
     let frame = args.frame;
     job::apply(
@@ -75,12 +76,6 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     anyhow::ensure!(threads >= 1, "--threads: expected at least 1");
-    if let Some(e) = args.target_error {
-        anyhow::ensure!(
-            e > 0.0 && e.is_finite(),
-            "--target-error: expected a positive relMSE, got {e}"
-        );
-    }
     if let Some(t) = args.time_limit {
         anyhow::ensure!(
             t > 0.0 && t.is_finite(),
@@ -131,7 +126,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let adaptive = (args.target_error.is_some() || args.time_limit.is_some()).then(|| Adaptive {
         target_rel_mse: args.target_error,
         time_limit: args.time_limit.map(std::time::Duration::from_secs_f64),
-        first_spp: 16.min(spp),
+        first_spp: job::ADAPTIVE_FIRST_SPP.min(spp),
         max_spp: spp,
     });
     let (image, stats, extra, spp_text) = match &adaptive {
@@ -156,8 +151,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
                 "adaptive {}–{} spp in {} rounds ({}; estimated relMSE {:.3e})",
                 r.spp_min, r.spp_max, r.rounds, r.stopped, r.estimated_rel_mse
             );
-            let extra = r.metadata(rule);
-            (r.image, r.stats, extra, text)
+            (r.image, r.stats, r.metadata, text)
         }
     };
     let render_s = rendering.elapsed().as_secs_f64();

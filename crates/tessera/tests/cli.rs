@@ -292,5 +292,5 @@ fn adaptive_render_writes_its_error_estimate_into_the_exr_header() {
         "-o",
         out.to_str().expect("utf-8"),
     ]);
-    assert!(!o.status.success() && stderr(&o).contains("--target-error"));
+    assert!(!o.status.success() && stderr(&o).contains("target_error: expected a positive"));
 }

@@ -524,7 +524,7 @@ async fn upload_result(
                 "result accepted"
             );
             if let Some(frame) = frame_complete {
-                app.spawn_stitch(job_id, frame);
+                app.spawn_finish_frame(job_id, frame);
             }
             Ok(StatusCode::OK)
         }

@@ -26,7 +26,8 @@ pub use error::{AppError, AppResult};
 
 use crate::bundle::Bundle;
 use crate::codec;
-use crate::job::{self, FrameRange, Limits, TaskOutput};
+use crate::job::{self, FrameRange, Limits, TaskOutput, TaskSpec};
+use crate::progressive::{self, Round, next_round};
 use crate::store::{Artifact, Retry, Store};
 use metrics::Metrics;
 
@@ -149,14 +150,58 @@ impl App {
             .collect()
     }
 
-    /// Stitches a frame whose tasks are all done and writes its EXR and PNG (blocking).
-    fn stitch(&self, job: i64, frame: u32) -> anyhow::Result<bool> {
+    /// A frame's tasks are all done (blocking): an adaptive frame may need another round of
+    /// tasks (the same choice `tessera render` makes, from the same sums); otherwise the frame
+    /// is stitched and its EXR and PNG written. Returns whether the job is now done.
+    fn finish_frame(&self, job: i64, frame: u32) -> anyhow::Result<bool> {
         let desc = self.job_desc(job)?;
+        let settings = self
+            .store
+            .job_source(job)?
+            .map(|(_, _, s)| s)
+            .unwrap_or_default();
         let outputs = self.frame_outputs(job, frame)?;
-        let (image, stats) = job::stitch(desc.film.width, desc.film.height, &outputs);
+        let (tiles, stats) = job::merge_tiles(&outputs);
+        let mut image = tessera_render::Image::new(desc.film.width, desc.film.height);
+        for t in &tiles {
+            image.put(t);
+        }
+        let mut extra = Vec::new();
+        let mut estimate = None;
+        if let Some(rule) = job::adaptive_rule(&desc, &settings) {
+            let pixels = desc.film.width as f64 * desc.film.height as f64;
+            match next_round(&tiles, pixels, &rule, std::time::Duration::ZERO) {
+                Round::Render(plan) => {
+                    let tasks: Vec<TaskSpec> = plan
+                        .iter()
+                        .map(|&(i, end)| {
+                            let t = &tiles[i];
+                            TaskSpec {
+                                frame,
+                                tile_index: i as u32,
+                                x0: t.tile.x0,
+                                y0: t.tile.y0,
+                                x1: t.tile.x1,
+                                y1: t.tile.y1,
+                                sample_start: t.samples.end,
+                                sample_end: end,
+                            }
+                        })
+                        .collect();
+                    self.store.add_tasks(job, frame, &tasks)?;
+                    tracing::info!(job, frame, tasks = tasks.len(), "adaptive round queued");
+                    self.work.notify_waiters();
+                    return Ok(false);
+                }
+                Round::Stop(reason) => {
+                    extra = progressive::adaptive_metadata(&image, &tiles, reason, &rule);
+                    estimate = Some(tessera_render::metrics::estimated_rel_mse(&image));
+                }
+            }
+        }
         let path = self.frame_path(job, frame);
         let tmp = path.with_extension("tmp.exr");
-        job::write_frame(&tmp, &desc, frame, &image, &stats, &[])?;
+        job::write_frame(&tmp, &desc, frame, &image, &stats, &extra)?;
         std::fs::rename(tmp.with_extension("png"), path.with_extension("png"))?;
         std::fs::rename(&tmp, &path)?;
         let mut files = Vec::new();
@@ -174,7 +219,9 @@ impl App {
             });
         }
         self.metrics.frames_stitched.fetch_add(1, Relaxed);
-        let job_done = self.store.frame_stitched(job, frame, &files, now_ms())?;
+        let job_done = self
+            .store
+            .frame_stitched(job, frame, &files, estimate, now_ms())?;
         tracing::info!(job, frame, path = %path.display(), job_done, "frame stitched");
         if job_done {
             self.descs
@@ -185,11 +232,12 @@ impl App {
         Ok(job_done)
     }
 
-    /// Stitches in the background; a failure (disk full, say) fails the job with its reason.
-    fn spawn_stitch(self: &Arc<Self>, job: i64, frame: u32) {
+    /// Finishes a frame in the background; a failure (disk full, say) fails the job with its
+    /// reason.
+    fn spawn_finish_frame(self: &Arc<Self>, job: i64, frame: u32) {
         let app = self.clone();
         tokio::task::spawn_blocking(move || {
-            if let Err(e) = app.stitch(job, frame) {
+            if let Err(e) = app.finish_frame(job, frame) {
                 let message = format!("stitching frame {frame}: {e:#}");
                 tracing::error!(job, frame, error = %message, "stitch failed");
                 let _ = app.store.fail_job(job, &message, now_ms());
@@ -285,7 +333,7 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
     // Resume: frames whose last tile arrived just before a restart.
     for (job, frame) in app.store.unstitched_frames()? {
         tracing::info!(job, frame, "stitching a frame finished before the restart");
-        app.spawn_stitch(job, frame);
+        app.spawn_finish_frame(job, frame);
     }
 
     // The reaper: expired leases go back to the queue.
