@@ -453,10 +453,11 @@ pub fn decisions(desc: &SceneDesc, scene: Option<&Scene>) -> Vec<String> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn cornell() -> SceneDesc {
+    /// The Cornell box, 24×20 at 5 spp.
+    pub(crate) fn cornell() -> SceneDesc {
         let path =
             Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
         let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));

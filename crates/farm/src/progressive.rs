@@ -47,33 +47,8 @@ impl Accumulator {
 
     /// Renders samples [samples, end) of every tile on the current rayon pool and adds them.
     pub fn render_to(&mut self, prepared: &Prepared, camera: &Camera, end: u32) {
-        if end <= self.samples {
-            return;
-        }
-        let stats: Vec<RayStats> = self
-            .tiles
-            .par_iter_mut()
-            .filter(|sums| sums.samples.end < end)
-            .map(|sums| {
-                let range = SampleRange {
-                    start: sums.samples.end,
-                    end,
-                };
-                let (more, stats) = render::render_tile(
-                    &prepared.scene,
-                    camera,
-                    prepared.integrator.as_ref(),
-                    sums.tile,
-                    range,
-                );
-                sums.merge(&more);
-                stats
-            })
-            .collect();
-        for s in &stats {
-            self.stats.add(s);
-        }
-        self.samples = end;
+        let plan: Vec<(usize, u32)> = (0..self.tiles.len()).map(|i| (i, end)).collect();
+        self.render_tiles(prepared, camera, &plan);
     }
 
     /// The frame so far.
@@ -297,17 +272,8 @@ mod tests {
     use std::path::Path;
 
     use super::*;
+    use crate::job::tests::cornell;
     use crate::job::{RenderSettings, TaskOutput, plan_frame, stitch};
-
-    fn cornell() -> SceneDesc {
-        let path =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
-        let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-        d.film.width = 24;
-        d.film.height = 20;
-        d.integrator.spp = 5;
-        d
-    }
 
     #[test]
     fn progressive_accumulation_equals_one_render() {
