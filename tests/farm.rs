@@ -98,18 +98,26 @@ fn runtime() -> tokio::runtime::Runtime {
 
 /// Submits frames 1-3 of the fly-through with `tile` and `spp`; returns the job id.
 fn submit(url: &str, tile: u32, spp: u32) -> i64 {
+    submit_with(
+        url,
+        &[
+            "--frames",
+            "1-3",
+            "--tile",
+            &tile.to_string(),
+            "--spp",
+            &spp.to_string(),
+        ],
+    )
+}
+
+/// Submits the fly-through with `args`; returns the job id.
+fn submit_with(url: &str, args: &[&str]) -> i64 {
     let o = Command::new(exe())
         .arg("submit")
         .arg(flythrough())
-        .args([
-            "--coordinator",
-            url,
-            "--token",
-            CLIENT_TOKEN,
-            "--frames",
-            "1-3",
-        ])
-        .args(["--tile", &tile.to_string(), "--spp", &spp.to_string()])
+        .args(["--coordinator", url, "--token", CLIENT_TOKEN])
+        .args(args)
         .output()
         .expect("run tessera submit");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -387,27 +395,7 @@ fn an_adaptive_job_adds_rounds_and_equals_an_adaptive_render() {
     let rt = runtime();
     let client = Client::new(&url, CLIENT_TOKEN).expect("client");
     let args = ["--spp", "256", "--target-error", "0.01", "--tile", "32"];
-    let o = Command::new(exe())
-        .arg("submit")
-        .arg(flythrough())
-        .args([
-            "--coordinator",
-            &url,
-            "--token",
-            CLIENT_TOKEN,
-            "--frames",
-            "2",
-        ])
-        .args(args)
-        .output()
-        .expect("run tessera submit");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let out = String::from_utf8_lossy(&o.stdout);
-    let id: i64 = out
-        .split_whitespace()
-        .nth(1)
-        .and_then(|id| id.parse().ok())
-        .unwrap_or_else(|| panic!("no job id in {out}"));
+    let id = submit_with(&url, &[&args[..], &["--frames", "2"]].concat());
     let job = wait_for(&rt, &client, id, Duration::from_secs(120));
     assert_eq!(job.state, JobState::Done, "{:?}", job.error);
     // 16 tiles in the first round, then rounds for the noisy ones.

@@ -7,11 +7,12 @@ use std::path::Path;
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
+use tessera_render::analysis::Analysis;
 use tessera_render::camera::Camera;
 use tessera_render::film::{MAX_SPP, TileSums, tiles};
 use tessera_render::output::{ExrMetadata, write_exr, write_png};
 use tessera_render::{Image, Integrator, RayStats, SampleRange, Scene, Tile, integrator, render};
-use tessera_scene::{IntegratorKind, SceneDesc};
+use tessera_scene::{IntegratorDesc, IntegratorKind, SceneDesc};
 
 use crate::progressive::Adaptive;
 use utoipa::ToSchema;
@@ -284,6 +285,8 @@ pub fn plan_frame(desc: &SceneDesc, settings: &RenderSettings, frame: u32) -> Ve
 pub struct Prepared {
     pub desc: SceneDesc,
     pub scene: Scene,
+    /// What scene analysis decided (the integrator among it).
+    pub analysis: Analysis,
     pub integrator: Box<dyn Integrator>,
     /// Seconds spent building.
     pub build_seconds: f64,
@@ -293,10 +296,15 @@ impl Prepared {
     pub fn new(desc: SceneDesc) -> Self {
         let start = Instant::now();
         let scene = Scene::build(&desc);
-        let integrator = integrator::for_scene(&desc);
+        let analysis = tessera_render::analysis::analyze(&desc);
+        let integrator = integrator::from_desc(&IntegratorDesc {
+            kind: analysis.integrator,
+            ..desc.integrator
+        });
         Prepared {
             desc,
             scene,
+            analysis,
             integrator,
             build_seconds: start.elapsed().as_secs_f64(),
         }
@@ -341,11 +349,7 @@ pub fn stitch<'a>(
     outputs: impl IntoIterator<Item = &'a TaskOutput>,
 ) -> (Image, RayStats) {
     let (tiles, stats) = merge_tiles(outputs);
-    let mut image = Image::new(width, height);
-    for t in &tiles {
-        image.put(t);
-    }
-    (image, stats)
+    (Image::from_tiles(width, height, &tiles), stats)
 }
 
 /// Merges task outputs given in stitch order into one sum per tile (in tile order), and adds
@@ -423,7 +427,7 @@ pub fn write_frame(
 
 /// What the core will do with a scene, with reasons, for logs, the EXR header and the job
 /// status (DESIGN invariant 4).
-pub fn decisions(desc: &SceneDesc, scene: Option<&Scene>) -> Vec<String> {
+pub fn decisions(desc: &SceneDesc) -> Vec<String> {
     let i = &desc.integrator;
     let mut out: Vec<String> = tessera_render::analysis::analyze(desc)
         .decisions
@@ -443,12 +447,6 @@ pub fn decisions(desc: &SceneDesc, scene: Option<&Scene>) -> Vec<String> {
         ),
         None => "camera: still, one frame".into(),
     });
-    if let Some(s) = scene {
-        out.push(format!(
-            "geometry: {} triangles and {} spheres in one BVH; {} lights ({} emissive triangles)",
-            s.stats.triangles, s.stats.spheres, s.stats.lights, s.stats.emissive_triangles
-        ));
-    }
     out
 }
 

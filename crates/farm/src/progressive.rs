@@ -53,11 +53,10 @@ impl Accumulator {
 
     /// The frame so far.
     pub fn image(&self) -> (Image, RayStats) {
-        let mut image = Image::new(self.width, self.height);
-        for t in &self.tiles {
-            image.put(t);
-        }
-        (image, self.stats)
+        (
+            Image::from_tiles(self.width, self.height, &self.tiles),
+            self.stats,
+        )
     }
 }
 
@@ -181,19 +180,16 @@ pub fn next_round(tiles: &[TileSums], pixels: f64, rule: &Adaptive, elapsed: Dur
     Round::Render(plan)
 }
 
-/// EXR header entries of a finished adaptive frame.
+/// EXR header entries of a finished adaptive frame whose estimated relMSE is `estimate`.
 pub fn adaptive_metadata(
-    image: &Image,
+    estimate: f64,
     tiles: &[TileSums],
     stopped: &str,
     rule: &Adaptive,
 ) -> Vec<(String, String)> {
     let (spp_min, spp_max) = spp_range(tiles);
     let mut out = vec![
-        (
-            "estimated_rel_mse".to_string(),
-            format!("{:.6e}", metrics::estimated_rel_mse(image)),
-        ),
+        ("estimated_rel_mse".to_string(), format!("{estimate:.6e}")),
         ("adaptive_spp_min".into(), spp_min.to_string()),
         ("adaptive_spp_max".into(), spp_max.to_string()),
         ("adaptive_stopped".into(), stopped.to_string()),
@@ -255,9 +251,10 @@ pub fn render_adaptive(
     };
     let (image, stats) = acc.image();
     let (spp_min, spp_max) = spp_range(acc.tiles());
+    let estimated_rel_mse = metrics::estimated_rel_mse(&image);
     AdaptiveResult {
-        metadata: adaptive_metadata(&image, acc.tiles(), stopped, rule),
-        estimated_rel_mse: metrics::estimated_rel_mse(&image),
+        metadata: adaptive_metadata(estimated_rel_mse, acc.tiles(), stopped, rule),
+        estimated_rel_mse,
         image,
         stats,
         spp_min,

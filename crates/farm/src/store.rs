@@ -241,31 +241,40 @@ impl Store {
             let mut frame = tx.prepare(
                 "INSERT INTO frames (job_id, frame, state, tasks_total) VALUES (?1, ?2, 'queued', ?3)",
             )?;
-            let mut task = tx.prepare(
-                "INSERT INTO tasks (job_id, priority, frame, tile_index, x0, y0, x1, y1,
-                    sample_start, sample_end, state)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, 'queued')",
-            )?;
             for (f, tasks) in job.frames.iter().zip(&job.tasks) {
                 frame.execute(params![id, f, tasks.len() as i64])?;
-                for t in tasks {
-                    task.execute(params![
-                        id,
-                        job.priority,
-                        t.frame,
-                        t.tile_index,
-                        t.x0,
-                        t.y0,
-                        t.x1,
-                        t.y1,
-                        t.sample_start,
-                        t.sample_end
-                    ])?;
-                }
             }
         }
+        Self::insert_tasks(&tx, id, job.tasks.iter().flatten())?;
         tx.commit()?;
         Ok(id)
+    }
+
+    /// Queues tasks of a job (at the job's priority, copied for the queue index).
+    fn insert_tasks<'a>(
+        tx: &Transaction,
+        job: i64,
+        tasks: impl IntoIterator<Item = &'a TaskSpec>,
+    ) -> Result<()> {
+        let mut insert = tx.prepare(
+            "INSERT INTO tasks (job_id, priority, frame, tile_index, x0, y0, x1, y1,
+                sample_start, sample_end, state)
+             SELECT ?1, priority, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued' FROM jobs WHERE id = ?1",
+        )?;
+        for t in tasks {
+            insert.execute(params![
+                job,
+                t.frame,
+                t.tile_index,
+                t.x0,
+                t.y0,
+                t.x1,
+                t.y1,
+                t.sample_start,
+                t.sample_end
+            ])?;
+        }
+        Ok(())
     }
 
     fn upsert_worker(tx: &Transaction, w: &WorkerInfo, now: i64) -> Result<()> {
@@ -550,26 +559,7 @@ impl Store {
     pub fn add_tasks(&self, job: i64, frame: u32, tasks: &[TaskSpec]) -> Result<()> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
-        {
-            let mut insert = tx.prepare(
-                "INSERT INTO tasks (job_id, priority, frame, tile_index, x0, y0, x1, y1,
-                    sample_start, sample_end, state)
-                 SELECT ?1, priority, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued' FROM jobs WHERE id = ?1",
-            )?;
-            for t in tasks {
-                insert.execute(params![
-                    job,
-                    frame,
-                    t.tile_index,
-                    t.x0,
-                    t.y0,
-                    t.x1,
-                    t.y1,
-                    t.sample_start,
-                    t.sample_end
-                ])?;
-            }
-        }
+        Self::insert_tasks(&tx, job, tasks)?;
         tx.execute(
             "UPDATE frames SET tasks_total = tasks_total + ?3 WHERE job_id = ?1 AND frame = ?2",
             params![job, frame, tasks.len() as i64],
@@ -777,7 +767,15 @@ impl Store {
         .collect()
     }
 
-    /// Frame state: "done", or the (task id, lease, spec) of its done tasks so far.
+    /// Whether a job exists.
+    pub fn job_exists(&self, job: i64) -> Result<bool> {
+        self.conn()
+            .query_row("SELECT 1 FROM jobs WHERE id = ?1", [job], |_| Ok(()))
+            .optional()
+            .map(|r| r.is_some())
+    }
+
+    /// A frame's state (queued, running, done), if the job has that frame.
     pub fn frame_state(&self, job: i64, frame: u32) -> Result<Option<String>> {
         self.conn()
             .query_row(

@@ -44,9 +44,7 @@ struct Worker {
 
 pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
     let client = Client::new(&config.coordinator, &config.token)?;
-    let host = std::fs::read_to_string("/etc/hostname")
-        .map(|s| s.trim().to_string())
-        .unwrap_or_else(|_| "unknown".into());
+    let host = hostname().unwrap_or_else(|| "unknown".into());
     let id = format!(
         "{}-{}",
         config.name,
@@ -73,6 +71,14 @@ pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
         s.await?;
     }
     Ok(())
+}
+
+/// This machine's name, where the platform tells it.
+pub fn hostname() -> Option<String> {
+    std::fs::read_to_string("/etc/hostname")
+        .ok()
+        .map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty())
 }
 
 #[cfg(unix)]

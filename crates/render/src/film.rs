@@ -271,6 +271,15 @@ impl Image {
         }
     }
 
+    /// A frame from the sums of tiles that cover it.
+    pub fn from_tiles(width: u32, height: u32, tiles: &[TileSums]) -> Self {
+        let mut image = Image::new(width, height);
+        for t in tiles {
+            image.put(t);
+        }
+        image
+    }
+
     /// Writes a tile's resolved pixels into place.
     pub fn put(&mut self, sums: &TileSums) {
         for (p, s) in sums.tile.pixels().zip(&sums.pixels) {

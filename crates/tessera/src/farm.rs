@@ -111,11 +111,10 @@ pub struct WorkerArgs {
 }
 
 pub async fn worker(args: WorkerArgs) -> anyhow::Result<()> {
-    let name = args.name.unwrap_or_else(|| {
-        std::fs::read_to_string("/etc/hostname")
-            .map(|s| s.trim().to_string())
-            .unwrap_or_else(|_| "worker".into())
-    });
+    let name = args
+        .name
+        .or_else(worker::hostname)
+        .unwrap_or_else(|| "worker".into());
     let slots = args
         .slots
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get() as u32));

@@ -104,7 +104,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         "scene ready"
     );
     let (w, h, spp) = (desc.film.width, desc.film.height, desc.integrator.spp);
-    let analysis = tessera_render::analysis::analyze(desc);
+    let analysis = &prepared.analysis;
     for d in &analysis.decisions {
         tracing::info!(topic = d.topic, choice = %d.choice, reason = %d.reason, "decision");
     }

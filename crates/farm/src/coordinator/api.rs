@@ -254,7 +254,7 @@ async fn submit_job(
             width: desc.film.width,
             height: desc.film.height,
             spp: desc.integrator.spp,
-            decisions: job::decisions(&desc, None),
+            decisions: job::decisions(&desc),
             tasks,
         })
     })
@@ -303,7 +303,7 @@ async fn job_tasks(
     State(app): State<Arc<App>>,
     Path(id): Path<i64>,
 ) -> AppResult<Json<Vec<TaskStatus>>> {
-    if app.store.job(id)?.is_none() {
+    if !app.store.job_exists(id)? {
         return Err(job_not_found(id));
     }
     Ok(Json(app.store.tasks(id)?))
@@ -334,8 +334,8 @@ async fn cancel_job(
         .ok_or_else(|| job_not_found(id))
 }
 
-async fn frame_state(app: &App, id: i64, frame: u32) -> AppResult<String> {
-    if app.store.job(id)?.is_none() {
+fn frame_state(app: &App, id: i64, frame: u32) -> AppResult<String> {
+    if !app.store.job_exists(id)? {
         return Err(job_not_found(id));
     }
     app.store
@@ -352,7 +352,7 @@ async fn frame_exr(
     State(app): State<Arc<App>>,
     Path((id, frame)): Path<(i64, u32)>,
 ) -> AppResult<Response> {
-    if frame_state(&app, id, frame).await? != "done" {
+    if frame_state(&app, id, frame)? != "done" {
         return Err(AppError::conflict(format!(
             "frame {frame} of job {id} is not finished; its preview is at /v1/jobs/{id}/frames/{frame}/preview.png"
         )));
@@ -370,19 +370,21 @@ async fn frame_preview(
     State(app): State<Arc<App>>,
     Path((id, frame)): Path<(i64, u32)>,
 ) -> AppResult<Response> {
-    let state = frame_state(&app, id, frame).await?;
+    let state = frame_state(&app, id, frame)?;
     let bytes = if state == "done" {
         tokio::fs::read(app.frame_path(id, frame).with_extension("png")).await?
     } else {
         let app = app.clone();
         tokio::task::spawn_blocking(move || -> AppResult<Vec<u8>> {
-            let desc = app
-                .job_desc(id)
-                .map_err(|e| AppError::internal(format!("{e:#}")))?;
+            let film = app
+                .job_scene(id)
+                .map_err(|e| AppError::internal(format!("{e:#}")))?
+                .desc
+                .film;
             let outputs = app
                 .frame_outputs(id, frame)
                 .map_err(|e| AppError::internal(format!("{e:#}")))?;
-            let (image, _) = job::stitch(desc.film.width, desc.film.height, &outputs);
+            let (image, _) = job::stitch(film.width, film.height, &outputs);
             tessera_render::output::encode_png(&image).map_err(AppError::internal)
         })
         .await??

@@ -27,7 +27,7 @@ pub use error::{AppError, AppResult};
 use crate::bundle::Bundle;
 use crate::codec;
 use crate::job::{self, FrameRange, Limits, TaskOutput, TaskSpec};
-use crate::progressive::{self, Round, next_round};
+use crate::progressive::{self, Adaptive, Round, next_round};
 use crate::store::{Artifact, Retry, Store};
 use metrics::Metrics;
 
@@ -80,7 +80,13 @@ pub struct App {
     /// Becomes true when the coordinator stops (ends long polls at once).
     stopping: tokio::sync::watch::Receiver<bool>,
     /// Scene descriptions of jobs (with their settings applied), for stitching.
-    descs: Mutex<HashMap<i64, Arc<SceneDesc>>>,
+    descs: Mutex<HashMap<i64, Arc<JobScene>>>,
+}
+
+/// A job's scene with its settings applied, and the adaptive rule they ask for.
+struct JobScene {
+    desc: SceneDesc,
+    adaptive: Option<Adaptive>,
 }
 
 /// Milliseconds since the Unix epoch.
@@ -106,8 +112,8 @@ impl App {
         self.job_dir(job).join(job::frame_file_name(frame))
     }
 
-    /// The scene of a job with its settings applied (cached).
-    fn job_desc(&self, job: i64) -> anyhow::Result<Arc<SceneDesc>> {
+    /// The scene of a job with its settings applied, read from its bundle once (cached).
+    fn job_scene(&self, job: i64) -> anyhow::Result<Arc<JobScene>> {
         if let Some(d) = self
             .descs
             .lock()
@@ -129,12 +135,15 @@ impl App {
             last: desc.frame_count(),
         };
         job::apply(&mut desc, &settings, frames, &Limits::default()).map_err(anyhow::Error::msg)?;
-        let desc = Arc::new(desc);
+        let scene = Arc::new(JobScene {
+            adaptive: job::adaptive_rule(&desc, &settings),
+            desc,
+        });
         self.descs
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .insert(job, desc.clone());
-        Ok(desc)
+            .insert(job, scene.clone());
+        Ok(scene)
     }
 
     /// Decodes the accepted results of a frame so far, in stitch order.
@@ -154,23 +163,16 @@ impl App {
     /// tasks (the same choice `tessera render` makes, from the same sums); otherwise the frame
     /// is stitched and its EXR and PNG written. Returns whether the job is now done.
     fn finish_frame(&self, job: i64, frame: u32) -> anyhow::Result<bool> {
-        let desc = self.job_desc(job)?;
-        let settings = self
-            .store
-            .job_source(job)?
-            .map(|(_, _, s)| s)
-            .unwrap_or_default();
+        let scene = self.job_scene(job)?;
+        let desc = &scene.desc;
         let outputs = self.frame_outputs(job, frame)?;
         let (tiles, stats) = job::merge_tiles(&outputs);
-        let mut image = tessera_render::Image::new(desc.film.width, desc.film.height);
-        for t in &tiles {
-            image.put(t);
-        }
+        let image = tessera_render::Image::from_tiles(desc.film.width, desc.film.height, &tiles);
         let mut extra = Vec::new();
         let mut estimate = None;
-        if let Some(rule) = job::adaptive_rule(&desc, &settings) {
+        if let Some(rule) = &scene.adaptive {
             let pixels = desc.film.width as f64 * desc.film.height as f64;
-            match next_round(&tiles, pixels, &rule, std::time::Duration::ZERO) {
+            match next_round(&tiles, pixels, rule, std::time::Duration::ZERO) {
                 Round::Render(plan) => {
                     let tasks: Vec<TaskSpec> = plan
                         .iter()
@@ -194,14 +196,15 @@ impl App {
                     return Ok(false);
                 }
                 Round::Stop(reason) => {
-                    extra = progressive::adaptive_metadata(&image, &tiles, reason, &rule);
-                    estimate = Some(tessera_render::metrics::estimated_rel_mse(&image));
+                    let e = tessera_render::metrics::estimated_rel_mse(&image);
+                    extra = progressive::adaptive_metadata(e, &tiles, reason, rule);
+                    estimate = Some(e);
                 }
             }
         }
         let path = self.frame_path(job, frame);
         let tmp = path.with_extension("tmp.exr");
-        job::write_frame(&tmp, &desc, frame, &image, &stats, &extra)?;
+        job::write_frame(&tmp, desc, frame, &image, &stats, &extra)?;
         std::fs::rename(tmp.with_extension("png"), path.with_extension("png"))?;
         std::fs::rename(&tmp, &path)?;
         let mut files = Vec::new();

@@ -102,6 +102,8 @@ struct Report {
     width: u32,
     height: u32,
     threads: usize,
+    /// In the order given.
+    integrators: Vec<String>,
     runs: Vec<Run>,
     time_to_error: Vec<TimeToError>,
 }
@@ -212,6 +214,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         width: base.film.width,
         height: base.film.height,
         threads,
+        integrators: kinds.iter().map(|(n, _)| n.clone()).collect(),
         runs,
         time_to_error,
     };
@@ -312,12 +315,7 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
     md += "\n|---|";
     md += &"---:|".repeat(LEVELS.len());
     md += "\n";
-    let names: Vec<&String> = {
-        let mut v: Vec<&String> = report.time_to_error.iter().map(|t| &t.integrator).collect();
-        v.dedup();
-        v
-    };
-    for name in names {
+    for name in &report.integrators {
         let _ = write!(md, "| {name} |");
         for t in report
             .time_to_error
@@ -337,18 +335,17 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
     write("report.md", md.as_bytes())?;
 
     let series: Vec<(String, Vec<(f64, f64)>)> = {
-        let mut names: Vec<String> = report.runs.iter().map(|r| r.integrator.clone()).collect();
-        names.dedup();
-        names
-            .into_iter()
+        report
+            .integrators
+            .iter()
             .map(|n| {
                 let pts = report
                     .runs
                     .iter()
-                    .filter(|r| r.integrator == n)
+                    .filter(|r| &r.integrator == n)
                     .map(|r| (r.wall_s, r.rel_mse))
                     .collect();
-                (n, pts)
+                (n.clone(), pts)
             })
             .collect()
     };
