@@ -12,7 +12,7 @@ use tessera_render::camera::Camera;
 use tessera_render::film::{MAX_SPP, TileSums, tiles};
 use tessera_render::output::{ExrMetadata, write_exr, write_png};
 use tessera_render::{Image, Integrator, RayStats, SampleRange, Scene, Tile, integrator, render};
-use tessera_scene::{IntegratorDesc, IntegratorKind, SceneDesc};
+use tessera_scene::{IntegratorKind, SceneDesc};
 
 use crate::progressive::Adaptive;
 use utoipa::ToSchema;
@@ -41,6 +41,62 @@ pub struct RenderSettings {
     /// becomes the per-pixel maximum (see `progressive`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub target_error: Option<f64>,
+    /// The integrator (default: the scene's `integrator.type`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub integrator: Option<IntegratorName>,
+}
+
+/// Integrators a job may ask for by name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum IntegratorName {
+    Path,
+    Direct,
+    Auto,
+    Photon,
+}
+
+impl IntegratorName {
+    pub const ALL: [IntegratorName; 4] = [
+        IntegratorName::Path,
+        IntegratorName::Direct,
+        IntegratorName::Auto,
+        IntegratorName::Photon,
+    ];
+
+    pub fn kind(self) -> IntegratorKind {
+        match self {
+            IntegratorName::Path => IntegratorKind::Path,
+            IntegratorName::Direct => IntegratorKind::Direct,
+            IntegratorName::Auto => IntegratorKind::Auto,
+            IntegratorName::Photon => IntegratorKind::Photon,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorName::Path => "path",
+            IntegratorName::Direct => "direct",
+            IntegratorName::Auto => "auto",
+            IntegratorName::Photon => "photon",
+        }
+    }
+}
+
+impl std::str::FromStr for IntegratorName {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|n| n.name() == s.trim())
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|n| n.name()).collect();
+                format!(
+                    "unknown integrator \"{s}\"; expected one of {}",
+                    names.join(", ")
+                )
+            })
+    }
 }
 
 /// Samples per pixel of an adaptive render's first round.
@@ -149,6 +205,9 @@ pub fn apply(
     }
     if let Some(seed) = settings.seed {
         desc.integrator.seed = seed;
+    }
+    if let Some(i) = settings.integrator {
+        desc.integrator.kind = i.kind();
     }
     if let Some([w, h]) = settings.size {
         if w == 0 || h == 0 {
@@ -288,7 +347,9 @@ pub struct Prepared {
     /// What scene analysis decided (the integrator among it).
     pub analysis: Analysis,
     pub integrator: Box<dyn Integrator>,
-    /// Seconds spent building.
+    /// What the integrator's passes decided and built (photon counts, records).
+    pub passes: Vec<String>,
+    /// Seconds spent building (the scene and the passes).
     pub build_seconds: f64,
 }
 
@@ -297,15 +358,13 @@ impl Prepared {
         let start = Instant::now();
         let scene = Scene::build(&desc);
         let analysis = tessera_render::analysis::analyze(&desc);
-        let integrator = integrator::from_desc(&IntegratorDesc {
-            kind: analysis.integrator,
-            ..desc.integrator
-        });
+        let (integrator, passes) = integrator::prepare(&desc, &scene, &analysis);
         Prepared {
             desc,
             scene,
             analysis,
             integrator,
+            passes,
             build_seconds: start.elapsed().as_secs_f64(),
         }
     }

@@ -40,6 +40,8 @@ impl std::fmt::Display for Decision {
 pub struct Analysis {
     /// The integrator to run (the scene's own choice unless it asked for `auto`).
     pub integrator: IntegratorKind,
+    /// Light can reach a diffuse surface through a specular one: a caustic map has work.
+    pub caustics: bool,
     pub decisions: Vec<Decision>,
 }
 
@@ -273,8 +275,13 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
             topic: "caustic photon map",
             choice: "needed".into(),
             reason: format!(
-                "specular surfaces ({}) can focus light onto diffuse ones; until photon mapping lands, path tracing renders these caustics with more noise",
-                names(&specular)
+                "specular surfaces ({}) can focus light onto diffuse ones{}",
+                names(&specular),
+                if integrator == IntegratorKind::Photon {
+                    ""
+                } else {
+                    " (used by the photon integrator; path tracing renders caustics with more noise)"
+                }
             ),
         }
     } else {
@@ -351,6 +358,7 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
     });
     Analysis {
         integrator,
+        caustics,
         decisions,
     }
 }

@@ -83,6 +83,12 @@ impl Camera {
             && d.dot(self.up).abs() <= z * self.tan_half
     }
 
+    /// Width in scene units of one pixel's footprint at the depth of `p` (pinhole).
+    #[inline]
+    pub fn pixel_footprint(&self, p: Vec3A) -> f32 {
+        self.depth(p).abs() * 2.0 * self.tan_half / self.size.y
+    }
+
     /// Depth of a point along the optical axis, in scene units.
     #[inline]
     pub fn depth(&self, p: Vec3A) -> f32 {

@@ -10,7 +10,7 @@ use crate::filter::Filter;
 use crate::geometry::{Accel, Prim};
 use crate::light::{
     DirectionalLight, EnvironmentLight, Light, LightSample, LightSet, PointLight, ShadowTarget,
-    SphereLight, SpotLight, TriangleLight,
+    SphereLight, SpotLight, Target, TriangleLight,
 };
 use crate::math::{Frame, offset_ray_origin};
 use crate::ray::Ray;
@@ -32,6 +32,14 @@ pub struct Material {
 }
 
 impl Material {
+    pub fn from_desc(kind: &tessera_scene::MaterialKind) -> Material {
+        let bsdf = bsdf::from_desc(kind);
+        Material {
+            flags: bsdf.flags(),
+            bsdf,
+        }
+    }
+
     /// Nothing is scattered: paths end here.
     pub fn is_black(&self) -> bool {
         !self.flags.smooth && !self.flags.specular
@@ -110,6 +118,10 @@ pub struct Scene {
     /// Bounding sphere of all geometry.
     pub center: Vec3A,
     pub radius: f32,
+    /// Total area of all surfaces, scene units².
+    pub surface_area: f32,
+    /// Every mesh and sphere: its bounding sphere and material (projection maps aim at them).
+    pub objects: Vec<(Target, u32)>,
     pub stats: SceneStats,
 }
 
@@ -121,8 +133,23 @@ impl Scene {
         let mut triangle_light = Vec::new();
         let mut lights = Vec::new();
         let mut emissive_triangles = 0;
+        let mut surface_area = 0.0f64;
+        let mut objects = Vec::with_capacity(desc.meshes.len() + desc.spheres.len());
         for (mi, m) in desc.meshes.iter().enumerate() {
             let first_triangle = triangles.len() as u32;
+            let (lo, hi) = m.positions.iter().fold(
+                (Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)),
+                |(lo, hi), &p| (lo.min(p.into()), hi.max(p.into())),
+            );
+            if lo.x <= hi.x {
+                let center = 0.5 * (lo + hi);
+                let radius = m
+                    .positions
+                    .iter()
+                    .map(|&p| (Vec3A::from(p) - center).length())
+                    .fold(0.0f32, f32::max);
+                objects.push((Target { center, radius }, m.material));
+            }
             let normals: Option<Vec<Vec3A>> = m
                 .normals
                 .as_ref()
@@ -132,6 +159,7 @@ impl Scene {
                 let v = [a, b, c].map(|i| Vec3A::from(m.positions[i as usize]));
                 // With vertex normals, the normals decide the front face: wind to agree.
                 let winding = (v[1] - v[0]).cross(v[2] - v[0]);
+                surface_area += 0.5 * winding.length() as f64;
                 let flip = normals.as_ref().is_some_and(|n| {
                     winding.dot(n[a as usize] + n[b as usize] + n[c as usize]) < 0.0
                 });
@@ -169,6 +197,14 @@ impl Scene {
         for s in &desc.spheres {
             let center = Vec3A::from(s.center);
             sphere_geometry.push((center, s.radius));
+            surface_area += 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2);
+            objects.push((
+                Target {
+                    center,
+                    radius: s.radius,
+                },
+                s.material,
+            ));
             let light = match &s.emission {
                 Some(e) => {
                     lights.push(Light::Sphere(SphereLight::new(
@@ -249,13 +285,7 @@ impl Scene {
         let materials = desc
             .materials
             .iter()
-            .map(|m| {
-                let bsdf = bsdf::from_desc(&m.kind);
-                Material {
-                    flags: bsdf.flags(),
-                    bsdf,
-                }
-            })
+            .map(|m| Material::from_desc(&m.kind))
             .collect();
         Scene {
             accel: Accel::build(&triangles, &sphere_geometry),
@@ -270,6 +300,8 @@ impl Scene {
             integrator: desc.integrator,
             center,
             radius,
+            surface_area: surface_area as f32,
+            objects,
             stats,
         }
     }

@@ -48,7 +48,7 @@ fn check_case(dir: &Path) -> Vec<String> {
     let desc = tessera_scene::load(&dir.join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let integ = integrator::from_desc(&desc.integrator);
+    let integ = integrator::for_scene(&desc, &scene);
     let range = SampleRange {
         start: 0,
         end: desc.integrator.spp,

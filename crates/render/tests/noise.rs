@@ -81,7 +81,7 @@ fn unbiased_integrators_agree_with_the_reference_within_their_noise() {
         d.integrator.seed = seed;
         // The seed lives in the scene the sampler reads: build it per run.
         let scene = Scene::build(&d);
-        let integ = integrator::for_scene(&d);
+        let integ = integrator::for_scene(&d, &scene);
         let range = SampleRange { start: 0, end: SPP };
         pool.install(|| render_frame(&scene, &camera, integ.as_ref(), 8, range).0)
     };

@@ -9,7 +9,7 @@
 
 use glam::{Mat3, Vec3};
 
-pub use crate::file::{Distribution, FovAxis, SamplerType};
+pub use crate::file::{Distribution, FovAxis, PhotonFilter, SamplerType};
 
 /// A scene ready to render.
 #[derive(Debug, Clone)]
@@ -88,9 +88,35 @@ pub enum IntegratorKind {
     Direct,
     /// Chosen from the scene by analysis before rendering.
     Auto,
+    /// Photon mapping: direct light exact, caustics from the caustic map, indirect diffuse by
+    /// final gathering over the global map (through an irradiance cache where enabled).
+    Photon,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Photon-mapping knobs as the scene gives them; `None` = chosen from the scene.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PhotonDesc {
+    pub photons: Option<u32>,
+    pub caustic_photons: Option<u32>,
+    pub k: Option<u32>,
+    pub caustic_k: Option<u32>,
+    pub radius: Option<f32>,
+    pub caustic_radius: Option<f32>,
+    pub gather_rays: Option<u32>,
+    pub caustic_filter: PhotonFilter,
+    /// `None`: no irradiance cache (final gathering at every camera sample).
+    pub irradiance_cache: Option<IrradianceCacheDesc>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct IrradianceCacheDesc {
+    pub accuracy: Option<f32>,
+    pub spacing: Option<u32>,
+    pub keyframe_step: Option<u32>,
+    pub gather_rays: Option<u32>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IntegratorDesc {
     pub kind: IntegratorKind,
     pub spp: u32,
@@ -100,6 +126,7 @@ pub struct IntegratorDesc {
     pub rr_depth: u32,
     pub seed: u64,
     pub sampler: SamplerType,
+    pub photon: PhotonDesc,
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -233,6 +233,64 @@ pub enum IntegratorType {
     Direct,
     /// Chosen by scene analysis (`tessera_render::analysis`).
     Auto,
+    /// Jensen's photon mapping with final gathering (and Ward's irradiance cache).
+    Photon,
+}
+
+/// How caustic photons are weighted by distance in a radiance estimate (Jensen 2001, §7.2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PhotonFilter {
+    /// Every photon in the disc counts fully.
+    Box,
+    /// w = 1 − d/(k·r) with k = 1, normalised by 1 − 2/(3k).
+    #[default]
+    Cone,
+    /// Pavicic's normalised Gaussian (α = 0.918, β = 1.953).
+    Gaussian,
+}
+
+/// Photon-mapping knobs (Mental Ray's: photon count, accuracy k, radius); every one optional,
+/// omitted = chosen from the scene (`tessera_render::photon::PhotonSettings::resolve`).
+#[derive(Debug, Clone, Copy, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhotonMapFile {
+    /// Photons emitted for the global map.
+    pub photons: Option<u32>,
+    /// Photons emitted for the caustic map (0: no caustic map).
+    pub caustic_photons: Option<u32>,
+    /// Nearest photons per global radiance estimate ("accuracy").
+    pub k: Option<u32>,
+    /// Nearest photons per caustic estimate.
+    pub caustic_k: Option<u32>,
+    /// Largest search radius of a global estimate, scene units.
+    pub radius: Option<f32>,
+    /// Largest search radius of a caustic estimate, scene units.
+    pub caustic_radius: Option<f32>,
+    /// Final-gather rays per gather point.
+    pub gather_rays: Option<u32>,
+    pub caustic_filter: Option<PhotonFilter>,
+    pub irradiance_cache: Option<IrradianceCacheFile>,
+}
+
+/// Ward's irradiance cache for the indirect diffuse term.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IrradianceCacheFile {
+    #[serde(default = "default_true")]
+    pub enabled: bool,
+    /// Ward's accuracy a: a record serves points where its error weight exceeds 1/a.
+    pub accuracy: Option<f32>,
+    /// Record candidates every this many pixels of the pre-render.
+    pub spacing: Option<u32>,
+    /// A fly-through's records come from every this-many-th frame's camera.
+    pub keyframe_step: Option<u32>,
+    /// Hemisphere rays per record.
+    pub gather_rays: Option<u32>,
+}
+
+fn default_true() -> bool {
+    true
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
@@ -260,6 +318,8 @@ pub struct IntegratorFile {
     pub seed: u64,
     #[serde(default)]
     pub sampler: SamplerType,
+    #[serde(default)]
+    pub photon_map: PhotonMapFile,
 }
 
 impl Default for IntegratorFile {
@@ -271,6 +331,7 @@ impl Default for IntegratorFile {
             rr_depth: default_rr_depth(),
             seed: 0,
             sampler: SamplerType::default(),
+            photon_map: PhotonMapFile::default(),
         }
     }
 }

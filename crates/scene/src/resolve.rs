@@ -25,6 +25,13 @@ const MAX_INSTANCE_DEPTH: usize = 16;
 pub const MAX_FILM_SIDE: u32 = 1 << 15;
 /// Longest camera path, in frames.
 pub const MAX_FRAMES: u32 = 1_000_000;
+/// Most photons one map may be shot with (each stored photon takes 40 bytes; a photon is
+/// stored about twice in a closed room).
+pub const MAX_PHOTONS: u32 = 100_000_000;
+/// Most photons in one radiance estimate (the search keeps them on the stack).
+pub const MAX_PHOTON_K: u32 = 1024;
+/// Most final-gather rays per gather point.
+pub const MAX_GATHER_RAYS: u32 = 65_536;
 
 /// Parses and validates the scene file `name` (relative to `source`).
 pub fn load(source: &dyn SceneSource, name: &Path) -> Result<SceneDesc, SceneError> {
@@ -531,12 +538,78 @@ impl Ctx<'_> {
                 IntegratorType::Path => IntegratorKind::Path,
                 IntegratorType::Direct => IntegratorKind::Direct,
                 IntegratorType::Auto => IntegratorKind::Auto,
+                IntegratorType::Photon => IntegratorKind::Photon,
             },
             spp: i.spp,
             max_depth: i.max_depth,
             rr_depth: i.rr_depth,
             seed: i.seed,
             sampler: i.sampler,
+            photon: self.photon_map(&i.photon_map),
+        }
+    }
+
+    /// Checks a count knob of `integrator.photon_map` against [lo, hi].
+    fn count(&mut self, name: &str, v: Option<u32>, lo: u32, hi: u32) -> Option<u32> {
+        if let Some(v) = v
+            && !(lo..=hi).contains(&v)
+        {
+            self.problem(
+                format!("integrator.photon_map.{name}"),
+                format!("expected {lo} to {hi}, got {v}"),
+            );
+        }
+        v
+    }
+
+    fn photon_map(&mut self, f: &PhotonMapFile) -> PhotonDesc {
+        const P: &str = "integrator.photon_map";
+        for (name, v) in [("radius", f.radius), ("caustic_radius", f.caustic_radius)] {
+            if let Some(v) = v {
+                self.positive(&format!("{P}.{name}"), v);
+            }
+        }
+        let irradiance_cache = match f.irradiance_cache {
+            Some(ic) if !ic.enabled => None,
+            None => Some(IrradianceCacheDesc::default()),
+            Some(ic) => {
+                if let Some(a) = ic.accuracy {
+                    self.range(
+                        &format!("{P}.irradiance_cache.accuracy"),
+                        a,
+                        1e-3,
+                        10.0,
+                        "Ward's accuracy a in [0.001, 10]",
+                    );
+                }
+                Some(IrradianceCacheDesc {
+                    accuracy: ic.accuracy,
+                    spacing: self.count("irradiance_cache.spacing", ic.spacing, 1, 1024),
+                    keyframe_step: self.count(
+                        "irradiance_cache.keyframe_step",
+                        ic.keyframe_step,
+                        1,
+                        MAX_FRAMES,
+                    ),
+                    gather_rays: self.count(
+                        "irradiance_cache.gather_rays",
+                        ic.gather_rays,
+                        1,
+                        MAX_GATHER_RAYS,
+                    ),
+                })
+            }
+        };
+        PhotonDesc {
+            photons: self.count("photons", f.photons, 1, MAX_PHOTONS),
+            caustic_photons: self.count("caustic_photons", f.caustic_photons, 0, MAX_PHOTONS),
+            k: self.count("k", f.k, 1, MAX_PHOTON_K),
+            caustic_k: self.count("caustic_k", f.caustic_k, 1, MAX_PHOTON_K),
+            radius: f.radius,
+            caustic_radius: f.caustic_radius,
+            gather_rays: self.count("gather_rays", f.gather_rays, 1, MAX_GATHER_RAYS),
+            caustic_filter: f.caustic_filter.unwrap_or_default(),
+            irradiance_cache,
         }
     }
 

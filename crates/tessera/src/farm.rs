@@ -161,6 +161,9 @@ pub struct SubmitArgs {
     /// maximum per pixel).
     #[arg(long)]
     pub target_error: Option<f64>,
+    /// The integrator: path, direct, auto or photon (overrides the scene's integrator.type).
+    #[arg(long)]
+    pub integrator: Option<job::IntegratorName>,
     /// Higher runs first.
     #[arg(long, default_value_t = 0)]
     pub priority: i32,
@@ -190,6 +193,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         samples_per_task: args.samples_per_task,
         size: args.size.map(|s| s.0),
         target_error: args.target_error,
+        integrator: args.integrator,
     };
     let frames = args.frames.unwrap_or(FrameRange {
         first: 1,

@@ -54,6 +54,8 @@ pub fn run(args: ReferenceArgs) -> anyhow::Result<()> {
         // Small tiles: finer adaptive steering, and parallelism on small films.
         tile: 8,
         seed: None,
+        // Unbiased whatever the scene asks for: references judge the biased methods.
+        integrator: Some(tessera_farm::job::IntegratorName::Path),
         size: args.size,
         frame: 1,
         target_error: Some(args.target_error),

@@ -31,6 +31,9 @@ pub struct RenderArgs {
     /// Film size WxH (overrides the scene's film; the vertical field of view is kept).
     #[arg(long)]
     pub size: Option<Size>,
+    /// The integrator: path, direct, auto or photon (overrides the scene's integrator.type).
+    #[arg(long)]
+    pub integrator: Option<tessera_farm::job::IntegratorName>,
     /// The frame of the scene's camera path to render (1-based).
     #[arg(long, default_value_t = 1)]
     pub frame: u32,
@@ -58,6 +61,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         samples_per_task: None,
         size: args.size.map(|s| s.0),
         target_error: args.target_error,
+        integrator: args.integrator,
     };
     let frame = args.frame;
     job::apply(
@@ -107,6 +111,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let analysis = &prepared.analysis;
     for d in &analysis.decisions {
         tracing::info!(topic = d.topic, choice = %d.choice, reason = %d.reason, "decision");
+    }
+    for p in &prepared.passes {
+        tracing::info!(pass = %p, "pass");
     }
 
     let progress = if args.quiet {
@@ -165,6 +172,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     if let Some(d) = analysis.decisions.first() {
         report += &format!("{d}\n");
     }
+    for p in &prepared.passes {
+        report += &format!("{p}\n");
+    }
     report += &format!(
         "render {render_s:.2} s wall{}; {:.3} M samples/s, {:.2} M rays/s\n",
         cpu_s.map(|c| format!(", {c:.2} s CPU")).unwrap_or_default(),
@@ -172,7 +182,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         stats.rays as f64 / render_s / 1e6,
     );
     report += &format!(
-        "setup {:.2} s (load {:.2} s, BVH and lights {:.2} s)\n",
+        "setup {:.2} s (load {:.2} s, BVH, lights and passes {:.2} s)\n",
         load_time.as_secs_f64() + build_time,
         load_time.as_secs_f64(),
         build_time

@@ -25,6 +25,7 @@ impl Bsdf for SmoothDielectric {
             transmission: true,
             specular: true,
             smooth: false,
+            diffuse: false,
         }
     }
 

@@ -45,6 +45,7 @@ impl<L: GlossyLobe> Bsdf for WithDiffuse<L> {
         BsdfFlags {
             reflection: any,
             smooth: any,
+            diffuse: self.kd.max_element() > 0.0,
             ..Default::default()
         }
     }

@@ -22,6 +22,7 @@ impl Bsdf for Lambert {
         BsdfFlags {
             reflection: !is_black(self.albedo),
             smooth: !is_black(self.albedo),
+            diffuse: !is_black(self.albedo),
             ..Default::default()
         }
     }
@@ -54,5 +55,9 @@ impl Bsdf for Lambert {
 
     fn albedo(&self) -> Spectrum {
         self.albedo
+    }
+
+    fn lambertian(&self) -> Option<Spectrum> {
+        Some(self.albedo)
     }
 }

@@ -58,6 +58,8 @@ pub struct BsdfFlags {
     pub specular: bool,
     /// Has a component with a density (diffuse or glossy).
     pub smooth: bool,
+    /// Has a diffuse (Lambertian or Oren–Nayar) component: where photon mapping gathers.
+    pub diffuse: bool,
 }
 
 /// A direction sampled from a BSDF.
@@ -128,6 +130,10 @@ pub trait Bsdf: Send + Sync + std::fmt::Debug {
     fn pdf(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> f32;
     /// A representative reflectance (for the albedo AOV).
     fn albedo(&self) -> Spectrum;
+    /// ρ if the BSDF is exactly Lambertian (f = ρ/π): the irradiance cache applies.
+    fn lambertian(&self) -> Option<Spectrum> {
+        None
+    }
 }
 
 /// Builds the BSDF of a material description.

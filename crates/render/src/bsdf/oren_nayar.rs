@@ -32,6 +32,7 @@ impl Bsdf for OrenNayar {
         BsdfFlags {
             reflection: !is_black(self.albedo),
             smooth: !is_black(self.albedo),
+            diffuse: !is_black(self.albedo),
             ..Default::default()
         }
     }

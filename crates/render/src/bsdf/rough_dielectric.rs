@@ -63,6 +63,7 @@ impl Bsdf for RoughDielectric {
             transmission: true,
             specular: false,
             smooth: true,
+            diffuse: false,
         }
     }
 

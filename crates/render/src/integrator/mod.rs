@@ -7,16 +7,78 @@
 //!   chains before it are followed): emitted plus directly reflected light.
 
 mod path;
+mod photon;
 
-use glam::Vec3A;
-use tessera_scene::{IntegratorDesc, IntegratorKind};
+use glam::{Vec2, Vec3A};
+use tessera_scene::{IntegratorDesc, IntegratorKind, SceneDesc};
 
+use crate::analysis::Analysis;
+
+use crate::bsdf::TransportMode;
+use crate::math::Frame;
 use crate::ray::Ray;
 use crate::sampler::PixelSampler;
-use crate::scene::Scene;
-use crate::spectrum::Spectrum;
+use crate::sampling::power_heuristic;
+use crate::scene::{Material, Scene, SurfaceInteraction};
+use crate::spectrum::{Spectrum, is_black};
 
 pub use path::PathIntegrator;
+pub use photon::{PhotonIntegrator, keyframes};
+
+/// Whether a pair of directions is reflection (same side) both for the geometric normal and
+/// for the BSDF's local frame. Where shading normals disagree with the geometry, light would
+/// leak through the surface; such pairs contribute nothing (Veach's thesis §5.3).
+#[inline]
+pub(crate) fn consistent(
+    si: &SurfaceInteraction,
+    wo: Vec3A,
+    wi: Vec3A,
+    wo_local: Vec3A,
+    wi_local: Vec3A,
+) -> bool {
+    (wo.dot(si.ng) * wi.dot(si.ng) > 0.0) == (wo_local.z * wi_local.z > 0.0)
+}
+
+/// Next-event estimation at `si`: one light chosen by power (`u.x`), one point on it
+/// (`u.y`, `u.z`), f·Li·|cos θi| / p toward `wo`; weighted by the power heuristic against BSDF
+/// sampling when `mis` (the caller then also counts emitters its BSDF samples hit).
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub(crate) fn sample_direct(
+    scene: &Scene,
+    si: &SurfaceInteraction,
+    material: &Material,
+    frame: &Frame,
+    wo: Vec3A,
+    u: Vec3A,
+    mis: bool,
+    stats: &mut RayStats,
+) -> Spectrum {
+    let mode = TransportMode::Radiance;
+    let Some((li, pmf)) = scene.lights.choose(u.x) else {
+        return Spectrum::ZERO;
+    };
+    let Some(ls) = scene.lights.get(li).sample_li(si.p, Vec2::new(u.y, u.z)) else {
+        return Spectrum::ZERO;
+    };
+    let wo_local = frame.to_local(wo);
+    let wi_local = frame.to_local(ls.wi);
+    let f = material.bsdf.eval(wo_local, wi_local, mode) * wi_local.z.abs();
+    if is_black(f) || !consistent(si, wo, ls.wi, wo_local, wi_local) {
+        return Spectrum::ZERO;
+    }
+    stats.rays += 1;
+    if !scene.unoccluded(si, &ls) {
+        return Spectrum::ZERO;
+    }
+    let p_light = pmf * ls.pdf;
+    let w = if ls.delta || !mis {
+        1.0
+    } else {
+        power_heuristic(p_light, material.bsdf.pdf(wo_local, wi_local, mode))
+    };
+    f * ls.li * (w / p_light)
+}
 
 /// Counters kept per tile (no shared state in the sample loop).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -63,22 +125,40 @@ pub trait Integrator: Send + Sync {
     ) -> RadianceSample;
 }
 
-/// The integrator a description names; `auto` (which needs the scene, see [`for_scene`])
-/// means path tracing here.
-pub fn from_desc(desc: &IntegratorDesc) -> Box<dyn Integrator> {
+/// A path tracer (`path`, `auto`) or the direct-lighting estimator (`direct`) from a
+/// description alone; integrators with passes come from [`prepare`].
+fn path_family(desc: &IntegratorDesc) -> PathIntegrator {
     match desc.kind {
-        IntegratorKind::Path | IntegratorKind::Auto => {
-            Box::new(PathIntegrator::new(desc.max_depth, desc.rr_depth))
-        }
-        IntegratorKind::Direct => Box::new(PathIntegrator::direct_lighting(desc.max_depth)),
+        IntegratorKind::Direct => PathIntegrator::direct_lighting(desc.max_depth),
+        _ => PathIntegrator::new(desc.max_depth, desc.rr_depth),
     }
 }
 
-/// The integrator for a scene: its own choice, or the one scene analysis makes for `auto`.
-pub fn for_scene(scene: &tessera_scene::SceneDesc) -> Box<dyn Integrator> {
-    let kind = crate::analysis::analyze(scene).integrator;
-    from_desc(&IntegratorDesc {
-        kind,
-        ..scene.integrator
-    })
+/// The integrator that renders `desc` (built as `scene`; `analysis` resolved `auto`), with
+/// any passes it needs (photon maps, irradiance records) run in-process; and what was decided
+/// on the way, for logs and the job status.
+pub fn prepare(
+    desc: &SceneDesc,
+    scene: &Scene,
+    analysis: &Analysis,
+) -> (Box<dyn Integrator>, Vec<String>) {
+    match analysis.integrator {
+        IntegratorKind::Photon => {
+            let (p, why) = PhotonIntegrator::prepare(desc, scene, analysis);
+            (Box::new(p), why)
+        }
+        kind => (
+            Box::new(path_family(&IntegratorDesc {
+                kind,
+                ..desc.integrator
+            })),
+            Vec::new(),
+        ),
+    }
+}
+
+/// The integrator for a scene: its own choice, or the one scene analysis makes for `auto`,
+/// passes run in-process.
+pub fn for_scene(desc: &SceneDesc, scene: &Scene) -> Box<dyn Integrator> {
+    prepare(desc, scene, &crate::analysis::analyze(desc)).0
 }

@@ -1,14 +1,14 @@
 //! Path tracing with next-event estimation and MIS (Veach's thesis ch. 9; pbrt-v4 §13.4).
 
-use glam::{Vec2, Vec3A};
+use glam::Vec2;
 
-use super::{Integrator, RadianceSample, RayStats};
+use super::{Integrator, RadianceSample, RayStats, consistent, sample_direct};
 use crate::bsdf::TransportMode;
 use crate::integrator::FirstHit;
 use crate::ray::Ray;
 use crate::sampler::{PixelSampler, Sampler};
 use crate::sampling::power_heuristic;
-use crate::scene::{NO_LIGHT, Scene, SurfaceInteraction};
+use crate::scene::{NO_LIGHT, Scene};
 use crate::spectrum::{Spectrum, is_black};
 
 #[derive(Debug, Clone)]
@@ -38,20 +38,6 @@ impl PathIntegrator {
             max_nonspecular: 1,
         }
     }
-}
-
-/// Whether a pair of directions is reflection (same side) both for the geometric normal and
-/// for the BSDF's local frame. Where shading normals disagree with the geometry, light would
-/// leak through the surface; such pairs contribute nothing (Veach's thesis §5.3).
-#[inline]
-fn consistent(
-    si: &SurfaceInteraction,
-    wo: Vec3A,
-    wi: Vec3A,
-    wo_local: Vec3A,
-    wi_local: Vec3A,
-) -> bool {
-    (wo.dot(si.ng) * wi.dot(si.ng) > 0.0) == (wo_local.z * wi_local.z > 0.0)
 }
 
 impl Integrator for PathIntegrator {
@@ -127,27 +113,7 @@ impl Integrator for PathIntegrator {
             // Next-event estimation: one light chosen by power, one point on it.
             if material.flags.smooth {
                 let u = sampler.get_3d();
-                if let Some((li, pmf)) = scene.lights.choose(u.x)
-                    && let Some(ls) = scene.lights.get(li).sample_li(si.p, Vec2::new(u.y, u.z))
-                {
-                    let wi_local = frame.to_local(ls.wi);
-                    let f = material.bsdf.eval(wo_local, wi_local, mode) * wi_local.z.abs();
-                    if !is_black(f) && consistent(&si, wo, ls.wi, wo_local, wi_local) {
-                        stats.rays += 1;
-                        if scene.unoccluded(&si, &ls) {
-                            let p_light = pmf * ls.pdf;
-                            let w = if ls.delta {
-                                1.0
-                            } else {
-                                power_heuristic(
-                                    p_light,
-                                    material.bsdf.pdf(wo_local, wi_local, mode),
-                                )
-                            };
-                            l += beta * f * ls.li * (w / p_light);
-                        }
-                    }
-                }
+                l += beta * sample_direct(scene, &si, material, &frame, wo, u, true, stats);
             }
 
             // Continue the path by sampling the BSDF; the fourth value decides Russian roulette.

@@ -4,7 +4,7 @@
 
 use glam::{Vec2, Vec3A};
 
-use super::{LightSample, ShadowTarget, lum};
+use super::{Aim, Emission, LightSample, ShadowTarget, Target, emit_from_surface, lum};
 use crate::geometry::{sphere, triangle};
 use crate::math::{Frame, PI, gamma};
 use crate::sampling::{
@@ -101,6 +101,34 @@ impl TriangleLight {
     pub fn power(&self) -> f32 {
         PI * self.area * lum(self.radiance) * if self.two_sided { 2.0 } else { 1.0 }
     }
+
+    pub fn sample_le(&self, aim: &Aim, u_pos: Vec2, u_dir: Vec2, u_extra: f32) -> Option<Emission> {
+        if self.area == 0.0 {
+            return None;
+        }
+        let (p, p_error) = triangle::point_and_error(&self.v, square_to_triangle(u_pos));
+        emit_from_surface(
+            aim,
+            p,
+            p_error,
+            self.n,
+            self.area,
+            self.radiance,
+            self.two_sided,
+            u_dir,
+            u_extra,
+        )
+    }
+
+    pub fn bounds(&self) -> Target {
+        let center = (self.v[0] + self.v[1] + self.v[2]) / 3.0;
+        let radius = self
+            .v
+            .iter()
+            .map(|v| (*v - center).length())
+            .fold(0.0, f32::max);
+        Target { center, radius }
+    }
 }
 
 /// A spherical emitter, sampled by the cone it subtends (pbrt-v4 §6.2.4) from outside and
@@ -179,6 +207,41 @@ impl SphereLight {
 
     pub fn le(&self, n: Vec3A, w: Vec3A) -> Spectrum {
         emitted(self.radiance, self.two_sided, n, w)
+    }
+
+    /// A photon from the sphere. Aimed through a projection map, the direction d comes first
+    /// and the point is uniform on the hemisphere facing d (the other half emits nothing
+    /// toward d): half the area, no photon wasted.
+    pub fn sample_le(&self, aim: &Aim, u_pos: Vec2, u_dir: Vec2, u_extra: f32) -> Option<Emission> {
+        let full = 4.0 * PI * self.radius * self.radius;
+        let (n, area) = match aim {
+            Aim::Projection(map) if !self.two_sided => {
+                let (d, _) = map.sample(u_extra, u_dir)?;
+                let local = square_to_uniform_sphere(Vec2::new(0.5 * u_pos.x, u_pos.y));
+                (Frame::from_normal(d).to_world(local), 0.5 * full)
+            }
+            _ => (square_to_uniform_sphere(u_pos), full),
+        };
+        let p = self.center + n * self.radius;
+        let p_error = (n * self.radius).abs() * gamma(5) + p.abs() * gamma(2);
+        emit_from_surface(
+            aim,
+            p,
+            p_error,
+            n,
+            area,
+            self.radiance,
+            self.two_sided,
+            u_dir,
+            u_extra,
+        )
+    }
+
+    pub fn bounds(&self) -> Target {
+        Target {
+            center: self.center,
+            radius: self.radius,
+        }
     }
 
     pub fn power(&self) -> f32 {

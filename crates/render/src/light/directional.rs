@@ -1,8 +1,8 @@
 //! Directional (distant) light: irradiance E on surfaces facing it, from one direction.
 
-use glam::Vec3A;
+use glam::{Vec2, Vec3A};
 
-use super::{LightSample, ShadowTarget, lum};
+use super::{Aim, Emission, LightSample, ShadowTarget, emit_from_disk, lum};
 use crate::math::PI;
 use crate::spectrum::Spectrum;
 
@@ -29,6 +29,20 @@ impl DirectionalLight {
             delta: true,
             target: ShadowTarget::Infinite,
         })
+    }
+
+    /// A photon from the disk of `aim` (other aims have no disk: no photon).
+    pub fn sample_le(&self, aim: &Aim, u_pos: Vec2) -> Option<Emission> {
+        match aim {
+            Aim::Disk(target) => Some(emit_from_disk(
+                *target,
+                self.direction,
+                self.irradiance,
+                1.0,
+                u_pos,
+            )),
+            _ => None,
+        }
     }
 
     pub fn power(&self, scene_radius: f32) -> f32 {

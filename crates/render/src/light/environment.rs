@@ -10,7 +10,7 @@
 use glam::{Mat3A, Vec2, Vec3A};
 use tessera_scene::EnvImage;
 
-use super::{LightSample, ShadowTarget, lum};
+use super::{Aim, Emission, LightSample, ShadowTarget, emit_from_disk, lum};
 use crate::math::{INV_PI, PI};
 use crate::sampling::{Distribution2D, UNIFORM_SPHERE_PDF, square_to_uniform_sphere};
 use crate::spectrum::Spectrum;
@@ -141,6 +141,16 @@ impl EnvironmentLight {
                 }
             }
         }
+    }
+
+    /// A photon arriving from a direction importance-sampled like `sample_li`, from the disk
+    /// of `aim` (other aims have no disk: no photon).
+    pub fn sample_le(&self, aim: &Aim, u_pos: Vec2, u_dir: Vec2) -> Option<Emission> {
+        let Aim::Disk(target) = aim else {
+            return None;
+        };
+        let ls = self.sample_li(u_dir)?;
+        Some(emit_from_disk(*target, -ls.wi, ls.li, ls.pdf, u_pos))
     }
 
     pub fn power(&self, scene_radius: f32) -> f32 {

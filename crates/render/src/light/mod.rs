@@ -5,18 +5,109 @@ mod area;
 mod directional;
 mod environment;
 mod point;
+pub mod projection;
 mod spot;
 
 use glam::{Vec2, Vec3A};
 
-use crate::sampling::Distribution1D;
+use crate::math::{Frame, offset_ray_origin};
+use crate::ray::Ray;
+use crate::sampling::{Distribution1D, square_to_cosine_hemisphere, square_to_disk};
 use crate::spectrum::{Spectrum, luminance};
 
 pub use area::{SphereLight, TriangleLight};
 pub use directional::DirectionalLight;
 pub use environment::EnvironmentLight;
 pub use point::PointLight;
+pub use projection::{ProjectionMap, Target};
 pub use spot::SpotLight;
+
+/// Where photons leaving a light are aimed; the photon pass chooses, per light and map.
+#[derive(Debug, Clone, Copy)]
+pub enum Aim<'a> {
+    /// Everywhere the light emits: area lights cosine-weighted over their emitting side,
+    /// point lights uniformly over the sphere.
+    Everywhere,
+    /// Through the marked cells of a projection map only (the light's power scaled by the
+    /// covered fraction).
+    Projection(&'a ProjectionMap),
+    /// Lights at infinity: from the disk that covers this sphere, perpendicular to the
+    /// direction of travel.
+    Disk(Target),
+}
+
+/// A photon leaving a light.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Emission {
+    /// Origin on (or just off) the light, unit direction of travel.
+    pub ray: Ray,
+    /// Power carried by this one sample, W: Le·|cos θ| / (pdf_area · pdf_direction); divided
+    /// by the light's choice probability and the photon count by the caller.
+    pub flux: Spectrum,
+}
+
+/// An emission from surface point `p` (error `p_error`, front normal `n`) of an area light of
+/// area `area` with radiance `radiance`, aimed by `aim`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn emit_from_surface(
+    aim: &Aim,
+    p: Vec3A,
+    p_error: Vec3A,
+    n: Vec3A,
+    area: f32,
+    radiance: Spectrum,
+    two_sided: bool,
+    u_dir: Vec2,
+    u_extra: f32,
+) -> Option<Emission> {
+    let (d, flux) = match aim {
+        Aim::Projection(map) => {
+            let (d, pdf) = map.sample(u_extra, u_dir)?;
+            let cos = n.dot(d);
+            if cos <= 0.0 && !two_sided {
+                return None;
+            }
+            (d, radiance * (cos.abs() * area / pdf))
+        }
+        _ => {
+            // Cosine-weighted about the emitting side: Le cos / (1/A · cos/π) = Le π A.
+            let (side, sides) = match (two_sided, u_extra < 0.5) {
+                (false, _) => (n, 1.0),
+                (true, true) => (n, 2.0),
+                (true, false) => (-n, 2.0),
+            };
+            let local = square_to_cosine_hemisphere(u_dir);
+            if local.z <= 0.0 {
+                return None;
+            }
+            let d = Frame::from_normal(side).to_world(local);
+            (d, radiance * (crate::math::PI * area * sides))
+        }
+    };
+    Some(Emission {
+        ray: Ray::new(offset_ray_origin(p, p_error, n, d), d),
+        flux,
+    })
+}
+
+/// An emission of a light at infinity travelling along `d` with radiance `le` (per unit
+/// solid-angle density `pdf_dir`, 1 for a delta direction), from the disk covering `target`.
+pub(crate) fn emit_from_disk(
+    target: Target,
+    d: Vec3A,
+    le: Spectrum,
+    pdf_dir: f32,
+    u_pos: Vec2,
+) -> Emission {
+    let r = target.radius.max(f32::MIN_POSITIVE);
+    let disk = square_to_disk(u_pos) * r;
+    let frame = Frame::from_normal(d);
+    let o = target.center + frame.to_world(Vec3A::new(disk.x, disk.y, 0.0)) - d * r;
+    Emission {
+        ray: Ray::new(o, d),
+        flux: le * (crate::math::PI * r * r / pdf_dir),
+    }
+}
 
 /// Where a shadow ray toward a light sample must reach.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -98,6 +189,39 @@ impl Light {
         }
     }
 
+    /// A photon leaving the light, aimed by `aim` (`u_pos` picks the point, `u_dir` the
+    /// direction, `u_extra` the side of a two-sided emitter or a projection-map cell).
+    pub fn sample_le(&self, aim: &Aim, u_pos: Vec2, u_dir: Vec2, u_extra: f32) -> Option<Emission> {
+        let e = match self {
+            Light::Triangle(l) => l.sample_le(aim, u_pos, u_dir, u_extra),
+            Light::Sphere(l) => l.sample_le(aim, u_pos, u_dir, u_extra),
+            Light::Point(l) => l.sample_le(aim, u_dir, u_extra),
+            Light::Spot(l) => l.sample_le(aim, u_dir, u_extra),
+            Light::Directional(l) => l.sample_le(aim, u_pos),
+            Light::Environment(l) => l.sample_le(aim, u_pos, u_dir),
+        }?;
+        (e.flux.is_finite() && e.flux.max_element() > 0.0).then_some(e)
+    }
+
+    /// The sphere that contains the light's emitting points; `None` at infinity.
+    pub fn bounds(&self) -> Option<Target> {
+        match self {
+            Light::Triangle(l) => Some(l.bounds()),
+            Light::Sphere(l) => Some(l.bounds()),
+            Light::Point(l) => Some(l.bounds()),
+            Light::Spot(l) => Some(l.bounds()),
+            Light::Directional(_) | Light::Environment(_) => None,
+        }
+    }
+
+    /// A spot light's emission cone: axis and half-angle.
+    pub fn cone(&self) -> Option<(Vec3A, f32)> {
+        match self {
+            Light::Spot(l) => Some(l.cone()),
+            _ => None,
+        }
+    }
+
     /// Emitted power (luminance-weighted watts) used to choose among lights; `scene_radius`
     /// bounds the scene for lights at infinity.
     pub fn power(&self, scene_radius: f32) -> f32 {
@@ -148,6 +272,14 @@ impl LightSet {
     pub fn choose(&self, u: f32) -> Option<(u32, f32)> {
         let (i, p, _) = self.choice.as_ref()?.sample_discrete(u);
         (p > 0.0).then_some((i as u32, p))
+    }
+
+    pub fn len(&self) -> usize {
+        self.lights.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.lights.is_empty()
     }
 
     /// Probability that [`Self::choose`] picks light `i`.

@@ -1,9 +1,11 @@
 //! Isotropic point light with radiant intensity I (W/sr, already per scene unit²).
 
-use glam::Vec3A;
+use glam::{Vec2, Vec3A};
 
-use super::{LightSample, ShadowTarget, lum};
+use super::{Aim, Emission, LightSample, ShadowTarget, Target, lum};
 use crate::math::PI;
+use crate::ray::Ray;
+use crate::sampling::square_to_uniform_sphere;
 use crate::spectrum::Spectrum;
 
 #[derive(Debug, Clone)]
@@ -27,6 +29,39 @@ impl PointLight {
     pub fn power(&self) -> f32 {
         4.0 * PI * lum(self.intensity)
     }
+
+    pub fn sample_le(&self, aim: &Aim, u_dir: Vec2, u_extra: f32) -> Option<Emission> {
+        emit_from_point(self.position, aim, u_dir, u_extra, |_| self.intensity)
+    }
+
+    pub fn bounds(&self) -> Target {
+        Target {
+            center: self.position,
+            radius: 0.0,
+        }
+    }
+}
+
+/// A photon from a point light at `position` with intensity `intensity(w)` toward `w`:
+/// I / pdf, with the direction uniform over the sphere or over a projection map's cells.
+pub(super) fn emit_from_point(
+    position: Vec3A,
+    aim: &Aim,
+    u_dir: Vec2,
+    u_extra: f32,
+    intensity: impl FnOnce(Vec3A) -> Spectrum,
+) -> Option<Emission> {
+    let (d, pdf) = match aim {
+        Aim::Projection(map) => map.sample(u_extra, u_dir)?,
+        _ => (
+            square_to_uniform_sphere(u_dir),
+            crate::sampling::UNIFORM_SPHERE_PDF,
+        ),
+    };
+    Some(Emission {
+        ray: Ray::new(position, d),
+        flux: intensity(d) / pdf,
+    })
 }
 
 /// Incident light at `p` from a point light at `position` whose intensity toward the unit

@@ -1,10 +1,10 @@
 //! Spot light: intensity I along its axis, a smooth-step fall-off from `cos_falloff_start` to
 //! zero at `cos_cone` (pbrt-v4 §12.1.2).
 
-use glam::Vec3A;
+use glam::{Vec2, Vec3A};
 
-use super::point::from_point;
-use super::{LightSample, lum};
+use super::point::{emit_from_point, from_point};
+use super::{Aim, Emission, LightSample, Target, lum};
 use crate::math::PI;
 use crate::spectrum::Spectrum;
 
@@ -50,6 +50,24 @@ impl SpotLight {
         from_point(self.position, p, |w| {
             self.intensity * self.falloff(self.direction.dot(w))
         })
+    }
+
+    pub fn sample_le(&self, aim: &Aim, u_dir: Vec2, u_extra: f32) -> Option<Emission> {
+        emit_from_point(self.position, aim, u_dir, u_extra, |w| {
+            self.intensity * self.falloff(self.direction.dot(w))
+        })
+    }
+
+    pub fn bounds(&self) -> Target {
+        Target {
+            center: self.position,
+            radius: 0.0,
+        }
+    }
+
+    /// Axis and half-angle of the cone outside which the light is dark.
+    pub fn cone(&self) -> (Vec3A, f32) {
+        (self.direction, self.cos_cone.clamp(-1.0, 1.0).acos())
     }
 
     pub fn power(&self) -> f32 {

@@ -18,10 +18,11 @@ use tessera_scene::IntegratorKind;
 pub struct ErrorArgs {
     /// The scene file (scene.json).
     pub scene: Option<PathBuf>,
-    /// The converged reference image (OpenEXR, the scene's resolution).
+    /// The converged reference image (OpenEXR). Its size is the size rendered (the scene's
+    /// vertical field of view is kept, as `tessera reference --size` does).
     #[arg(long)]
     pub reference: Option<PathBuf>,
-    /// Integrators to compare, comma-separated: path, direct, auto.
+    /// Integrators to compare, comma-separated: path, direct, auto, photon.
     #[arg(long, value_delimiter = ',', default_value = "path,direct")]
     pub integrators: Vec<String>,
     /// Budgets, comma-separated and increasing: samples per pixel (`64`) or seconds of wall
@@ -62,13 +63,9 @@ fn parse_budget(s: &str) -> anyhow::Result<Budget> {
 }
 
 fn integrator_kind(name: &str) -> anyhow::Result<IntegratorKind> {
-    match name.trim() {
-        "path" => Ok(IntegratorKind::Path),
-        "direct" => Ok(IntegratorKind::Direct),
-        other => {
-            anyhow::bail!("--integrators: unknown integrator \"{other}\"; expected path or direct")
-        }
-    }
+    name.parse::<tessera_farm::job::IntegratorName>()
+        .map(|n| n.kind())
+        .map_err(|e| anyhow::anyhow!("--integrators: {e}"))
 }
 
 /// One checkpoint of one integrator.
@@ -130,17 +127,10 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         .iter()
         .map(|n| Ok((n.trim().to_string(), integrator_kind(n)?)))
         .collect::<anyhow::Result<_>>()?;
-    let base = tessera_scene::load(&scene_path)?;
+    let mut base = tessera_scene::load(&scene_path)?;
     let reference = tessera_render::read_exr(&reference_path)?;
-    ensure!(
-        (reference.width, reference.height) == (base.film.width, base.film.height),
-        "{}: the reference is {}×{}, the scene renders {}×{}",
-        reference_path.display(),
-        reference.width,
-        reference.height,
-        base.film.width,
-        base.film.height
-    );
+    base.film.width = reference.width;
+    base.film.height = reference.height;
     let reference: Vec<glam::Vec3A> = reference.pixels.iter().map(|&p| p.into()).collect();
     let threads = args
         .threads
@@ -160,10 +150,18 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
             &Limits::default(),
         )
         .map_err(anyhow::Error::msg)?;
+        // The clock includes building the scene and any passes (photon maps, irradiance
+        // records): time to an error is time from the scene file.
+        let (start, cpu0) = (Instant::now(), crate::render::cpu_seconds());
         let prepared = pool.install(|| Prepared::new(desc.clone()));
+        for p in &prepared.passes {
+            crate::print(&format!(
+                "{name:>8} pass: {p} ({:.2} s setup)\n",
+                prepared.build_seconds
+            ))?;
+        }
         let camera = prepared.camera(1);
         let mut acc = Accumulator::new(&desc, job::DEFAULT_TILE);
-        let (start, cpu0) = (Instant::now(), crate::render::cpu_seconds());
         for budget in &budgets {
             match *budget {
                 Budget::Samples(n) => pool.install(|| acc.render_to(&prepared, &camera, n)),

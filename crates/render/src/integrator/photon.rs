@@ -1,0 +1,523 @@
+//! Photon mapping with final gathering (Jensen 2001, ch. 9 "A Practical Two-Pass Algorithm"),
+//! and Ward's irradiance cache for the gathered term.
+//!
+//! The camera path is traced like a path tracer through specular and glossy surfaces (light
+//! sampling with MIS where a lobe has a density). At the first surface with a diffuse
+//! component, radiance is split (Jensen 2001 eq. 9.4):
+//!
+//! - direct light: next-event estimation, exact;
+//! - caustics: the caustic map's radiance estimate (cone or Gaussian filter);
+//! - indirect diffuse: from the irradiance cache (Lambertian surfaces, where a record serves)
+//!   or by final gathering: rays sampled from the BSDF, followed through specular bounces, that
+//!   read the global map's radiance estimate where they first meet a non-specular surface.
+//!   Emitters a gather ray meets count nothing: that light is direct (or a caustic) here.
+
+use std::sync::Arc;
+
+use glam::{UVec2, Vec2, Vec3, Vec3A};
+use rayon::prelude::*;
+use tessera_scene::SceneDesc;
+
+use crate::analysis::Analysis;
+
+use super::{FirstHit, Integrator, RadianceSample, RayStats, consistent, sample_direct};
+use crate::bsdf::TransportMode;
+use crate::camera::Camera;
+use crate::film::Tile;
+use crate::irradiance::{self, IrradianceCache, Record};
+use crate::math::{Frame, PI};
+use crate::photon::{PhotonMaps, PhotonSettings};
+use crate::ray::Ray;
+use crate::sampler::hash::hash;
+use crate::sampler::{PixelSampler, Sampler};
+use crate::sampling::power_heuristic;
+use crate::scene::{Material, NO_LIGHT, Scene, SurfaceInteraction};
+use crate::spectrum::{Spectrum, is_black};
+use tessera_scene::PhotonFilter;
+
+/// Specular bounces a gather ray follows before giving up.
+const GATHER_SPECULAR_DEPTH: u32 = 8;
+
+/// Record candidates per side of a record-pass tile.
+pub const RECORD_TILE: u32 = 8;
+
+/// The frames whose cameras make a fly-through's irradiance records: every `step`-th frame of
+/// the scene's camera path from the first, and the last (frame 1 for a still). A property of
+/// the scene, not of the frames a job renders, so every job and frame reads the same cache.
+pub fn keyframes(desc: &SceneDesc, step: u32) -> Vec<u32> {
+    let n = desc.frame_count();
+    let mut out: Vec<u32> = (1..=n).step_by(step.max(1) as usize).collect();
+    if out.last() != Some(&n) {
+        out.push(n);
+    }
+    out
+}
+
+pub struct PhotonIntegrator {
+    settings: PhotonSettings,
+    rr_depth: u32,
+    maps: Arc<PhotonMaps>,
+    cache: Option<Arc<IrradianceCache>>,
+}
+
+/// Where a camera path meets its first diffuse surface (for the record pass).
+struct GatherPoint {
+    si: SurfaceInteraction,
+    /// Shading normal turned toward the viewer.
+    n: Vec3A,
+}
+
+impl PhotonIntegrator {
+    pub fn new(
+        settings: PhotonSettings,
+        rr_depth: u32,
+        maps: Arc<PhotonMaps>,
+        cache: Option<Arc<IrradianceCache>>,
+    ) -> Self {
+        PhotonIntegrator {
+            settings,
+            rr_depth,
+            maps,
+            cache,
+        }
+    }
+
+    /// The integrator for `desc` with its passes run in-process: both maps shot in chunks on
+    /// the rayon pool, the record pass over every keyframe's pre-render tiles, each merged in
+    /// order — the same artifacts a farm's pass tasks make. Returns what was decided.
+    pub fn prepare(desc: &SceneDesc, scene: &Scene, analysis: &Analysis) -> (Self, Vec<String>) {
+        let (settings, mut why) = PhotonSettings::resolve(desc, scene, analysis);
+        let maps = Arc::new(PhotonMaps::shoot(scene, &settings));
+        why.push(format!(
+            "photon maps: {} global photons stored of {} shot, {} caustic of {}",
+            maps.global.tree.len(),
+            settings.photons,
+            maps.caustic.tree.len(),
+            settings.caustic_photons
+        ));
+        let mut integrator = PhotonIntegrator::new(settings, desc.integrator.rr_depth, maps, None);
+        if let Some(ic) = settings.irradiance_cache {
+            let keyframes = keyframes(desc, ic.keyframe_step);
+            let tiles = integrator.record_tiles(desc.film.width, desc.film.height);
+            let mut records = Vec::new();
+            for &frame in &keyframes {
+                let camera = Camera::new(&desc.camera_at(frame), &desc.film);
+                let parts: Vec<Vec<Record>> = tiles
+                    .par_iter()
+                    .map(|&t| {
+                        integrator.record_pass(scene, &camera, t, frame, &mut RayStats::default())
+                    })
+                    .collect();
+                records.extend(parts.into_iter().flatten());
+            }
+            why.push(format!(
+                "irradiance cache: {} records (a = {}) from {} keyframe{}",
+                records.len(),
+                ic.accuracy,
+                keyframes.len(),
+                if keyframes.len() == 1 { "" } else { "s" }
+            ));
+            integrator.cache = Some(Arc::new(IrradianceCache::build(records, ic.accuracy)));
+        } else {
+            why.push("irradiance cache: off — final gathering at every camera sample".into());
+        }
+        (integrator, why)
+    }
+
+    pub fn settings(&self) -> &PhotonSettings {
+        &self.settings
+    }
+
+    pub fn maps(&self) -> &PhotonMaps {
+        &self.maps
+    }
+
+    pub fn cache(&self) -> Option<&IrradianceCache> {
+        self.cache.as_deref()
+    }
+
+    /// The record pass's tiles: the candidate grid of a `width`×`height` film in 8×8 tiles.
+    pub fn record_tiles(&self, width: u32, height: u32) -> Vec<Tile> {
+        let grid = self.candidate_grid(width, height);
+        crate::film::tiles(grid.x, grid.y, RECORD_TILE)
+    }
+
+    /// Radiance arriving along `ray` from the global map at the first non-specular surface it
+    /// meets (through at most a few specular bounces), and the distance to the first surface
+    /// (infinite if none).
+    fn gather_ray(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+    ) -> (Spectrum, f32) {
+        let mut beta = Spectrum::ONE;
+        let mut first_t = f32::INFINITY;
+        for bounce in 0..GATHER_SPECULAR_DEPTH {
+            stats.rays += 1;
+            let Some(si) = scene.intersect(&ray) else {
+                break;
+            };
+            if bounce == 0 {
+                first_t = si.t;
+            }
+            let material = scene.material(si.material);
+            let wo = -ray.d;
+            if material.flags.smooth {
+                let s = &self.settings;
+                let l =
+                    self.maps
+                        .global
+                        .radiance(&si, material, wo, s.k, s.radius, PhotonFilter::Box);
+                return (beta * l, first_t);
+            }
+            if material.is_black() {
+                break;
+            }
+            // Delta-only surface: follow it.
+            let frame = material.frame(&si, wo);
+            let wo_local = frame.to_local(wo);
+            let u = sampler.get_3d();
+            let Some(bs) =
+                material
+                    .bsdf
+                    .sample(wo_local, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
+            else {
+                break;
+            };
+            beta *= bs.weight();
+            if is_black(beta) {
+                break;
+            }
+            ray = si.spawn(frame.to_world(bs.wi));
+        }
+        (Spectrum::ZERO, first_t)
+    }
+
+    /// Indirect radiance toward `wo` at a diffuse vertex by final gathering: `gather_rays`
+    /// directions sampled from the BSDF, each reading the global map where it lands.
+    #[allow(clippy::too_many_arguments)]
+    fn final_gather(
+        &self,
+        scene: &Scene,
+        si: &SurfaceInteraction,
+        material: &Material,
+        frame: &Frame,
+        wo: Vec3A,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+    ) -> Spectrum {
+        let n = self.settings.gather_rays;
+        let wo_local = frame.to_local(wo);
+        let mut sum = Spectrum::ZERO;
+        for _ in 0..n {
+            let u = sampler.get_3d();
+            let Some(bs) =
+                material
+                    .bsdf
+                    .sample(wo_local, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
+            else {
+                continue;
+            };
+            let wi = frame.to_world(bs.wi);
+            if !consistent(si, wo, wi, wo_local, bs.wi) {
+                continue;
+            }
+            let (l, _) = self.gather_ray(scene, si.spawn(wi), sampler, stats);
+            sum += bs.weight() * l;
+        }
+        sum / n as f32
+    }
+
+    /// Indirect irradiance at `gp` by Ward's stratified hemisphere: M × N cosine-weighted
+    /// strata (N ≈ πM) over the gather rays, E = π/(MN) Σ L; R the harmonic mean distance,
+    /// clamped to [r_min, r_max].
+    fn record(
+        &self,
+        scene: &Scene,
+        gp: &GatherPoint,
+        rays: u32,
+        (r_min, r_max): (f32, f32),
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+    ) -> Record {
+        let m = ((rays as f32 / PI).sqrt().round() as u32).max(1);
+        let n = ((rays / m).max(1)).max(1);
+        let frame = Frame::from_normal(gp.n);
+        let mut sum = Spectrum::ZERO;
+        let mut inv_dist = 0.0f32;
+        for j in 0..m {
+            for k in 0..n {
+                let u = sampler.get_2d();
+                let sin2 = (j as f32 + u.x) / m as f32;
+                let (sin, cos) = (sin2.sqrt(), (1.0 - sin2).max(0.0).sqrt());
+                let phi = 2.0 * PI * (k as f32 + u.y) / n as f32;
+                let local = Vec3A::new(sin * phi.cos(), sin * phi.sin(), cos);
+                let wi = frame.to_world(local);
+                if wi.dot(gp.si.ng) * gp.n.dot(gp.si.ng) <= 0.0 {
+                    continue;
+                }
+                let (l, t) = self.gather_ray(scene, gp.si.spawn(wi), sampler, stats);
+                sum += l;
+                if t.is_finite() && t > 0.0 {
+                    inv_dist += 1.0 / t;
+                }
+            }
+        }
+        let count = (m * n) as f32;
+        let r = if inv_dist > 0.0 {
+            count / inv_dist
+        } else {
+            r_max
+        };
+        Record {
+            p: Vec3::from(gp.si.p),
+            n: Vec3::from(gp.n),
+            e: Vec3::from(sum * (PI / count)),
+            r: r.clamp(r_min, r_max.max(r_min)),
+        }
+    }
+
+    /// Follows a ray through specular surfaces to the first surface with a diffuse component.
+    fn first_diffuse(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+    ) -> Option<GatherPoint> {
+        for _ in 0..GATHER_SPECULAR_DEPTH {
+            stats.rays += 1;
+            let si = scene.intersect(&ray)?;
+            let material = scene.material(si.material);
+            let wo = -ray.d;
+            if material.flags.diffuse {
+                let n = if si.ns.dot(wo) < 0.0 { -si.ns } else { si.ns };
+                return Some(GatherPoint { si, n });
+            }
+            if !material.flags.specular {
+                return None;
+            }
+            let frame = material.frame(&si, wo);
+            let u = sampler.get_3d();
+            let bs = material.bsdf.sample(
+                frame.to_local(wo),
+                u.x,
+                Vec2::new(u.y, u.z),
+                TransportMode::Radiance,
+            )?;
+            ray = si.spawn(frame.to_world(bs.wi));
+        }
+        None
+    }
+
+    /// The record pass over one tile of the pre-render: one candidate every `spacing` pixels
+    /// of the film seen by `camera`; in the tile's own order, a record is made at each
+    /// Lambertian candidate that the records made so far (by this tile) do not serve.
+    /// A pure function of (scene, maps, camera, tile, key): `key` (the frame) seeds it.
+    pub fn record_pass(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        tile: Tile,
+        key: u32,
+        stats: &mut RayStats,
+    ) -> Vec<Record> {
+        let Some(ic) = self.settings.irradiance_cache else {
+            return Vec::new();
+        };
+        let s = ic.spacing.max(1);
+        let mut sampler = PixelSampler::new(
+            self.settings.sampler,
+            hash(&[self.settings.seed, 0x1cac_4e00, key as u64]),
+        );
+        let mut records: Vec<Record> = Vec::new();
+        let r_max = scene.radius;
+        for pixel in tile.pixels() {
+            sampler.start_pixel_sample(pixel, 0);
+            let film = Vec2::new(
+                (pixel.x * s) as f32 + 0.5 * s as f32,
+                (pixel.y * s) as f32 + 0.5 * s as f32,
+            );
+            if film.x >= scene.film.width as f32 + s as f32
+                || film.y >= scene.film.height as f32 + s as f32
+            {
+                continue;
+            }
+            let ray = camera.generate_ray(film, Vec2::splat(0.5));
+            let Some(gp) = self.first_diffuse(scene, ray, &mut sampler, stats) else {
+                continue;
+            };
+            if scene.material(gp.si.material).bsdf.lambertian().is_none() {
+                continue;
+            }
+            if irradiance::served(&records, gp.si.p, gp.n, ic.accuracy) {
+                continue;
+            }
+            // Records must reach at least 1.5 candidate spacings: the validity radius a·R is
+            // held above that footprint, so every pixel near a candidate is served.
+            let r_min = 1.5 * s as f32 * camera.pixel_footprint(gp.si.p) / ic.accuracy;
+            records.push(self.record(
+                scene,
+                &gp,
+                ic.gather_rays,
+                (r_min, r_max),
+                &mut sampler,
+                stats,
+            ));
+        }
+        records
+    }
+
+    /// The grid of record candidates for a film of `width`×`height`: one per `spacing` pixels.
+    pub fn candidate_grid(&self, width: u32, height: u32) -> UVec2 {
+        let s = self
+            .settings
+            .irradiance_cache
+            .map_or(1, |c| c.spacing.max(1));
+        UVec2::new(width.div_ceil(s), height.div_ceil(s))
+    }
+
+    /// Indirect diffuse radiance toward `wo` at a gather vertex.
+    #[allow(clippy::too_many_arguments)]
+    fn indirect(
+        &self,
+        scene: &Scene,
+        si: &SurfaceInteraction,
+        material: &Material,
+        frame: &Frame,
+        wo: Vec3A,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+    ) -> Spectrum {
+        if let (Some(cache), Some(rho)) = (&self.cache, material.bsdf.lambertian()) {
+            let n = if si.ns.dot(wo) < 0.0 { -si.ns } else { si.ns };
+            if let Some(e) = cache.lookup(si.p, n) {
+                return rho * e * crate::math::INV_PI;
+            }
+        }
+        self.final_gather(scene, si, material, frame, wo, sampler, stats)
+    }
+}
+
+impl Integrator for PhotonIntegrator {
+    fn li(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+    ) -> RadianceSample {
+        let s = &self.settings;
+        let mut l = Spectrum::ZERO;
+        let mut beta = Spectrum::ONE;
+        let mut eta_scale = 1.0f32;
+        let mut specular = true;
+        let mut prev_p = ray.o;
+        let mut prev_pdf = 0.0f32;
+        let mut first_hit = None;
+        let mut depth = 0u32;
+        loop {
+            stats.rays += 1;
+            let Some(si) = scene.intersect(&ray) else {
+                for (i, light) in scene.lights.environment() {
+                    let w = if specular {
+                        1.0
+                    } else {
+                        power_heuristic(
+                            prev_pdf,
+                            scene.lights.pmf(i) * light.pdf_li_direction(ray.d),
+                        )
+                    };
+                    l += beta * light.le_direction(ray.d) * w;
+                }
+                break;
+            };
+            let material = scene.material(si.material);
+            if depth == 0 {
+                first_hit = Some(FirstHit {
+                    albedo: material.bsdf.albedo(),
+                    normal: si.ns,
+                    p: si.p,
+                });
+            }
+            let wo = -ray.d;
+            if si.light != NO_LIGHT {
+                let light = scene.lights.get(si.light);
+                let le = light.le_surface(si.ng, wo);
+                if !is_black(le) {
+                    let w = if specular {
+                        1.0
+                    } else {
+                        power_heuristic(
+                            prev_pdf,
+                            scene.lights.pmf(si.light) * light.pdf_li_surface(prev_p, si.p, si.ng),
+                        )
+                    };
+                    l += beta * le * w;
+                }
+            }
+            if depth >= s.max_depth || material.is_black() {
+                break;
+            }
+            depth += 1;
+            let frame = material.frame(&si, wo);
+            if material.flags.diffuse {
+                // The gather vertex: direct + caustics + indirect, and the path ends.
+                let u = sampler.get_3d();
+                let mut here = sample_direct(scene, &si, material, &frame, wo, u, false, stats);
+                here += self.maps.caustic.radiance(
+                    &si,
+                    material,
+                    wo,
+                    s.caustic_k,
+                    s.caustic_radius,
+                    s.caustic_filter,
+                );
+                here += self.indirect(scene, &si, material, &frame, wo, sampler, stats);
+                l += beta * here;
+                break;
+            }
+            // Specular or glossy: traced like a path tracer.
+            if material.flags.smooth {
+                let u = sampler.get_3d();
+                l += beta * sample_direct(scene, &si, material, &frame, wo, u, true, stats);
+            }
+            let wo_local = frame.to_local(wo);
+            let u = sampler.get_4d();
+            let Some(bs) =
+                material
+                    .bsdf
+                    .sample(wo_local, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
+            else {
+                break;
+            };
+            let wi = frame.to_world(bs.wi);
+            if !consistent(&si, wo, wi, wo_local, bs.wi) {
+                break;
+            }
+            beta *= bs.weight();
+            if bs.transmission {
+                eta_scale *= bs.eta * bs.eta;
+            }
+            specular = bs.specular;
+            prev_pdf = bs.pdf;
+            prev_p = si.p;
+            ray = si.spawn(wi);
+            if is_black(beta) {
+                break;
+            }
+            if depth >= self.rr_depth {
+                let survive = (beta * eta_scale).max_element();
+                if survive < 1.0 {
+                    if u.w >= survive {
+                        break;
+                    }
+                    beta /= survive;
+                }
+            }
+        }
+        RadianceSample { l, first_hit }
+    }
+}

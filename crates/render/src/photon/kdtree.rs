@@ -1,0 +1,244 @@
+//! A balanced kd-tree of photons in one array (Jensen 2001, §6.3): each subarray's median on
+//! its widest axis is its root, the halves on either side are the subtrees. Built once from the
+//! photons in index order, so the tree — and every search — is a pure function of the map.
+//!
+//! Our own rather than kiddo: the search is flattened toward a disc along the query's surface
+//! normal (the distance is |Δ|² + f·(Δ·n)², so photons on a wall around a corner do not leak
+//! into the floor's estimate), a metric that depends on the query, which kiddo's fixed
+//! per-type distance metrics cannot express.
+
+use glam::{Vec3, Vec3A};
+
+/// Most photons one search may return (the candidates live on the stack).
+pub const MAX_K: usize = 1024;
+
+/// A photon at rest on a surface.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+pub struct Photon {
+    pub p: Vec3,
+    /// Power, W (RGB).
+    pub power: Vec3,
+    /// Unit direction toward where the photon came from.
+    pub wi: Vec3,
+}
+
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct KdTree {
+    photons: Vec<Photon>,
+    /// Split axis of the subtree rooted at each index.
+    axes: Vec<u8>,
+}
+
+impl KdTree {
+    pub fn build(mut photons: Vec<Photon>) -> KdTree {
+        let mut axes = vec![0u8; photons.len()];
+        balance(&mut photons, &mut axes);
+        KdTree { photons, axes }
+    }
+
+    pub fn len(&self) -> usize {
+        self.photons.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.photons.is_empty()
+    }
+
+    pub fn photons(&self) -> &[Photon] {
+        &self.photons
+    }
+
+    pub fn get(&self, i: u32) -> &Photon {
+        &self.photons[i as usize]
+    }
+
+    /// Collects into `knn` the nearest photons to `p` under the distance
+    /// |Δ|² + `flatten`·(Δ·`n`)² (Δ = photon − p; `n` unit), within `knn`'s radius.
+    pub fn nearest(&self, p: Vec3A, n: Vec3A, flatten: f32, knn: &mut Knn) {
+        let q = Vec3::from(p);
+        self.search(0, self.photons.len(), q, Vec3::from(n), flatten, knn);
+    }
+
+    fn search(&self, lo: usize, hi: usize, q: Vec3, n: Vec3, flatten: f32, knn: &mut Knn) {
+        if lo >= hi {
+            return;
+        }
+        let mid = (lo + hi) / 2;
+        let ph = &self.photons[mid];
+        let axis = self.axes[mid] as usize;
+        let delta = q[axis] - ph.p[axis];
+        // The flattened distance is at least the Euclidean one, so a subtree beyond the
+        // current radius along one axis cannot hold a closer photon.
+        let (near, far) = if delta < 0.0 {
+            ((lo, mid), (mid + 1, hi))
+        } else {
+            ((mid + 1, hi), (lo, mid))
+        };
+        self.search(near.0, near.1, q, n, flatten, knn);
+        let d = ph.p - q;
+        let dn = d.dot(n);
+        let d2 = d.length_squared() + flatten * dn * dn;
+        if d2 < knn.max_d2 {
+            knn.insert(d2, mid as u32);
+        }
+        if delta * delta < knn.max_d2 {
+            self.search(far.0, far.1, q, n, flatten, knn);
+        }
+    }
+}
+
+/// Puts the median of `photons` on its widest axis at the middle, smaller ones before and
+/// larger after, recursively.
+fn balance(photons: &mut [Photon], axes: &mut [u8]) {
+    if photons.len() <= 1 {
+        return;
+    }
+    let (lo, hi) = photons.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), ph| (lo.min(ph.p), hi.max(ph.p)),
+    );
+    let extent = hi - lo;
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    let mid = photons.len() / 2;
+    photons.select_nth_unstable_by(mid, |a, b| a.p[axis].total_cmp(&b.p[axis]));
+    axes[mid] = axis as u8;
+    let (left, rest) = photons.split_at_mut(mid);
+    let (left_axes, rest_axes) = axes.split_at_mut(mid);
+    balance(left, left_axes);
+    balance(&mut rest[1..], &mut rest_axes[1..]);
+}
+
+/// The k nearest photons found so far: a max-heap on distance once full, its top the radius.
+pub struct Knn {
+    items: [(f32, u32); MAX_K],
+    len: usize,
+    k: usize,
+    /// Squared search radius: the initial limit, then the k-th distance once k are found.
+    pub max_d2: f32,
+}
+
+impl Knn {
+    /// A search for the `k` (≤ [`MAX_K`]) nearest within squared radius `max_d2`.
+    pub fn new(k: usize, max_d2: f32) -> Knn {
+        Knn {
+            items: [(0.0, 0); MAX_K],
+            len: 0,
+            k: k.clamp(1, MAX_K),
+            max_d2,
+        }
+    }
+
+    /// (squared distance, photon index) of what was found, in a deterministic order.
+    pub fn found(&self) -> &[(f32, u32)] {
+        &self.items[..self.len]
+    }
+
+    /// Whether k photons were found (the radius is the k-th distance).
+    pub fn is_full(&self) -> bool {
+        self.len == self.k
+    }
+
+    fn insert(&mut self, d2: f32, i: u32) {
+        if self.len < self.k {
+            self.items[self.len] = (d2, i);
+            self.len += 1;
+            if self.len == self.k {
+                for j in (0..self.k / 2).rev() {
+                    self.sift_down(j);
+                }
+                self.max_d2 = self.items[0].0;
+            }
+        } else {
+            self.items[0] = (d2, i);
+            self.sift_down(0);
+            self.max_d2 = self.items[0].0;
+        }
+    }
+
+    fn sift_down(&mut self, mut j: usize) {
+        let n = self.len;
+        loop {
+            let (l, r) = (2 * j + 1, 2 * j + 2);
+            let mut m = j;
+            if l < n && self.items[l].0 > self.items[m].0 {
+                m = l;
+            }
+            if r < n && self.items[r].0 > self.items[m].0 {
+                m = r;
+            }
+            if m == j {
+                return;
+            }
+            self.items.swap(j, m);
+            j = m;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampler::hash::{hash, u32_to_unit};
+
+    fn random_photons(n: usize) -> Vec<Photon> {
+        (0..n)
+            .map(|i| {
+                let h = hash(&[i as u64, 7]);
+                let c = |s: u32| u32_to_unit((h >> s) as u32);
+                Photon {
+                    p: Vec3::new(c(0), c(21), c(42) * 0.2),
+                    power: Vec3::ONE,
+                    wi: Vec3::Z,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn nearest_matches_brute_force_with_and_without_flattening() {
+        let photons = random_photons(5000);
+        let tree = KdTree::build(photons.clone());
+        for (qi, flatten) in [(0u64, 0.0f32), (1, 0.0), (2, 24.0), (3, 24.0), (4, 3.0)] {
+            let h = hash(&[qi, 99]);
+            let q = Vec3A::new(u32_to_unit(h as u32), u32_to_unit((h >> 32) as u32), 0.1);
+            let n = Vec3A::new(0.3, -0.2, 1.0).normalize();
+            let dist = |ph: &Photon| {
+                let d = Vec3A::from(ph.p) - q;
+                d.length_squared() + flatten * d.dot(n) * d.dot(n)
+            };
+            for (k, r2) in [(1usize, 1.0f32), (50, 1.0), (50, 0.001), (700, 0.05)] {
+                let mut knn = Knn::new(k, r2);
+                tree.nearest(q, n, flatten, &mut knn);
+                let mut got: Vec<f32> = knn
+                    .found()
+                    .iter()
+                    .map(|&(d2, i)| {
+                        assert_eq!(d2, dist(tree.get(i)));
+                        d2
+                    })
+                    .collect();
+                got.sort_by(f32::total_cmp);
+                let mut want: Vec<f32> = photons.iter().map(dist).filter(|&d| d < r2).collect();
+                want.sort_by(f32::total_cmp);
+                want.truncate(k);
+                assert_eq!(got, want, "k {k} r² {r2} flatten {flatten}");
+                assert_eq!(knn.is_full(), want.len() == k);
+            }
+        }
+    }
+
+    #[test]
+    fn an_empty_tree_finds_nothing() {
+        let tree = KdTree::build(Vec::new());
+        let mut knn = Knn::new(10, 1.0);
+        tree.nearest(Vec3A::ZERO, Vec3A::Z, 0.0, &mut knn);
+        assert!(knn.found().is_empty());
+    }
+}
