@@ -421,3 +421,96 @@ fn an_adaptive_job_adds_rounds_and_equals_an_adaptive_render() {
         "the farm's adaptive frame differs from tessera render's"
     );
 }
+
+/// Status of a job's pass: (state, built by).
+fn pass(job: &JobStatus, kind: tessera_farm::job::PassKind) -> (String, Option<i64>, String) {
+    let p = job
+        .passes
+        .iter()
+        .find(|p| p.kind == kind)
+        .unwrap_or_else(|| panic!("no {kind:?} pass in {:?}", job.passes));
+    (p.state.clone(), p.built_by, p.key.clone())
+}
+
+#[test]
+fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_changes() {
+    use tessera_farm::job::PassKind::{Photons, Records};
+    let dir = tempfile::tempdir().expect("temp dir");
+    // A copy of the Cornell box whose material we can change.
+    let scene_dir = dir.path().join("cornell");
+    std::fs::create_dir_all(&scene_dir).expect("dir");
+    let source = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box");
+    for e in std::fs::read_dir(&source).expect("scene dir").flatten() {
+        let name = e.file_name();
+        if name.to_string_lossy().ends_with(".obj") || name == "scene.json" {
+            std::fs::copy(e.path(), scene_dir.join(&name)).expect("copy");
+        }
+    }
+    let scene = scene_dir.join("scene.json");
+    let (_serve, url) = serve(&dir.path().join("data"), "127.0.0.1:0", "30");
+    let _a = worker(&url, "a", &dir.path().join("a.log"));
+    let _b = worker(&url, "b", &dir.path().join("b.log"));
+    let rt = runtime();
+    let client = Client::new(&url, CLIENT_TOKEN).expect("client");
+    let args = ["--integrator", "photon", "--size", "32x32", "--spp", "2"];
+    let submit = || {
+        let o = Command::new(exe())
+            .arg("submit")
+            .arg(&scene)
+            .args(["--coordinator", &url, "--token", CLIENT_TOKEN])
+            .args(args)
+            .output()
+            .expect("run tessera submit");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        let id: i64 = out
+            .split_whitespace()
+            .nth(1)
+            .and_then(|id| id.parse().ok())
+            .unwrap_or_else(|| panic!("no job id in {out}"));
+        let job = wait_for(&rt, &client, id, Duration::from_secs(120));
+        assert_eq!(job.state, JobState::Done, "{:?}", job.error);
+        job
+    };
+
+    // First job: both passes built here, and the frame equals tessera render's.
+    let first = submit();
+    let (state, by, photons_key) = pass(&first, Photons);
+    assert_eq!((state.as_str(), by), ("built", Some(first.id)));
+    assert_eq!(pass(&first, Records).0, "built");
+    let farm = rt.block_on(client.frame_exr(first.id, 1)).expect("frame");
+    let local = dir.path().join("local.exr");
+    let o = Command::new(exe())
+        .arg("render")
+        .arg(&scene)
+        .arg("-o")
+        .arg(&local)
+        .arg("-q")
+        .args(args)
+        .output()
+        .expect("run tessera render");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        std::fs::read(&local).expect("render") == farm,
+        "the farm's photon-mapped frame differs from tessera render's"
+    );
+
+    // The same scene again: nothing to build, only tiles; the same image.
+    let again = submit();
+    assert_eq!(pass(&again, Photons), ("reused".into(), Some(first.id), photons_key.clone()));
+    assert_eq!(pass(&again, Records).0, "reused");
+    assert_eq!(again.tasks.total, 1, "one 32×32 tile, no pass tasks");
+    assert!(rt.block_on(client.frame_exr(again.id, 1)).expect("frame") == farm);
+
+    // One material changed: a new key, both passes built by the new job.
+    let text = std::fs::read_to_string(&scene).expect("scene");
+    let changed = text.replace("[0.570068, 0.0430135, 0.0443706]", "[0.2, 0.5, 0.7]");
+    assert_ne!(changed, text, "the red wall's albedo is in the scene");
+    std::fs::write(&scene, changed).expect("write");
+    let repainted = submit();
+    let (state, by, key) = pass(&repainted, Photons);
+    assert_eq!((state.as_str(), by), ("built", Some(repainted.id)));
+    assert_ne!(key, photons_key);
+    assert_eq!(pass(&repainted, Records).0, "built");
+    assert!(rt.block_on(client.frame_exr(repainted.id, 1)).expect("frame") != farm);
+}

@@ -80,6 +80,12 @@ impl Client {
         Ok(r.bytes().await?.to_vec())
     }
 
+    pub async fn download_artifact(&self, key: &str) -> anyhow::Result<Vec<u8>> {
+        let r =
+            Self::send(self.request(reqwest::Method::GET, &format!("/v1/artifacts/{key}"))).await?;
+        Ok(r.bytes().await?.to_vec())
+    }
+
     pub async fn submit(&self, job: &JobRequest) -> anyhow::Result<JobStatus> {
         Self::json(self.request(reqwest::Method::POST, "/v1/jobs").json(job)).await
     }

@@ -138,6 +138,7 @@ mod tests {
     #[test]
     fn round_trips_and_rejects_the_wrong_tile() {
         let task = TaskSpec {
+            kind: crate::job::TaskKind::Tile,
             frame: 1,
             tile_index: 0,
             x0: 2,

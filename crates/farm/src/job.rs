@@ -11,6 +11,7 @@ use tessera_render::analysis::Analysis;
 use tessera_render::camera::Camera;
 use tessera_render::film::{MAX_SPP, TileSums, tiles};
 use tessera_render::output::{ExrMetadata, write_exr, write_png};
+use tessera_render::photon::PhotonSettings;
 use tessera_render::{Image, Integrator, RayStats, SampleRange, Scene, Tile, integrator, render};
 use tessera_scene::{IntegratorKind, SceneDesc};
 
@@ -44,6 +45,10 @@ pub struct RenderSettings {
     /// The integrator (default: the scene's `integrator.type`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub integrator: Option<IntegratorName>,
+    /// Reuse cached pass artifacts (photon maps, irradiance caches) whose key matches
+    /// (default true). False builds them anew for this job — for measurements.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reuse: Option<bool>,
 }
 
 /// Integrators a job may ask for by name.
@@ -268,9 +273,84 @@ pub fn apply(
     Ok(())
 }
 
-/// One unit of work: samples `samples` of the pixels of `tile` in frame `frame`.
+/// What a task computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum TaskKind {
+    /// Samples `sample_start..sample_end` of the pixels of a tile of frame `frame`.
+    #[default]
+    Tile,
+    /// Photons `sample_start..sample_end` of the global map (frame 0).
+    GlobalPhotons,
+    /// Photons `sample_start..sample_end` of the caustic map (frame 0).
+    CausticPhotons,
+    /// Irradiance records over the tile `x0..x1 × y0..y1` of the record-candidate grid of
+    /// keyframe `frame`.
+    Records,
+}
+
+impl TaskKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TaskKind::Tile => "tile",
+            TaskKind::GlobalPhotons => "global_photons",
+            TaskKind::CausticPhotons => "caustic_photons",
+            TaskKind::Records => "records",
+        }
+    }
+
+    pub fn parse(s: &str) -> TaskKind {
+        match s {
+            "global_photons" => TaskKind::GlobalPhotons,
+            "caustic_photons" => TaskKind::CausticPhotons,
+            "records" => TaskKind::Records,
+            _ => TaskKind::Tile,
+        }
+    }
+
+    /// The pass this task belongs to (`None` for tiles).
+    pub fn pass(self) -> Option<PassKind> {
+        match self {
+            TaskKind::Tile => None,
+            TaskKind::GlobalPhotons | TaskKind::CausticPhotons => Some(PassKind::Photons),
+            TaskKind::Records => Some(PassKind::Records),
+        }
+    }
+}
+
+/// A precomputation pass, merged into one artifact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PassKind {
+    /// The global and caustic photon maps.
+    Photons,
+    /// The irradiance cache.
+    Records,
+}
+
+impl PassKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PassKind::Photons => "photons",
+            PassKind::Records => "records",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<PassKind> {
+        match s {
+            "photons" => Some(PassKind::Photons),
+            "records" => Some(PassKind::Records),
+            _ => None,
+        }
+    }
+}
+
+/// One unit of work: samples `samples` of the pixels of `tile` in frame `frame`, or a piece
+/// of a pass (see [`TaskKind`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 pub struct TaskSpec {
+    #[serde(default)]
+    pub kind: TaskKind,
     pub frame: u32,
     /// Position of the tile in the frame's tile order (the stitch order).
     pub tile_index: u32,
@@ -325,6 +405,7 @@ pub fn plan_frame(desc: &SceneDesc, settings: &RenderSettings, frame: u32) -> Ve
         while start < spp {
             let end = (start + chunk).min(spp);
             out.push(TaskSpec {
+                kind: TaskKind::Tile,
                 frame,
                 tile_index: i as u32,
                 x0: t.x0,
@@ -346,7 +427,11 @@ pub struct Prepared {
     pub scene: Scene,
     /// What scene analysis decided (the integrator among it).
     pub analysis: Analysis,
-    pub integrator: Box<dyn Integrator>,
+    /// Photon-mapping settings, when the integrator maps photons.
+    pub photon: Option<PhotonSettings>,
+    /// The integrator; `None` for photon mapping on a worker, whose passes come as
+    /// artifacts (`passes::integrator`).
+    integrator: Option<Box<dyn Integrator>>,
     /// What the integrator's passes decided and built (photon counts, records).
     pub passes: Vec<String>,
     /// Seconds spent building (the scene and the passes).
@@ -354,19 +439,42 @@ pub struct Prepared {
 }
 
 impl Prepared {
-    pub fn new(desc: SceneDesc) -> Self {
+    /// The scene built and any passes run in this process, for rendering `frames`.
+    pub fn new(desc: SceneDesc, frames: FrameRange) -> Self {
+        let start = Instant::now();
+        let mut p = Self::scene_only(desc);
+        let (integrator, passes) =
+            integrator::prepare(&p.desc, &p.scene, &p.analysis, frames.first..=frames.last);
+        p.integrator = Some(integrator);
+        p.passes = passes;
+        p.build_seconds = start.elapsed().as_secs_f64();
+        p
+    }
+
+    /// The scene built, no passes run: a worker's, whose passes arrive as artifacts.
+    pub fn scene_only(desc: SceneDesc) -> Self {
         let start = Instant::now();
         let scene = Scene::build(&desc);
         let analysis = tessera_render::analysis::analyze(&desc);
-        let (integrator, passes) = integrator::prepare(&desc, &scene, &analysis);
+        let photon = (analysis.integrator == IntegratorKind::Photon)
+            .then(|| PhotonSettings::resolve(&desc, &analysis).0);
+        let integrator = photon.is_none().then(|| {
+            integrator::prepare(&desc, &scene, &analysis, 1..=1).0
+        });
         Prepared {
             desc,
             scene,
             analysis,
+            photon,
             integrator,
-            passes,
+            passes: Vec::new(),
             build_seconds: start.elapsed().as_secs_f64(),
         }
+    }
+
+    /// The integrator, if it needs no artifacts or had its passes run here.
+    pub fn integrator(&self) -> Option<&dyn Integrator> {
+        self.integrator.as_deref()
     }
 
     /// The camera of `frame`.
@@ -374,21 +482,30 @@ impl Prepared {
         Camera::new(&self.desc.camera_at(frame), &self.desc.film)
     }
 
-    /// Renders one task.
+    /// Renders one tile task (with this process's integrator: see [`Self::new`]).
     pub fn execute(&self, task: &TaskSpec) -> TaskOutput {
         let camera = self.camera(task.frame);
         self.execute_with(&camera, task)
     }
 
-    /// Renders one task with a camera already made for its frame.
+    /// Renders one tile task with a camera already made for its frame.
     pub fn execute_with(&self, camera: &Camera, task: &TaskSpec) -> TaskOutput {
-        let (sums, stats) = render::render_tile(
-            &self.scene,
-            camera,
-            self.integrator.as_ref(),
-            task.tile(),
-            task.samples(),
-        );
+        let integrator = self
+            .integrator
+            .as_deref()
+            .expect("Prepared::new makes the integrator; workers use execute_using");
+        self.execute_using(integrator, camera, task)
+    }
+
+    /// Renders one tile task with `integrator`.
+    pub fn execute_using(
+        &self,
+        integrator: &dyn Integrator,
+        camera: &Camera,
+        task: &TaskSpec,
+    ) -> TaskOutput {
+        let (sums, stats) =
+            render::render_tile(&self.scene, camera, integrator, task.tile(), task.samples());
         TaskOutput { sums, stats }
     }
 }
@@ -527,7 +644,7 @@ pub(crate) mod tests {
     #[test]
     fn any_split_into_tasks_stitches_to_the_same_image() {
         let desc = cornell();
-        let prepared = Prepared::new(desc.clone());
+        let prepared = Prepared::new(desc.clone(), FrameRange::single(1));
         let frame = |settings: &RenderSettings| {
             let tasks = plan_frame(&desc, settings, 1);
             let outs: Vec<TaskOutput> = tasks.iter().map(|t| prepared.execute(t)).collect();

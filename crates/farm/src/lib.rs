@@ -7,6 +7,7 @@ pub mod client;
 pub mod codec;
 pub mod coordinator;
 pub mod job;
+pub mod passes;
 pub mod progressive;
 pub mod protocol;
 pub mod store;

@@ -17,6 +17,8 @@ use tessera_render::{Image, RayStats, SampleRange, metrics, render};
 use tessera_scene::SceneDesc;
 
 use crate::job::Prepared;
+#[cfg(test)]
+use crate::job::FrameRange;
 
 /// A frame accumulated over successive sample ranges (progressive rendering): per-tile sums
 /// merged in sample order, so the image after N samples is bit-identical to rendering
@@ -80,13 +82,11 @@ impl Accumulator {
                     start: sums.samples.end,
                     end: *end,
                 };
-                let (more, stats) = render::render_tile(
-                    &prepared.scene,
-                    camera,
-                    prepared.integrator.as_ref(),
-                    sums.tile,
-                    range,
-                );
+                let integrator = prepared
+                    .integrator()
+                    .expect("in-process renders run their passes in Prepared::new");
+                let (more, stats) =
+                    render::render_tile(&prepared.scene, camera, integrator, sums.tile, range);
                 sums.merge(&more);
                 stats
             })
@@ -275,7 +275,7 @@ mod tests {
     #[test]
     fn progressive_accumulation_equals_one_render() {
         let desc = cornell();
-        let prepared = Prepared::new(desc.clone());
+        let prepared = Prepared::new(desc.clone(), FrameRange::single(1));
         let camera = prepared.camera(1);
         let mut acc = Accumulator::new(&desc, 16);
         acc.render_to(&prepared, &camera, 1);
@@ -292,7 +292,7 @@ mod tests {
     #[test]
     fn adaptive_sampling_puts_more_samples_where_it_is_noisy_and_is_deterministic() {
         let desc = cornell();
-        let prepared = Prepared::new(desc.clone());
+        let prepared = Prepared::new(desc.clone(), FrameRange::single(1));
         let camera = prepared.camera(1);
         let rule = Adaptive {
             target_rel_mse: Some(0.02),
@@ -316,7 +316,7 @@ mod tests {
     fn the_adaptive_error_estimate_is_honest_on_the_cornell_box() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box");
         let desc = tessera_scene::load(&path.join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
-        let prepared = Prepared::new(desc);
+        let prepared = Prepared::new(desc, FrameRange::single(1));
         let camera = prepared.camera(1);
         let rule = Adaptive {
             target_rel_mse: Some(4e-3),

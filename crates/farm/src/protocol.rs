@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::job::{FrameRange, RenderSettings, TaskSpec};
+use crate::job::{FrameRange, PassKind, RenderSettings, TaskSpec};
 
 /// An error, as every 4xx/5xx response carries it.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
@@ -140,6 +140,32 @@ pub struct JobStatus {
     pub error: Option<String>,
     /// What the core decided to do for this scene.
     pub decisions: Vec<String>,
+    /// Precomputation passes (photon maps, irradiance cache): built here or reused.
+    #[serde(default)]
+    pub passes: Vec<PassStatus>,
+}
+
+/// A pass of a job and the artifact it makes or reuses.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct PassStatus {
+    pub kind: PassKind,
+    /// The artifact's key: a hash of everything that determines it.
+    pub key: String,
+    /// `reused` (an artifact with this key was cached), `waiting`, `running` or `built`.
+    pub state: String,
+    pub tasks_done: u64,
+    pub tasks_total: u64,
+    /// The job that built the artifact (this one, if built here), once it exists.
+    pub built_by: Option<i64>,
+    /// Size of the artifact, bytes.
+    pub bytes: Option<u64>,
+}
+
+/// An artifact a task reads (download with `GET /v1/artifacts/{key}`).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct ArtifactRef {
+    pub kind: PassKind,
+    pub key: String,
 }
 
 /// One task of a job.
@@ -198,6 +224,9 @@ pub struct LeaseGrant {
     pub scene: String,
     pub settings: RenderSettings,
     pub task: TaskSpec,
+    /// Artifacts the task reads, by key.
+    #[serde(default)]
+    pub artifacts: Vec<ArtifactRef>,
 }
 
 /// A worker renewing its lease.

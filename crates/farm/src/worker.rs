@@ -1,7 +1,8 @@
 //! The worker loop: lease a task, render it with the core, heartbeat while it runs, upload the
 //! result. Scenes are cached per job, so a job's bundle is downloaded and its BVH built once
-//! per worker, not once per tile. Workers keep no state that matters: any worker may run any
-//! task, and a task may run twice.
+//! per worker, not once per tile; so are the pass artifacts (photon maps, irradiance records)
+//! a job's tasks name. Workers keep no state that matters: any worker may run any task, and a
+//! task may run twice.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
 use std::sync::{Arc, Mutex};
@@ -13,8 +14,10 @@ use tokio::sync::OnceCell;
 use crate::bundle::Bundle;
 use crate::client::{Client, is_transient, status_of};
 use crate::codec;
-use crate::job::{self, FrameRange, Limits, Prepared};
+use crate::job::{self, FrameRange, Limits, PassKind, Prepared, TaskKind};
+use crate::passes;
 use crate::protocol::{Failure, Heartbeat, LeaseGrant, LeaseRequest, WorkerInfo};
+use tessera_render::integrator::PhotonIntegrator;
 
 #[derive(Debug, Clone)]
 pub struct WorkerConfig {
@@ -31,6 +34,35 @@ pub struct WorkerConfig {
 const CACHED_JOBS: usize = 4;
 
 type SceneCell = Arc<OnceCell<Arc<Prepared>>>;
+type IntegratorCell = Arc<OnceCell<Arc<PhotonIntegrator>>>;
+
+/// The cell for `key` in a small LRU list of cells (created empty if missing).
+fn cell_for<K: PartialEq, T>(list: &Mutex<Vec<(K, Arc<OnceCell<T>>)>>, key: K) -> Arc<OnceCell<T>> {
+    let mut list = list.lock().unwrap_or_else(|e| e.into_inner());
+    match list.iter().position(|(k, _)| *k == key) {
+        Some(i) => {
+            let entry = list.remove(i);
+            let cell = entry.1.clone();
+            list.push(entry);
+            cell
+        }
+        None => {
+            let cell = Arc::new(OnceCell::new());
+            list.push((key, cell.clone()));
+            if list.len() > CACHED_JOBS {
+                list.remove(0);
+            }
+            cell
+        }
+    }
+}
+
+/// Forgets the cell for `key` (a failed initialisation is not cached).
+fn forget<K: PartialEq, T>(list: &Mutex<Vec<(K, Arc<OnceCell<T>>)>>, key: &K) {
+    list.lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .retain(|(k, _)| k != key);
+}
 
 struct Worker {
     config: WorkerConfig,
@@ -40,6 +72,8 @@ struct Worker {
     scene_builds: AtomicU64,
     /// Scenes by job id, least recently used first; each built once (the cell).
     cache: Mutex<Vec<(i64, SceneCell)>>,
+    /// Photon-mapping integrators by (job, artifact keys), built from downloaded artifacts.
+    integrators: Mutex<Vec<((i64, String), IntegratorCell)>>,
 }
 
 pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
@@ -56,6 +90,7 @@ pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
         host,
         scene_builds: AtomicU64::new(0),
         cache: Mutex::new(Vec::new()),
+        integrators: Mutex::new(Vec::new()),
         config,
     });
     tracing::info!(worker = %worker.id, coordinator = %worker.config.coordinator, slots = worker.config.slots, "worker started");
@@ -99,6 +134,27 @@ fn watch_parent(parent: u32) {
 
 #[cfg(not(unix))]
 fn watch_parent(_parent: u32) {}
+
+/// Runs one task: a tile with the job's integrator (the photon one when given), or a pass.
+fn run_spec(
+    prepared: &Prepared,
+    photon: Option<&PhotonIntegrator>,
+    spec: &job::TaskSpec,
+) -> Result<Vec<u8>, String> {
+    match spec.kind {
+        TaskKind::Tile => {
+            let integrator: &dyn tessera_render::Integrator = match photon {
+                Some(p) => p,
+                None => prepared
+                    .integrator()
+                    .ok_or("a photon-mapping tile task without its pass artifacts")?,
+            };
+            let camera = prepared.camera(spec.frame);
+            Ok(codec::encode(&prepared.execute_using(integrator, &camera, spec)))
+        }
+        _ => Ok(passes::encode_output(&passes::execute(prepared, photon, spec)?)),
+    }
+}
 
 /// Retries `f` while the coordinator is unreachable or answers 5xx, backing off up to 5 s,
 /// for at most `patience`.
@@ -157,34 +213,19 @@ impl Worker {
 
     /// The scene of a job, loaded and built once per worker.
     async fn prepared(&self, grant: &LeaseGrant) -> anyhow::Result<Arc<Prepared>> {
-        let cell = {
-            let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-            match cache.iter().position(|(job, _)| *job == grant.job_id) {
-                Some(i) => {
-                    let entry = cache.remove(i);
-                    cache.push(entry.clone());
-                    entry.1
-                }
-                None => {
-                    let cell = Arc::new(OnceCell::new());
-                    cache.push((grant.job_id, cell.clone()));
-                    if cache.len() > CACHED_JOBS {
-                        cache.remove(0);
-                    }
-                    cell
-                }
-            }
-        };
+        let cell = cell_for(&self.cache, grant.job_id);
         let prepared = cell
             .get_or_try_init(|| async {
                 let bytes = retrying("bundle download", Duration::from_secs(600), || {
                     self.client.download_bundle(&grant.bundle)
                 })
                 .await?;
+                // Pass tasks of photon maps have no frame: any of the job's frames will do
+                // to check the settings.
                 let (scene, settings, frame) = (
                     grant.scene.clone(),
                     grant.settings.clone(),
-                    grant.task.frame,
+                    grant.task.frame.max(1),
                 );
                 let prepared = tokio::task::spawn_blocking(move || -> anyhow::Result<Prepared> {
                     let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
@@ -196,7 +237,7 @@ impl Worker {
                         &Limits::default(),
                     )
                     .map_err(anyhow::Error::msg)?;
-                    Ok(Prepared::new(desc))
+                    Ok(Prepared::scene_only(desc))
                 })
                 .await??;
                 self.scene_builds.fetch_add(1, Relaxed);
@@ -211,9 +252,55 @@ impl Worker {
         match prepared {
             Ok(p) => Ok(p.clone()),
             Err(e) => {
-                // Do not cache a failure: the next task tries again.
-                let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-                cache.retain(|(job, _)| *job != grant.job_id);
+                forget(&self.cache, &grant.job_id);
+                Err(e)
+            }
+        }
+    }
+
+    /// The photon-mapping integrator of a task's artifacts (maps, and records for tiles),
+    /// downloaded and decoded once per worker.
+    async fn photon_integrator(
+        &self,
+        grant: &LeaseGrant,
+        prepared: &Arc<Prepared>,
+    ) -> anyhow::Result<Arc<PhotonIntegrator>> {
+        let keys: Vec<&str> = grant.artifacts.iter().map(|a| a.key.as_str()).collect();
+        let id = (grant.job_id, keys.join(","));
+        let cell = cell_for(&self.integrators, id.clone());
+        let integ = cell
+            .get_or_try_init(|| async {
+                let (mut maps, mut records) = (None, None);
+                for a in &grant.artifacts {
+                    let bytes = retrying("artifact download", Duration::from_secs(600), || {
+                        self.client.download_artifact(&a.key)
+                    })
+                    .await?;
+                    match a.kind {
+                        PassKind::Photons => maps = Some(bytes),
+                        PassKind::Records => records = Some(bytes),
+                    }
+                }
+                let prepared = prepared.clone();
+                let integ = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
+                    let maps = maps.context("the task names no photon-map artifact")?;
+                    let maps = passes::decode_maps(&maps).map_err(anyhow::Error::msg)?;
+                    let records = records
+                        .map(|b| passes::decode_records(&b))
+                        .transpose()
+                        .map_err(anyhow::Error::msg)?;
+                    passes::integrator(&prepared, Arc::new(maps), records)
+                        .map_err(anyhow::Error::msg)
+                })
+                .await??;
+                tracing::info!(job = grant.job_id, artifacts = %id.1, "pass artifacts loaded");
+                anyhow::Ok(Arc::new(integ))
+            })
+            .await;
+        match integ {
+            Ok(i) => Ok(i.clone()),
+            Err(e) => {
+                forget(&self.integrators, &id);
                 Err(e)
             }
         }
@@ -227,8 +314,21 @@ impl Worker {
         let outcome = async {
             let prepared = self.prepared(&grant).await.context("loading the scene")?;
             let spec = grant.task;
-            let out = tokio::task::spawn_blocking(move || {
-                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| prepared.execute(&spec)))
+            let photon = if spec.kind == TaskKind::Records
+                || (spec.kind == TaskKind::Tile && !grant.artifacts.is_empty())
+            {
+                Some(
+                    self.photon_integrator(&grant, &prepared)
+                        .await
+                        .context("loading the pass artifacts")?,
+                )
+            } else {
+                None
+            };
+            tokio::task::spawn_blocking(move || {
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    run_spec(&prepared, photon.as_deref(), &spec)
+                }))
             })
             .await?
             .map_err(|panic| {
@@ -238,8 +338,8 @@ impl Worker {
                     .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
                     .unwrap_or_else(|| "unknown panic".into());
                 anyhow::anyhow!("the renderer panicked: {what}")
-            })?;
-            anyhow::Ok(codec::encode(&out))
+            })?
+            .map_err(anyhow::Error::msg)
         }
         .await;
         let seconds = start.elapsed().as_secs_f64();

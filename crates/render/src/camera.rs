@@ -83,6 +83,24 @@ impl Camera {
             && d.dot(self.up).abs() <= z * self.tan_half
     }
 
+    /// Raster position of the world point `p` (through the lens centre), if in front of the
+    /// camera: the inverse of [`Self::generate_ray`] for a pinhole.
+    pub fn project(&self, p: Vec3A) -> Option<Vec2> {
+        let d = p - self.position;
+        let z = d.dot(self.forward);
+        if z <= 0.0 {
+            return None;
+        }
+        let ndc = Vec2::new(
+            d.dot(self.right) / (z * self.tan_half * self.aspect),
+            d.dot(self.up) / (z * self.tan_half),
+        );
+        Some(Vec2::new(
+            (ndc.x + 1.0) * 0.5 * self.size.x,
+            (1.0 - ndc.y) * 0.5 * self.size.y,
+        ))
+    }
+
     /// Width in scene units of one pixel's footprint at the depth of `p` (pinhole).
     #[inline]
     pub fn pixel_footprint(&self, p: Vec3A) -> f32 {
@@ -129,6 +147,17 @@ mod tests {
         let r = c.generate_ray(Vec2::ZERO, Vec2::ZERO);
         let expect = Vec3A::new(2.0, 1.0, 1.0).normalize();
         assert!((r.d - expect).length() < 1e-5, "{}", r.d);
+    }
+
+    #[test]
+    fn project_inverts_generate_ray() {
+        let c = camera(Lens::Pinhole);
+        for film in [Vec2::new(100.0, 50.0), Vec2::new(3.5, 97.25), Vec2::new(181.0, 12.0)] {
+            let r = c.generate_ray(film, Vec2::ZERO);
+            let back = c.project(r.at(7.0)).expect("in front");
+            assert!((back - film).length() < 1e-3, "{film} → {back}");
+        }
+        assert_eq!(c.project(Vec3A::new(0.0, 0.0, -6.0)), None);
     }
 
     #[test]

@@ -118,8 +118,6 @@ pub struct Scene {
     /// Bounding sphere of all geometry.
     pub center: Vec3A,
     pub radius: f32,
-    /// Total area of all surfaces, scene units².
-    pub surface_area: f32,
     /// Every mesh and sphere: its bounding sphere and material (projection maps aim at them).
     pub objects: Vec<(Target, u32)>,
     pub stats: SceneStats,
@@ -133,7 +131,6 @@ impl Scene {
         let mut triangle_light = Vec::new();
         let mut lights = Vec::new();
         let mut emissive_triangles = 0;
-        let mut surface_area = 0.0f64;
         let mut objects = Vec::with_capacity(desc.meshes.len() + desc.spheres.len());
         for (mi, m) in desc.meshes.iter().enumerate() {
             let first_triangle = triangles.len() as u32;
@@ -159,7 +156,6 @@ impl Scene {
                 let v = [a, b, c].map(|i| Vec3A::from(m.positions[i as usize]));
                 // With vertex normals, the normals decide the front face: wind to agree.
                 let winding = (v[1] - v[0]).cross(v[2] - v[0]);
-                surface_area += 0.5 * winding.length() as f64;
                 let flip = normals.as_ref().is_some_and(|n| {
                     winding.dot(n[a as usize] + n[b as usize] + n[c as usize]) < 0.0
                 });
@@ -197,7 +193,6 @@ impl Scene {
         for s in &desc.spheres {
             let center = Vec3A::from(s.center);
             sphere_geometry.push((center, s.radius));
-            surface_area += 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2);
             objects.push((
                 Target {
                     center,
@@ -300,7 +295,6 @@ impl Scene {
             integrator: desc.integrator,
             center,
             radius,
-            surface_area: surface_area as f32,
             objects,
             stats,
         }

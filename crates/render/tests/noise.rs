@@ -18,29 +18,13 @@ const SPP: u32 = 256;
 
 /// (value, variance) per pixel and channel of an EXR written by `tessera`.
 fn read_with_variance(path: &Path) -> (usize, usize, Vec<[(f32, f32); 3]>) {
-    use exr::prelude::*;
-    let image = read_all_flat_layers_from_file(path).expect("reference EXR");
-    let layer = &image.layer_data[0];
-    let (w, h) = (layer.size.width(), layer.size.height());
-    let channel = |name: &str| -> Vec<f32> {
-        let c = layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name == *name)
-            .unwrap_or_else(|| panic!("channel {name}"));
-        c.sample_data.values_as_f32().collect()
-    };
-    let (r, g, b) = (channel("R"), channel("G"), channel("B"));
-    let (vr, vg, vb) = (
-        channel("variance.R"),
-        channel("variance.G"),
-        channel("variance.B"),
-    );
-    let pixels = (0..w * h)
-        .map(|i| [(r[i], vr[i]), (g[i], vg[i]), (b[i], vb[i])])
+    let bytes = std::fs::read(path).expect("reference EXR");
+    let names = ["R", "G", "B", "variance.R", "variance.G", "variance.B"];
+    let (w, h, c) = tessera_scene::image::read_exr_channels(&bytes, &names).expect("channels");
+    let pixels = (0..(w * h) as usize)
+        .map(|i| [(c[0][i], c[3][i]), (c[1][i], c[4][i]), (c[2][i], c[5][i])])
         .collect();
-    (w, h, pixels)
+    (w as usize, h as usize, pixels)
 }
 
 /// Fraction of pixel channels with |x − r| ≤ z √(Var x + Var r).

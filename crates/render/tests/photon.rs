@@ -3,7 +3,8 @@
 //!
 //! References (32×32, in the scene folders; their EXR headers hold the stopping rule):
 //! `tessera reference scenes/cornell-box/scene.json --size 32x32 --target-error 2e-5` and
-//! `tessera reference scenes/cornell-glass/scene.json --size 32x32 --target-error 5e-5`.
+//! `tessera reference scenes/cornell-glass/scene.json --size 32x32 --target-error 5e-5` (it
+//! stopped at its 65536-spp cap, estimated relMSE 6.5e-5).
 
 use std::path::Path;
 
@@ -96,4 +97,9 @@ fn assert_converges(name: &str) {
 #[test]
 fn photon_mapped_cornell_box_converges_to_the_path_traced_reference() {
     assert_converges("cornell-box");
+}
+
+#[test]
+fn photon_mapped_cornell_glass_converges_to_the_path_traced_reference() {
+    assert_converges("cornell-glass");
 }

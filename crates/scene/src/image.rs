@@ -17,6 +17,38 @@ impl RgbImage {
 }
 
 /// Decodes the first RGB(A) layer of an OpenEXR file. Alpha is ignored.
+/// The named channels of the first layer of an OpenEXR file, as f32 in row order, with the
+/// layer's width and height (e.g. `variance.R` of a Tessera EXR).
+pub fn read_exr_channels(
+    bytes: &[u8],
+    names: &[&str],
+) -> Result<(u32, u32, Vec<Vec<f32>>), String> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| format!("expected an OpenEXR image: {e}"))?;
+    let layer = &image.layer_data;
+    let (w, h) = (layer.size.width() as u32, layer.size.height() as u32);
+    let channels = names
+        .iter()
+        .map(|name| {
+            layer
+                .channel_data
+                .list
+                .iter()
+                .find(|c| c.name == **name)
+                .map(|c| c.sample_data.values_as_f32().collect())
+                .ok_or_else(|| format!("expected a channel named {name}"))
+        })
+        .collect::<std::result::Result<_, String>>()?;
+    Ok((w, h, channels))
+}
+
 pub fn read_exr_rgb(bytes: &[u8]) -> Result<RgbImage, String> {
     use exr::prelude::*;
     let image = read()

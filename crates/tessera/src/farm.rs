@@ -164,6 +164,10 @@ pub struct SubmitArgs {
     /// The integrator: path, direct, auto or photon (overrides the scene's integrator.type).
     #[arg(long)]
     pub integrator: Option<job::IntegratorName>,
+    /// Build pass artifacts (photon maps, irradiance caches) anew even where the coordinator
+    /// has one with the same key.
+    #[arg(long)]
+    pub no_reuse: bool,
     /// Higher runs first.
     #[arg(long, default_value_t = 0)]
     pub priority: i32,
@@ -194,6 +198,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         size: args.size.map(|s| s.0),
         target_error: args.target_error,
         integrator: args.integrator,
+        reuse: args.no_reuse.then_some(false),
     };
     let frames = args.frames.unwrap_or(FrameRange {
         first: 1,

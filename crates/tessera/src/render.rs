@@ -62,6 +62,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         size: args.size.map(|s| s.0),
         target_error: args.target_error,
         integrator: args.integrator,
+        reuse: None,
     };
     let frame = args.frame;
     job::apply(
@@ -93,7 +94,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
 
     let load_time = start.elapsed();
     let tasks = job::plan_frame(&desc, &settings, frame);
-    let prepared = pool.install(|| Prepared::new(desc));
+    let prepared = pool.install(|| Prepared::new(desc, FrameRange::single(frame)));
     let build_time = prepared.build_seconds;
     let desc = &prepared.desc;
     let stats = &prepared.scene.stats;

@@ -21,9 +21,10 @@ use super::error::json_errors;
 use super::{App, AppError, AppResult, now_ms};
 use crate::bundle::{self, Bundle};
 use crate::codec;
-use crate::job::{self, FrameRange};
+use crate::job::{self, FrameRange, PassKind, TaskKind};
+use crate::passes;
 use crate::protocol::*;
-use crate::store::{Completion, NewJob, Retry};
+use crate::store::{CacheEntry, Completion, NewJob, NewPass, PassStart, Retry};
 
 #[derive(OpenApi)]
 #[openapi(
@@ -62,7 +63,9 @@ enum Who {
 
 pub fn router(app: Arc<App>) -> axum::Router {
     let auth = |who: Who| middleware::from_fn_with_state((app.clone(), who), require_token);
-    let result_limit = codec::encoded_len((job::MAX_TILE * job::MAX_TILE) as usize) + 4096;
+    let result_limit = codec::encoded_len((job::MAX_TILE * job::MAX_TILE) as usize)
+        .max(passes::MAX_OUTPUT_BYTES)
+        + 4096;
     let clients = OpenApiRouter::new()
         .routes(routes!(submit_job, list_jobs))
         .routes(routes!(job_status))
@@ -79,6 +82,7 @@ pub fn router(app: Arc<App>) -> axum::Router {
         .route_layer(auth(Who::Client));
     let download = OpenApiRouter::new()
         .routes(routes!(download_bundle))
+        .routes(routes!(download_artifact))
         .route_layer(auth(Who::Either));
     let workers = OpenApiRouter::new()
         .routes(routes!(lease_task))
@@ -211,6 +215,27 @@ async fn download_bundle(
     Ok(([(header::CONTENT_TYPE, "application/x-tar")], bytes).into_response())
 }
 
+/// Download a pass artifact (photon maps, irradiance records) by key.
+#[utoipa::path(get, path = "/v1/artifacts/{key}", tag = "workers",
+    params(("key" = String, Path, description = "the artifact's key (a SHA-256)")),
+    responses((status = 200, content_type = "application/octet-stream", body = Vec<u8>), (status = 404, body = ErrorBody)),
+    security(("token" = [])))]
+async fn download_artifact(
+    State(app): State<Arc<App>>,
+    Path(key): Path<String>,
+) -> AppResult<Response> {
+    let entry = if bundle::is_hash(&key) {
+        app.cached(&key)?
+    } else {
+        None
+    };
+    let Some(entry) = entry else {
+        return Err(AppError::not_found(format!("no artifact {key}")));
+    };
+    let bytes = tokio::fs::read(app.config.data.join(&entry.path)).await?;
+    Ok(([(header::CONTENT_TYPE, "application/octet-stream")], bytes).into_response())
+}
+
 /// Submit a job: a bundle's scene, frames, settings and priority. The scene is validated
 /// before anything is queued.
 #[utoipa::path(post, path = "/v1/jobs", tag = "clients", request_body = JobRequest,
@@ -244,6 +269,59 @@ async fn submit_job(
             .iter()
             .map(|f| job::plan_frame(&desc, &req.settings, f))
             .collect();
+        let mut decisions = job::decisions(&desc);
+        let analysis = tessera_render::analysis::analyze(&desc);
+        let mut new_passes = Vec::new();
+        if let Some(plan) = passes::plan(&desc, &analysis, frames) {
+            decisions.extend(plan.decisions.iter().cloned());
+            let reuse = req.settings.reuse.unwrap_or(true);
+            let cached = |key: &str| -> AppResult<Option<CacheEntry>> {
+                Ok(if reuse { app2.cached(key)? } else { None })
+            };
+            let photons = cached(&plan.photons_key)?;
+            decisions.push(match &photons {
+                Some(e) => format!(
+                    "photon maps: reused — artifact {} ({} bytes) built by job {} has the same geometry, materials, lights and photon settings",
+                    &e.key[..12], e.bytes, e.job
+                ),
+                None => format!(
+                    "photon maps: built by this job in {} tasks{}",
+                    plan.photon_tasks().len(),
+                    if reuse { " (no cached artifact with this key)" } else { " (reuse disabled)" }
+                ),
+            });
+            new_passes.push(NewPass {
+                kind: PassKind::Photons,
+                key: plan.photons_key.clone(),
+                start: if photons.is_some() {
+                    PassStart::Reused
+                } else {
+                    PassStart::Build(plan.photon_tasks())
+                },
+            });
+            if let Some(key) = &plan.records_key {
+                let records = if photons.is_some() { cached(key)? } else { None };
+                decisions.push(match &records {
+                    Some(e) => format!(
+                        "irradiance cache: reused — artifact {} built by job {} (same maps, keyframes {:?} and gather settings)",
+                        &e.key[..12], e.job, plan.keyframes
+                    ),
+                    None => format!(
+                        "irradiance cache: built by this job from keyframes {:?}, frozen before any frame renders",
+                        plan.keyframes
+                    ),
+                });
+                new_passes.push(NewPass {
+                    kind: PassKind::Records,
+                    key: key.clone(),
+                    start: match (&photons, &records) {
+                        (Some(_), Some(_)) => PassStart::Reused,
+                        (Some(_), None) => PassStart::Build(plan.record_tasks(&desc)),
+                        (None, _) => PassStart::Waiting,
+                    },
+                });
+            }
+        }
         Ok(NewJob {
             name: req.name.clone().unwrap_or_else(|| desc.name.clone()),
             priority: req.priority,
@@ -254,8 +332,9 @@ async fn submit_job(
             width: desc.film.width,
             height: desc.film.height,
             spp: desc.integrator.spp,
-            decisions: job::decisions(&desc),
+            decisions,
             tasks,
+            passes: new_passes,
         })
     })
     .await??;
@@ -494,8 +573,12 @@ async fn upload_result(
         tracing::warn!(task = id, lease = q.lease, "stale result dropped");
         return Err(stale(id, q.lease));
     };
-    codec::decode(&body, &spec)
-        .map_err(|e| AppError::bad_request(format!("result of task {id}: {e}")))?;
+    let checked = if spec.kind == TaskKind::Tile {
+        codec::decode(&body, &spec).map(|_| ())
+    } else {
+        passes::decode_output(&body, &spec).map(|_| ())
+    };
+    checked.map_err(|e| AppError::bad_request(format!("result of task {id}: {e}")))?;
     let path = app.tile_path(job_id, id, q.lease);
     let dir = path.parent().map(|p| p.to_path_buf());
     let tmp = path.with_extension("tmp");
@@ -516,7 +599,10 @@ async fn upload_result(
             app.metrics.stale_results.fetch_add(1, Relaxed);
             Err(stale(id, q.lease))
         }
-        Completion::Accepted { frame_complete } => {
+        Completion::Accepted {
+            frame_complete,
+            pass_complete,
+        } => {
             app.metrics.done.fetch_add(1, Relaxed);
             app.metrics.add_tile_seconds(q.seconds);
             tracing::debug!(
@@ -527,6 +613,9 @@ async fn upload_result(
             );
             if let Some(frame) = frame_complete {
                 app.spawn_finish_frame(job_id, frame);
+            }
+            if let Some(pass) = pass_complete {
+                app.spawn_finish_pass(job_id, pass);
             }
             Ok(StatusCode::OK)
         }

@@ -26,7 +26,9 @@ pub use error::{AppError, AppResult};
 
 use crate::bundle::Bundle;
 use crate::codec;
-use crate::job::{self, FrameRange, Limits, TaskOutput, TaskSpec};
+use crate::job::{self, FrameRange, Limits, PassKind, RenderSettings, TaskOutput, TaskSpec};
+use crate::passes::{self, PassOutput, PassPlan};
+use crate::store::{CacheEntry, NextStage};
 use crate::progressive::{self, Adaptive, Round, next_round};
 use crate::store::{Artifact, Retry, Store};
 use metrics::Metrics;
@@ -83,10 +85,13 @@ pub struct App {
     descs: Mutex<HashMap<i64, Arc<JobScene>>>,
 }
 
-/// A job's scene with its settings applied, and the adaptive rule they ask for.
+/// A job's scene with its settings applied, the adaptive rule they ask for, and its passes.
 struct JobScene {
     desc: SceneDesc,
+    settings: RenderSettings,
+    frames: FrameRange,
     adaptive: Option<Adaptive>,
+    plan: Option<PassPlan>,
 }
 
 /// Milliseconds since the Unix epoch.
@@ -111,6 +116,18 @@ impl App {
     fn frame_path(&self, job: i64, frame: u32) -> PathBuf {
         self.job_dir(job).join(job::frame_file_name(frame))
     }
+    /// Where a pass artifact with this key lives.
+    fn artifact_path(&self, key: &str) -> PathBuf {
+        self.config.data.join("cache").join(format!("{key}.bin"))
+    }
+
+    /// The cached artifact with this key, if its file is still there.
+    fn cached(&self, key: &str) -> crate::store::Result<Option<CacheEntry>> {
+        Ok(self
+            .store
+            .cached(key)?
+            .filter(|e| self.config.data.join(&e.path).is_file()))
+    }
 
     /// The scene of a job with its settings applied, read from its bundle once (cached).
     fn job_scene(&self, job: i64) -> anyhow::Result<Arc<JobScene>> {
@@ -122,7 +139,7 @@ impl App {
         {
             return Ok(d.clone());
         }
-        let (hash, scene, settings) = self
+        let (hash, scene, settings, frames) = self
             .store
             .job_source(job)?
             .with_context(|| format!("job {job} is not in the store"))?;
@@ -130,14 +147,14 @@ impl App {
             .with_context(|| format!("bundle {hash} of job {job}"))?;
         let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
         let mut desc = bundle.load(&scene)?;
-        let frames = FrameRange {
-            first: 1,
-            last: desc.frame_count(),
-        };
         job::apply(&mut desc, &settings, frames, &Limits::default()).map_err(anyhow::Error::msg)?;
+        let analysis = tessera_render::analysis::analyze(&desc);
         let scene = Arc::new(JobScene {
             adaptive: job::adaptive_rule(&desc, &settings),
+            plan: passes::plan(&desc, &analysis, frames),
             desc,
+            settings,
+            frames,
         });
         self.descs
             .lock()
@@ -179,6 +196,7 @@ impl App {
                         .map(|&(i, end)| {
                             let t = &tiles[i];
                             TaskSpec {
+                                kind: job::TaskKind::Tile,
                                 frame,
                                 tile_index: i as u32,
                                 x0: t.tile.x0,
@@ -233,6 +251,94 @@ impl App {
                 .remove(&job);
         }
         Ok(job_done)
+    }
+
+    /// A pass's tasks are all done (blocking): merge their outputs in order into the artifact,
+    /// write it under its key, and queue what follows (the next pass, or every frame's tiles).
+    fn finish_pass(&self, job: i64, pass: PassKind) -> anyhow::Result<()> {
+        let scene = self.job_scene(job)?;
+        let plan = scene
+            .plan
+            .as_ref()
+            .with_context(|| format!("job {job} has a {} pass but no pass plan", pass.as_str()))?;
+        let mut outputs = Vec::new();
+        for (task, lease, spec) in self.store.pass_results(job, pass)? {
+            let path = self.tile_path(job, task, lease);
+            let bytes = std::fs::read(&path).with_context(|| path.display().to_string())?;
+            let out = passes::decode_output(&bytes, &spec)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+            outputs.push((spec.kind, out));
+        }
+        let (key, bytes) = match pass {
+            PassKind::Photons => {
+                let maps = passes::merge_photons(
+                    &plan.settings,
+                    outputs.iter().filter_map(|(k, o)| match o {
+                        PassOutput::Photons(p) => Some((*k, p.as_slice())),
+                        PassOutput::Records(_) => None,
+                    }),
+                );
+                (plan.photons_key.clone(), passes::encode_maps(&maps))
+            }
+            PassKind::Records => {
+                let records: Vec<_> = outputs
+                    .iter()
+                    .flat_map(|(_, o)| match o {
+                        PassOutput::Records(r) => r.as_slice(),
+                        PassOutput::Photons(_) => &[],
+                    })
+                    .copied()
+                    .collect();
+                let key = plan
+                    .records_key
+                    .clone()
+                    .context("a records pass without a records key")?;
+                (key, passes::encode_records(&records))
+            }
+        };
+        let path = self.artifact_path(&key);
+        let tmp = path.with_extension("tmp");
+        std::fs::write(&tmp, &bytes).with_context(|| tmp.display().to_string())?;
+        std::fs::rename(&tmp, &path)?;
+        let entry = CacheEntry {
+            key: key.clone(),
+            kind: pass,
+            path: path
+                .strip_prefix(&self.config.data)
+                .unwrap_or(&path)
+                .to_string_lossy()
+                .into_owned(),
+            bytes: bytes.len() as u64,
+            sha256: crate::bundle::hash(&bytes),
+            job,
+        };
+        let next = if pass == PassKind::Photons && plan.records_key.is_some() {
+            NextStage::Pass(PassKind::Records, plan.record_tasks(&scene.desc))
+        } else {
+            NextStage::Tiles(
+                scene
+                    .frames
+                    .iter()
+                    .flat_map(|f| job::plan_frame(&scene.desc, &scene.settings, f))
+                    .collect(),
+            )
+        };
+        self.store.pass_built(job, pass, &entry, &next, now_ms())?;
+        tracing::info!(job, pass = pass.as_str(), key = %key, bytes = bytes.len(), "pass artifact built");
+        self.work.notify_waiters();
+        Ok(())
+    }
+
+    /// Finishes a pass in the background; a failure fails the job with its reason.
+    fn spawn_finish_pass(self: &Arc<Self>, job: i64, pass: PassKind) {
+        let app = self.clone();
+        tokio::task::spawn_blocking(move || {
+            if let Err(e) = app.finish_pass(job, pass) {
+                let message = format!("merging the {} pass: {e:#}", pass.as_str());
+                tracing::error!(job, error = %message, "pass failed");
+                let _ = app.store.fail_job(job, &message, now_ms());
+            }
+        });
     }
 
     /// Finishes a frame in the background; a failure (disk full, say) fails the job with its
@@ -312,7 +418,7 @@ async fn shutdown_signal() {
 
 /// Opens the store, resumes unfinished work, binds and starts serving.
 pub async fn start(config: Config) -> anyhow::Result<Running> {
-    for dir in ["bundles", "jobs"] {
+    for dir in ["bundles", "jobs", "cache"] {
         std::fs::create_dir_all(config.data.join(dir))
             .with_context(|| format!("creating {}", config.data.join(dir).display()))?;
     }
@@ -333,7 +439,11 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         descs: Mutex::new(HashMap::new()),
     });
 
-    // Resume: frames whose last tile arrived just before a restart.
+    // Resume: passes and frames whose last task arrived just before a restart.
+    for (job, pass) in app.store.unfinished_passes()? {
+        tracing::info!(job, pass = pass.as_str(), "merging a pass finished before the restart");
+        app.spawn_finish_pass(job, pass);
+    }
     for (job, frame) in app.store.unstitched_frames()? {
         tracing::info!(job, frame, "stitching a frame finished before the restart");
         app.spawn_finish_frame(job, frame);

@@ -23,7 +23,7 @@ use crate::scene::{Material, Scene, SurfaceInteraction};
 use crate::spectrum::{Spectrum, is_black};
 
 pub use path::PathIntegrator;
-pub use photon::{PhotonIntegrator, keyframes};
+pub use photon::{PhotonIntegrator, RECORD_TILE, keyframes};
 
 /// Whether a pair of directions is reflection (same side) both for the geometric normal and
 /// for the BSDF's local frame. Where shading normals disagree with the geometry, light would
@@ -137,14 +137,18 @@ fn path_family(desc: &IntegratorDesc) -> PathIntegrator {
 /// The integrator that renders `desc` (built as `scene`; `analysis` resolved `auto`), with
 /// any passes it needs (photon maps, irradiance records) run in-process; and what was decided
 /// on the way, for logs and the job status.
+///
+/// `frames` are the frames to be rendered: view-dependent passes (irradiance records) are made
+/// from their cameras.
 pub fn prepare(
     desc: &SceneDesc,
     scene: &Scene,
     analysis: &Analysis,
+    frames: std::ops::RangeInclusive<u32>,
 ) -> (Box<dyn Integrator>, Vec<String>) {
     match analysis.integrator {
         IntegratorKind::Photon => {
-            let (p, why) = PhotonIntegrator::prepare(desc, scene, analysis);
+            let (p, why) = PhotonIntegrator::prepare(desc, scene, analysis, frames);
             (Box::new(p), why)
         }
         kind => (
@@ -157,8 +161,8 @@ pub fn prepare(
     }
 }
 
-/// The integrator for a scene: its own choice, or the one scene analysis makes for `auto`,
-/// passes run in-process.
+/// The integrator for frame 1 of a scene: its own choice, or the one scene analysis makes for
+/// `auto`, passes run in-process.
 pub fn for_scene(desc: &SceneDesc, scene: &Scene) -> Box<dyn Integrator> {
-    prepare(desc, scene, &crate::analysis::analyze(desc)).0
+    prepare(desc, scene, &crate::analysis::analyze(desc), 1..=1).0
 }

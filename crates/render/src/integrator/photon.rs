@@ -41,14 +41,14 @@ const GATHER_SPECULAR_DEPTH: u32 = 8;
 /// Record candidates per side of a record-pass tile.
 pub const RECORD_TILE: u32 = 8;
 
-/// The frames whose cameras make a fly-through's irradiance records: every `step`-th frame of
-/// the scene's camera path from the first, and the last (frame 1 for a still). A property of
-/// the scene, not of the frames a job renders, so every job and frame reads the same cache.
-pub fn keyframes(desc: &SceneDesc, step: u32) -> Vec<u32> {
-    let n = desc.frame_count();
-    let mut out: Vec<u32> = (1..=n).step_by(step.max(1) as usize).collect();
-    if out.last() != Some(&n) {
-        out.push(n);
+/// The frames whose cameras make the irradiance records of a job rendering `frames`: every
+/// `step`-th frame from the first, and the last (V-Ray's "use camera path", Mental Ray's
+/// frozen final-gather maps). One cache, built once, serves every frame of the job.
+pub fn keyframes(frames: std::ops::RangeInclusive<u32>, step: u32) -> Vec<u32> {
+    let last = *frames.end();
+    let mut out: Vec<u32> = frames.step_by(step.max(1) as usize).collect();
+    if out.last() != Some(&last) {
+        out.push(last);
     }
     out
 }
@@ -85,8 +85,13 @@ impl PhotonIntegrator {
     /// The integrator for `desc` with its passes run in-process: both maps shot in chunks on
     /// the rayon pool, the record pass over every keyframe's pre-render tiles, each merged in
     /// order — the same artifacts a farm's pass tasks make. Returns what was decided.
-    pub fn prepare(desc: &SceneDesc, scene: &Scene, analysis: &Analysis) -> (Self, Vec<String>) {
-        let (settings, mut why) = PhotonSettings::resolve(desc, scene, analysis);
+    pub fn prepare(
+        desc: &SceneDesc,
+        scene: &Scene,
+        analysis: &Analysis,
+        frames: std::ops::RangeInclusive<u32>,
+    ) -> (Self, Vec<String>) {
+        let (settings, mut why) = PhotonSettings::resolve(desc, analysis);
         let maps = Arc::new(PhotonMaps::shoot(scene, &settings));
         why.push(format!(
             "photon maps: {} global photons stored of {} shot, {} caustic of {}",
@@ -97,7 +102,7 @@ impl PhotonIntegrator {
         ));
         let mut integrator = PhotonIntegrator::new(settings, desc.integrator.rr_depth, maps, None);
         if let Some(ic) = settings.irradiance_cache {
-            let keyframes = keyframes(desc, ic.keyframe_step);
+            let keyframes = keyframes(frames, ic.keyframe_step);
             let tiles = integrator.record_tiles(desc.film.width, desc.film.height);
             let mut records = Vec::new();
             for &frame in &keyframes {

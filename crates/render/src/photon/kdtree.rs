@@ -37,6 +37,23 @@ impl KdTree {
         KdTree { photons, axes }
     }
 
+    /// A tree from the arrays of [`Self::photons`] and [`Self::axes`] (as stored in an
+    /// artifact); checked for shape, not balance.
+    pub fn from_parts(photons: Vec<Photon>, axes: Vec<u8>) -> Result<KdTree, String> {
+        if photons.len() != axes.len() || axes.iter().any(|&a| a > 2) {
+            return Err(format!(
+                "a photon tree needs one split axis (0–2) per photon: {} photons, {} axes",
+                photons.len(),
+                axes.len()
+            ));
+        }
+        Ok(KdTree { photons, axes })
+    }
+
+    pub fn axes(&self) -> &[u8] {
+        &self.axes
+    }
+
     pub fn len(&self) -> usize {
         self.photons.len()
     }

@@ -85,14 +85,20 @@ impl PhotonSettings {
     /// Resolves the scene's knobs: counts and k from the defaults, a caustic map only where
     /// `analysis` found caustic paths, radii from the scene's surface area and photon counts.
     /// Returns the settings and what was decided, with reasons.
-    pub fn resolve(desc: &SceneDesc, scene: &Scene, analysis: &Analysis) -> (Self, Vec<String>) {
+    /// A function of the description alone (no BVH), so a coordinator can plan and hash
+    /// passes without building the scene.
+    pub fn resolve(desc: &SceneDesc, analysis: &Analysis) -> (Self, Vec<String>) {
         let d = &desc.integrator.photon;
         let mut why = Vec::new();
         let photons = d.photons.unwrap_or(DEFAULT_PHOTONS);
-        let has_caustic_targets = scene
-            .objects
+        let specular: Vec<bool> = desc
+            .materials
             .iter()
-            .any(|(_, m)| scene.material(*m).flags.specular);
+            .map(|m| crate::bsdf::from_desc(&m.kind).flags().specular)
+            .collect();
+        let is_specular = |m: u32| specular.get(m as usize).copied().unwrap_or(false);
+        let has_caustic_targets = desc.meshes.iter().any(|m| is_specular(m.material))
+            || desc.spheres.iter().any(|s| is_specular(s.material));
         let caustic_photons = match d.caustic_photons {
             Some(n) => n,
             None if analysis.caustics && has_caustic_targets => DEFAULT_CAUSTIC_PHOTONS,
@@ -108,7 +114,13 @@ impl PhotonSettings {
         }
         let k = d.k.unwrap_or(DEFAULT_K);
         let caustic_k = d.caustic_k.unwrap_or(DEFAULT_CAUSTIC_K);
-        let area = scene.surface_area.max(f32::MIN_POSITIVE);
+        let area = (desc.meshes.iter().map(|m| m.area()).sum::<f64>()
+            + desc
+                .spheres
+                .iter()
+                .map(|s| 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2))
+                .sum::<f64>())
+        .max(f64::MIN_POSITIVE) as f32;
         let radius = d.radius.unwrap_or_else(|| {
             let r = expected_radius(k, photons as f32 * STORED_PER_EMITTED, area);
             why.push(format!(

@@ -278,14 +278,14 @@ mod tests {
         (desc, scene)
     }
 
-    fn settings(desc: &tessera_scene::SceneDesc, scene: &Scene) -> PhotonSettings {
-        PhotonSettings::resolve(desc, scene, &analyze(desc)).0
+    fn settings(desc: &tessera_scene::SceneDesc) -> PhotonSettings {
+        PhotonSettings::resolve(desc, &analyze(desc)).0
     }
 
     #[test]
     fn a_map_is_bit_identical_whether_shot_as_one_task_or_seven() {
         let (desc, scene) = scene("cornell-glass");
-        let mut s = settings(&desc, &scene);
+        let mut s = settings(&desc);
         s.photons = 7000;
         s.caustic_photons = 7000;
         for kind in [MapKind::Global, MapKind::Caustic] {
@@ -312,7 +312,7 @@ mod tests {
         // that emits L = 1 from both sides. The white sphere receives E = πL all over, so the
         // photons stored on it carry 4π·π W in total, and its reflected radiance is ρE/π = 1.
         let (desc, scene) = scene("hard/white-furnace");
-        let mut s = settings(&desc, &scene);
+        let mut s = settings(&desc);
         s.photons = 400_000;
         let photons = Shooter::new(&scene, &s, MapKind::Global).shoot_parallel(0..s.photons);
         let on_white: Vec<&Photon> = photons.iter().filter(|p| p.p.length() < 1.5).collect();
@@ -337,7 +337,7 @@ mod tests {
     #[test]
     fn caustic_photons_are_aimed_at_the_glass_and_land_below_it() {
         let (desc, scene) = scene("cornell-glass");
-        let mut s = settings(&desc, &scene);
+        let mut s = settings(&desc);
         s.caustic_photons = 20_000;
         let caustic = Shooter::new(&scene, &s, MapKind::Caustic).shoot(0..s.caustic_photons);
         assert!(

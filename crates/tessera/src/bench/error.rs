@@ -153,7 +153,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         // The clock includes building the scene and any passes (photon maps, irradiance
         // records): time to an error is time from the scene file.
         let (start, cpu0) = (Instant::now(), crate::render::cpu_seconds());
-        let prepared = pool.install(|| Prepared::new(desc.clone()));
+        let prepared = pool.install(|| Prepared::new(desc.clone(), FrameRange::single(1)));
         for p in &prepared.passes {
             crate::print(&format!(
                 "{name:>8} pass: {p} ({:.2} s setup)\n",

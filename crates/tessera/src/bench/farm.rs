@@ -52,7 +52,7 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-async fn local_coordinator(
+pub(super) async fn local_coordinator(
     data: PathBuf,
     local_workers: u32,
 ) -> anyhow::Result<(coordinator::Running, Client)> {
@@ -247,7 +247,7 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
 }
 
 /// A fresh scratch directory under the system temp dir.
-fn tempfile_dir() -> anyhow::Result<PathBuf> {
+pub(super) fn tempfile_dir() -> anyhow::Result<PathBuf> {
     let dir = std::env::temp_dir().join(format!("tessera-bench-{}", coordinator::random_token()?));
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     Ok(dir)

@@ -3,9 +3,12 @@
 //! - `tessera bench SCENE --reference REF.exr`: speed against error (`error.rs`).
 //! - `tessera bench farm` / `tessera bench leases`: the farm's overhead and lease throughput
 //!   (`farm.rs`).
+//! - `tessera bench flythrough`: pass artifacts cached across a fly-through's frames against
+//!   built per frame: time and flicker (`flythrough.rs`).
 
 mod error;
 mod farm;
+mod flythrough;
 mod plot;
 
 pub use error::ErrorArgs;
@@ -25,12 +28,15 @@ pub enum BenchCommand {
     Farm(farm::FarmArgs),
     /// Lease throughput with many simulated workers.
     Leases(farm::LeaseArgs),
+    /// A camera-only fly-through on local workers, pass artifacts cached vs built per frame.
+    Flythrough(flythrough::FlythroughArgs),
 }
 
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     match args.command {
         Some(BenchCommand::Farm(a)) => crate::block_on(farm::farm(a)),
         Some(BenchCommand::Leases(a)) => crate::block_on(farm::leases(a)),
+        Some(BenchCommand::Flythrough(a)) => crate::block_on(flythrough::run(a)),
         None => error::run(args.error),
     }
 }

@@ -5,12 +5,16 @@
 //! fenced: every grant is a row of `attempts` whose id is the lease token, and a heartbeat,
 //! result or failure counts only if it carries the task's current token.
 
+mod passes;
+
 use std::path::Path;
 use std::sync::{Mutex, MutexGuard};
 
 use rusqlite::{Connection, OptionalExtension, Transaction, params};
 
-use crate::job::{FrameRange, RenderSettings, TaskSpec};
+pub use passes::{CacheEntry, NewPass, NextStage, PassStart};
+
+use crate::job::{FrameRange, PassKind, RenderSettings, TaskKind, TaskSpec};
 use crate::protocol::{
     FrameStatus, JobState, JobStatus, LeaseGrant, TaskCounts, TaskStatus, WorkerInfo, WorkerStatus,
 };
@@ -63,6 +67,7 @@ CREATE TABLE IF NOT EXISTS tasks (
     x0 INTEGER NOT NULL, y0 INTEGER NOT NULL, x1 INTEGER NOT NULL, y1 INTEGER NOT NULL,
     sample_start INTEGER NOT NULL,
     sample_end INTEGER NOT NULL,
+    kind TEXT NOT NULL DEFAULT 'tile',
     state TEXT NOT NULL,
     attempts INTEGER NOT NULL DEFAULT 0,
     lease INTEGER,
@@ -93,6 +98,24 @@ CREATE TABLE IF NOT EXISTS artifacts (
     created_ms INTEGER NOT NULL,
     PRIMARY KEY (job_id, frame, kind)
 );
+CREATE TABLE IF NOT EXISTS passes (
+    job_id INTEGER NOT NULL REFERENCES jobs(id),
+    kind TEXT NOT NULL,
+    key TEXT NOT NULL,
+    state TEXT NOT NULL,
+    tasks_total INTEGER NOT NULL DEFAULT 0,
+    tasks_done INTEGER NOT NULL DEFAULT 0,
+    PRIMARY KEY (job_id, kind)
+);
+CREATE TABLE IF NOT EXISTS cache (
+    key TEXT PRIMARY KEY,
+    kind TEXT NOT NULL,
+    path TEXT NOT NULL,
+    bytes INTEGER NOT NULL,
+    sha256 TEXT NOT NULL,
+    job_id INTEGER NOT NULL,
+    created_ms INTEGER NOT NULL
+);
 CREATE TABLE IF NOT EXISTS workers (
     id TEXT PRIMARY KEY,
     name TEXT NOT NULL,
@@ -119,8 +142,10 @@ pub struct NewJob {
     pub height: u32,
     pub spp: u32,
     pub decisions: Vec<String>,
-    /// Tasks of each frame, in stitch order.
+    /// Tile tasks of each frame, in stitch order: queued at once, or when the passes are done.
     pub tasks: Vec<Vec<TaskSpec>>,
+    /// Precomputation passes, in order (empty for integrators without any).
+    pub passes: Vec<NewPass>,
 }
 
 /// What became of a result.
@@ -128,8 +153,12 @@ pub struct NewJob {
 pub enum Completion {
     /// The lease was not current (expired and reassigned, or the job ended): dropped.
     Stale,
-    /// Accepted; `Some(frame)` when it was the last task of that frame.
-    Accepted { frame_complete: Option<u32> },
+    /// Accepted; `Some(frame)` when it was the last task of that frame, `Some(pass)` when
+    /// the last task of that pass.
+    Accepted {
+        frame_complete: Option<u32>,
+        pass_complete: Option<PassKind>,
+    },
 }
 
 /// What became of a failure report or an expired lease.
@@ -166,18 +195,19 @@ pub struct Store {
 
 fn task_spec(row: &rusqlite::Row, at: usize) -> Result<TaskSpec> {
     Ok(TaskSpec {
-        frame: row.get(at)?,
-        tile_index: row.get(at + 1)?,
-        x0: row.get(at + 2)?,
-        y0: row.get(at + 3)?,
-        x1: row.get(at + 4)?,
-        y1: row.get(at + 5)?,
-        sample_start: row.get(at + 6)?,
-        sample_end: row.get(at + 7)?,
+        kind: TaskKind::parse(&row.get::<_, String>(at)?),
+        frame: row.get(at + 1)?,
+        tile_index: row.get(at + 2)?,
+        x0: row.get(at + 3)?,
+        y0: row.get(at + 4)?,
+        x1: row.get(at + 5)?,
+        y1: row.get(at + 6)?,
+        sample_start: row.get(at + 7)?,
+        sample_end: row.get(at + 8)?,
     })
 }
 
-const SPEC_COLUMNS: &str = "frame, tile_index, x0, y0, x1, y1, sample_start, sample_end";
+const SPEC_COLUMNS: &str = "kind, frame, tile_index, x0, y0, x1, y1, sample_start, sample_end";
 
 fn json<T: serde::Serialize>(v: &T) -> String {
     serde_json::to_string(v).unwrap_or_default()
@@ -189,6 +219,13 @@ impl Store {
         let conn = Connection::open(path)?;
         conn.busy_timeout(std::time::Duration::from_secs(10))?;
         conn.execute_batch(SCHEMA)?;
+        // Stores made before tasks had kinds.
+        let has_kind: bool = conn
+            .prepare("SELECT 1 FROM pragma_table_info('tasks') WHERE name = 'kind'")?
+            .exists([])?;
+        if !has_kind {
+            conn.execute_batch("ALTER TABLE tasks ADD COLUMN kind TEXT NOT NULL DEFAULT 'tile'")?;
+        }
         Ok(Store {
             conn: Mutex::new(conn),
         })
@@ -245,7 +282,10 @@ impl Store {
                 frame.execute(params![id, f, tasks.len() as i64])?;
             }
         }
-        Self::insert_tasks(&tx, id, job.tasks.iter().flatten())?;
+        let tiles_now = Self::insert_passes(&tx, id, &job.passes)?;
+        if tiles_now {
+            Self::insert_tasks(&tx, id, job.tasks.iter().flatten())?;
+        }
         tx.commit()?;
         Ok(id)
     }
@@ -258,8 +298,8 @@ impl Store {
     ) -> Result<()> {
         let mut insert = tx.prepare(
             "INSERT INTO tasks (job_id, priority, frame, tile_index, x0, y0, x1, y1,
-                sample_start, sample_end, state)
-             SELECT ?1, priority, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued' FROM jobs WHERE id = ?1",
+                sample_start, sample_end, kind, state)
+             SELECT ?1, priority, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, 'queued' FROM jobs WHERE id = ?1",
         )?;
         for t in tasks {
             insert.execute(params![
@@ -271,7 +311,8 @@ impl Store {
                 t.x1,
                 t.y1,
                 t.sample_start,
-                t.sample_end
+                t.sample_end,
+                t.kind.as_str()
             ])?;
         }
         Ok(())
@@ -323,7 +364,7 @@ impl Store {
             "UPDATE jobs SET state = 'running' WHERE id = ?1 AND state = 'queued'",
             [job_id],
         )?;
-        let grant = tx.query_row(
+        let mut grant = tx.query_row(
             &format!(
                 "SELECT j.bundle, j.scene, j.settings, {SPEC_COLUMNS}
                  FROM tasks t JOIN jobs j ON j.id = t.job_id WHERE t.id = ?1"
@@ -339,9 +380,11 @@ impl Store {
                     scene: r.get(1)?,
                     settings: serde_json::from_str(&r.get::<_, String>(2)?).unwrap_or_default(),
                     task: task_spec(r, 3)?,
+                    artifacts: Vec::new(),
                 })
             },
         )?;
+        grant.artifacts = Self::artifacts_for(&tx, job_id, grant.task.kind)?;
         tx.commit()?;
         Ok(Some(grant))
     }
@@ -408,11 +451,24 @@ impl Store {
              WHERE id = (SELECT worker FROM attempts WHERE id = ?1)",
             params![lease, now],
         )?;
-        let (job, frame): (i64, u32) = tx.query_row(
-            "SELECT job_id, frame FROM tasks WHERE id = ?1",
+        let (job, frame, kind): (i64, u32, String) = tx.query_row(
+            "SELECT job_id, frame, kind FROM tasks WHERE id = ?1",
             [task],
-            |r| Ok((r.get(0)?, r.get(1)?)),
+            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
         )?;
+        if let Some(pass) = TaskKind::parse(&kind).pass() {
+            let (done, total): (i64, i64) = tx.query_row(
+                "UPDATE passes SET tasks_done = tasks_done + 1
+                 WHERE job_id = ?1 AND kind = ?2 RETURNING tasks_done, tasks_total",
+                params![job, pass.as_str()],
+                |r| Ok((r.get(0)?, r.get(1)?)),
+            )?;
+            tx.commit()?;
+            return Ok(Completion::Accepted {
+                frame_complete: None,
+                pass_complete: (done == total).then_some(pass),
+            });
+        }
         let (done, total): (i64, i64) = tx.query_row(
             "UPDATE frames SET tasks_done = tasks_done + 1, state = 'running'
              WHERE job_id = ?1 AND frame = ?2 RETURNING tasks_done, tasks_total",
@@ -422,6 +478,7 @@ impl Store {
         tx.commit()?;
         Ok(Completion::Accepted {
             frame_complete: (done == total).then_some(frame),
+            pass_complete: None,
         })
     }
 
@@ -572,7 +629,7 @@ impl Store {
         let conn = self.conn();
         let mut stmt = conn.prepare(&format!(
             "SELECT id, lease, {SPEC_COLUMNS} FROM tasks
-             WHERE job_id = ?1 AND frame = ?2 AND state = 'done'
+             WHERE job_id = ?1 AND frame = ?2 AND state = 'done' AND kind = 'tile'
              ORDER BY tile_index, sample_start"
         ))?;
         stmt.query_map(params![job, frame], |r| {
@@ -626,7 +683,7 @@ impl Store {
         let conn = self.conn();
         let mut stmt = conn.prepare(
             "SELECT f.job_id, f.frame FROM frames f JOIN jobs j ON j.id = f.job_id
-             WHERE f.state != 'done' AND f.tasks_done = f.tasks_total
+             WHERE f.state != 'done' AND f.tasks_done = f.tasks_total AND f.tasks_total > 0
                AND j.state IN ('queued', 'running')
              ORDER BY f.job_id, f.frame",
         )?;
@@ -634,17 +691,24 @@ impl Store {
             .collect()
     }
 
-    /// (bundle, scene, settings) of a job.
-    pub fn job_source(&self, job: i64) -> Result<Option<(String, String, RenderSettings)>> {
+    /// (bundle, scene, settings, frames) of a job.
+    pub fn job_source(
+        &self,
+        job: i64,
+    ) -> Result<Option<(String, String, RenderSettings, FrameRange)>> {
         self.conn()
             .query_row(
-                "SELECT bundle, scene, settings FROM jobs WHERE id = ?1",
+                "SELECT bundle, scene, settings, first_frame, last_frame FROM jobs WHERE id = ?1",
                 [job],
                 |r| {
                     Ok((
                         r.get(0)?,
                         r.get(1)?,
                         serde_json::from_str(&r.get::<_, String>(2)?).unwrap_or_default(),
+                        FrameRange {
+                            first: r.get(3)?,
+                            last: r.get(4)?,
+                        },
                     ))
                 },
             )
@@ -716,6 +780,7 @@ impl Store {
                     attempts: count(22)?,
                     tasks,
                     frame_status: Vec::new(),
+                    passes: Vec::new(),
                 })
             })?
             .collect::<Result<_>>()?;
@@ -726,6 +791,7 @@ impl Store {
                  WHERE f.job_id = ?1 ORDER BY f.frame",
             )?;
             for job in jobs.iter_mut() {
+                job.passes = Self::job_passes(&conn, job.id)?;
                 job.frame_status = stmt
                     .query_map([job.id], |r| {
                         let frame: u32 = r.get(0)?;
@@ -859,6 +925,7 @@ mod tests {
 
     fn task(frame: u32, tile_index: u32) -> TaskSpec {
         TaskSpec {
+            kind: TaskKind::Tile,
             frame,
             tile_index,
             x0: 0,
@@ -891,6 +958,7 @@ mod tests {
                         spp: 1,
                         decisions: vec![],
                         tasks: vec![(0..tasks).map(|i| task(1, i)).collect()],
+                        passes: vec![],
                     },
                     0,
                 )
@@ -965,7 +1033,8 @@ mod tests {
             s.complete(second.task_id, second.lease, 1.0, 106)
                 .expect("c"),
             Completion::Accepted {
-                frame_complete: Some(1)
+                frame_complete: Some(1),
+                pass_complete: None,
             }
         );
         assert_eq!(
@@ -995,7 +1064,8 @@ mod tests {
         assert_eq!(
             s.complete(g.task_id, g.lease, 1.0, 111).expect("c"),
             Completion::Accepted {
-                frame_complete: Some(1)
+                frame_complete: Some(1),
+                pass_complete: None,
             }
         );
         assert_eq!(s.frame_results(jobs[0], 1).expect("q").len(), 2);
