@@ -497,7 +497,10 @@ fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_chan
 
     // The same scene again: nothing to build, only tiles; the same image.
     let again = submit();
-    assert_eq!(pass(&again, Photons), ("reused".into(), Some(first.id), photons_key.clone()));
+    assert_eq!(
+        pass(&again, Photons),
+        ("reused".into(), Some(first.id), photons_key.clone())
+    );
     assert_eq!(pass(&again, Records).0, "reused");
     assert_eq!(again.tasks.total, 1, "one 32×32 tile, no pass tasks");
     assert!(rt.block_on(client.frame_exr(again.id, 1)).expect("frame") == farm);
@@ -512,5 +515,9 @@ fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_chan
     assert_eq!((state.as_str(), by), ("built", Some(repainted.id)));
     assert_ne!(key, photons_key);
     assert_eq!(pass(&repainted, Records).0, "built");
-    assert!(rt.block_on(client.frame_exr(repainted.id, 1)).expect("frame") != farm);
+    assert!(
+        rt.block_on(client.frame_exr(repainted.id, 1))
+            .expect("frame")
+            != farm
+    );
 }

@@ -458,9 +458,9 @@ impl Prepared {
         let analysis = tessera_render::analysis::analyze(&desc);
         let photon = (analysis.integrator == IntegratorKind::Photon)
             .then(|| PhotonSettings::resolve(&desc, &analysis).0);
-        let integrator = photon.is_none().then(|| {
-            integrator::prepare(&desc, &scene, &analysis, 1..=1).0
-        });
+        let integrator = photon
+            .is_none()
+            .then(|| integrator::prepare(&desc, &scene, &analysis, 1..=1).0);
         Prepared {
             desc,
             scene,

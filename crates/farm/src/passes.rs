@@ -17,7 +17,10 @@ use sha2::{Digest, Sha256};
 use tessera_render::camera::Camera;
 use tessera_render::integrator::{PhotonIntegrator, RECORD_TILE, keyframes};
 use tessera_render::irradiance::{IrradianceCache, Record};
-use tessera_render::photon::{KdTree, MapKind, Photon, PhotonMap, PhotonMaps, PhotonSettings, Shooter};
+use tessera_render::photon::{
+    KdTree, MapKind, Photon, PhotonMap, PhotonMaps, PhotonSettings, RadiancePhoton, Shooter,
+};
+use tessera_render::scene::Material;
 use tessera_render::{RayStats, Tile};
 use tessera_scene::{IntegratorKind, LightDesc, SceneDesc};
 
@@ -31,7 +34,8 @@ pub const PHOTONS_PER_TASK: u32 = 25_000;
 const MAX_STORED_PER_PHOTON: usize = 64;
 
 /// Largest pass result a worker may upload, bytes.
-pub const MAX_OUTPUT_BYTES: usize = PHOTONS_PER_TASK as usize * MAX_STORED_PER_PHOTON * 36 + 16;
+pub const MAX_OUTPUT_BYTES: usize =
+    PHOTONS_PER_TASK as usize * MAX_STORED_PER_PHOTON * PHOTON_BYTES + 16;
 
 /// The passes a photon-mapping job needs: their settings, keys and keyframes.
 #[derive(Debug, Clone, PartialEq)]
@@ -279,7 +283,8 @@ pub fn execute(
     }
 }
 
-// Binary forms, little-endian. Photons: 9 f32 each; records: 10 f32 each.
+// Binary forms, little-endian. Photons: 12 f32 and a u32 each; radiance photons: 9 f32;
+// records: 10 f32.
 
 const PHOTONS_MAGIC: &[u8; 4] = b"TPHO";
 const RECORDS_MAGIC: &[u8; 4] = b"TREC";
@@ -331,8 +336,13 @@ impl<'a> Reader<'a> {
     /// A count of items of `size` bytes each, checked against what is left.
     fn count(&mut self, size: usize) -> Result<usize, String> {
         let n = self.u64()? as usize;
-        if n.checked_mul(size).is_none_or(|b| b > self.bytes.len() - self.at) {
-            return Err(format!("{}: {n} items do not fit in the bytes left", self.what));
+        if n.checked_mul(size)
+            .is_none_or(|b| b > self.bytes.len() - self.at)
+        {
+            return Err(format!(
+                "{}: {n} items do not fit in the bytes left",
+                self.what
+            ));
         }
         Ok(n)
     }
@@ -340,10 +350,16 @@ impl<'a> Reader<'a> {
         if self.at == self.bytes.len() {
             Ok(())
         } else {
-            Err(format!("{}: {} bytes left over", self.what, self.bytes.len() - self.at))
+            Err(format!(
+                "{}: {} bytes left over",
+                self.what,
+                self.bytes.len() - self.at
+            ))
         }
     }
 }
+
+const PHOTON_BYTES: usize = 52;
 
 fn put_photons(b: &mut Vec<u8>, photons: &[Photon]) {
     b.extend_from_slice(&(photons.len() as u64).to_le_bytes());
@@ -351,21 +367,54 @@ fn put_photons(b: &mut Vec<u8>, photons: &[Photon]) {
         put_f32s(b, &p.p.to_array());
         put_f32s(b, &p.power.to_array());
         put_f32s(b, &p.wi.to_array());
+        put_f32s(b, &p.n.to_array());
+        b.extend_from_slice(&p.material.to_le_bytes());
     }
 }
 
 fn read_photons(r: &mut Reader) -> Result<Vec<Photon>, String> {
-    let n = r.count(36)?;
+    let n = r.count(PHOTON_BYTES)?;
     (0..n)
         .map(|_| {
-            let v = r.f32s::<9>()?;
+            let v = r.f32s::<12>()?;
+            let m = r.take(4)?;
+            let v3 = |i: usize| glam::Vec3::new(v[i], v[i + 1], v[i + 2]);
             Ok(Photon {
-                p: glam::Vec3::new(v[0], v[1], v[2]),
-                power: glam::Vec3::new(v[3], v[4], v[5]),
-                wi: glam::Vec3::new(v[6], v[7], v[8]),
+                p: v3(0),
+                power: v3(3),
+                wi: v3(6),
+                n: v3(9),
+                material: u32::from_le_bytes([m[0], m[1], m[2], m[3]]),
             })
         })
         .collect()
+}
+
+fn put_radiance(b: &mut Vec<u8>, tree: &KdTree<RadiancePhoton>) {
+    b.extend_from_slice(&(tree.len() as u64).to_le_bytes());
+    for p in tree.photons() {
+        put_f32s(b, &p.p.to_array());
+        put_f32s(b, &p.n.to_array());
+        put_f32s(b, &p.lo.to_array());
+    }
+    b.extend_from_slice(tree.axes());
+}
+
+fn read_radiance(r: &mut Reader) -> Result<KdTree<RadiancePhoton>, String> {
+    let n = r.count(37)?;
+    let points = (0..n)
+        .map(|_| {
+            let v = r.f32s::<9>()?;
+            let v3 = |i: usize| glam::Vec3::new(v[i], v[i + 1], v[i + 2]);
+            Ok(RadiancePhoton {
+                p: v3(0),
+                n: v3(3),
+                lo: v3(6),
+            })
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    let axes = r.take(n)?.to_vec();
+    KdTree::from_parts(points, axes)
 }
 
 fn put_records(b: &mut Vec<u8>, records: &[Record]) {
@@ -432,8 +481,10 @@ pub fn decode_output(bytes: &[u8], task: &TaskSpec) -> Result<PassOutput, String
 }
 
 /// Merges photon-pass outputs, given in task order, into the maps artifact: each map's photons
-/// concatenated by index range and balanced, with its emitted count.
+/// concatenated by index range and balanced, with its emitted count, and the radiance photons
+/// (materials' Lambertian reflectances from `desc`).
 pub fn merge_photons<'a>(
+    desc: &SceneDesc,
     settings: &PhotonSettings,
     outputs: impl IntoIterator<Item = (TaskKind, &'a [Photon])>,
 ) -> PhotonMaps {
@@ -444,13 +495,17 @@ pub fn merge_photons<'a>(
             _ => caustic.extend_from_slice(photons),
         }
     }
-    PhotonMaps {
-        global: PhotonMap::build(global, settings.photons),
-        caustic: PhotonMap::build(caustic, settings.caustic_photons),
-    }
+    let rho: Vec<_> = desc
+        .materials
+        .iter()
+        .map(|m| Material::from_desc(&m.kind).bsdf.lambertian())
+        .collect();
+    PhotonMaps::build(global, caustic, settings, &|m| {
+        rho.get(m as usize).copied().flatten()
+    })
 }
 
-/// The maps artifact: both balanced trees as stored, so readers need not balance again.
+/// The maps artifact: the balanced trees as stored, so readers need not balance again.
 pub fn encode_maps(maps: &PhotonMaps) -> Vec<u8> {
     let mut b = Vec::from(*MAPS_MAGIC);
     for m in [&maps.global, &maps.caustic] {
@@ -458,6 +513,7 @@ pub fn encode_maps(maps: &PhotonMaps) -> Vec<u8> {
         put_photons(&mut b, m.tree.photons());
         b.extend_from_slice(m.tree.axes());
     }
+    put_radiance(&mut b, &maps.radiance);
     b
 }
 
@@ -472,8 +528,13 @@ pub fn decode_maps(bytes: &[u8]) -> Result<PhotonMaps, String> {
     };
     let global = map(&mut r)?;
     let caustic = map(&mut r)?;
+    let radiance = read_radiance(&mut r)?;
     r.end()?;
-    Ok(PhotonMaps { global, caustic })
+    Ok(PhotonMaps {
+        global,
+        caustic,
+        radiance,
+    })
 }
 
 /// The records artifact: records in merge order.
@@ -551,7 +612,11 @@ mod tests {
                 }
             })
             .collect();
-        let maps = merge_photons(&plan.settings, outs.iter().map(|(k, p)| (*k, p.as_slice())));
+        let maps = merge_photons(
+            &desc,
+            &plan.settings,
+            outs.iter().map(|(k, p)| (*k, p.as_slice())),
+        );
         let maps = decode_maps(&encode_maps(&maps)).expect("maps");
         let maps = std::sync::Arc::new(maps);
         let stage1 = integrator(&worker, maps.clone(), None).expect("integrator");
@@ -599,7 +664,11 @@ mod tests {
         assert_ne!(r0, r2);
         let mut more = desc.clone();
         more.integrator.spp = 99;
-        assert_eq!(key(&more, FrameRange::single(1)).0, p0, "spp is not a pass setting");
+        assert_eq!(
+            key(&more, FrameRange::single(1)).0,
+            p0,
+            "spp is not a pass setting"
+        );
     }
 
     #[test]

@@ -16,9 +16,9 @@ use tessera_render::film::{TileSums, tiles};
 use tessera_render::{Image, RayStats, SampleRange, metrics, render};
 use tessera_scene::SceneDesc;
 
-use crate::job::Prepared;
 #[cfg(test)]
 use crate::job::FrameRange;
+use crate::job::Prepared;
 
 /// A frame accumulated over successive sample ranges (progressive rendering): per-tile sums
 /// merged in sample order, so the image after N samples is bit-identical to rendering

@@ -35,9 +35,11 @@ const CACHED_JOBS: usize = 4;
 
 type SceneCell = Arc<OnceCell<Arc<Prepared>>>;
 type IntegratorCell = Arc<OnceCell<Arc<PhotonIntegrator>>>;
+/// Cells by key, least recently used first.
+type Cells<K, T> = Mutex<Vec<(K, Arc<OnceCell<T>>)>>;
 
 /// The cell for `key` in a small LRU list of cells (created empty if missing).
-fn cell_for<K: PartialEq, T>(list: &Mutex<Vec<(K, Arc<OnceCell<T>>)>>, key: K) -> Arc<OnceCell<T>> {
+fn cell_for<K: PartialEq, T>(list: &Cells<K, T>, key: K) -> Arc<OnceCell<T>> {
     let mut list = list.lock().unwrap_or_else(|e| e.into_inner());
     match list.iter().position(|(k, _)| *k == key) {
         Some(i) => {
@@ -58,7 +60,7 @@ fn cell_for<K: PartialEq, T>(list: &Mutex<Vec<(K, Arc<OnceCell<T>>)>>, key: K) -
 }
 
 /// Forgets the cell for `key` (a failed initialisation is not cached).
-fn forget<K: PartialEq, T>(list: &Mutex<Vec<(K, Arc<OnceCell<T>>)>>, key: &K) {
+fn forget<K: PartialEq, T>(list: &Cells<K, T>, key: &K) {
     list.lock()
         .unwrap_or_else(|e| e.into_inner())
         .retain(|(k, _)| k != key);
@@ -150,9 +152,13 @@ fn run_spec(
                     .ok_or("a photon-mapping tile task without its pass artifacts")?,
             };
             let camera = prepared.camera(spec.frame);
-            Ok(codec::encode(&prepared.execute_using(integrator, &camera, spec)))
+            Ok(codec::encode(
+                &prepared.execute_using(integrator, &camera, spec),
+            ))
         }
-        _ => Ok(passes::encode_output(&passes::execute(prepared, photon, spec)?)),
+        _ => Ok(passes::encode_output(&passes::execute(
+            prepared, photon, spec,
+        )?)),
     }
 }
 

@@ -152,7 +152,11 @@ mod tests {
     #[test]
     fn project_inverts_generate_ray() {
         let c = camera(Lens::Pinhole);
-        for film in [Vec2::new(100.0, 50.0), Vec2::new(3.5, 97.25), Vec2::new(181.0, 12.0)] {
+        for film in [
+            Vec2::new(100.0, 50.0),
+            Vec2::new(3.5, 97.25),
+            Vec2::new(181.0, 12.0),
+        ] {
             let r = c.generate_ray(film, Vec2::ZERO);
             let back = c.project(r.at(7.0)).expect("in front");
             assert!((back - film).length() < 1e-3, "{film} → {back}");

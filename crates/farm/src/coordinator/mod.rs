@@ -28,9 +28,9 @@ use crate::bundle::Bundle;
 use crate::codec;
 use crate::job::{self, FrameRange, Limits, PassKind, RenderSettings, TaskOutput, TaskSpec};
 use crate::passes::{self, PassOutput, PassPlan};
-use crate::store::{CacheEntry, NextStage};
 use crate::progressive::{self, Adaptive, Round, next_round};
 use crate::store::{Artifact, Retry, Store};
+use crate::store::{CacheEntry, NextStage};
 use metrics::Metrics;
 
 /// How a coordinator runs.
@@ -272,6 +272,7 @@ impl App {
         let (key, bytes) = match pass {
             PassKind::Photons => {
                 let maps = passes::merge_photons(
+                    &scene.desc,
                     &plan.settings,
                     outputs.iter().filter_map(|(k, o)| match o {
                         PassOutput::Photons(p) => Some((*k, p.as_slice())),
@@ -297,7 +298,9 @@ impl App {
             }
         };
         let path = self.artifact_path(&key);
-        let tmp = path.with_extension("tmp");
+        // Jobs that build the same key at once (reuse disabled) write their own temporary
+        // file; the renames replace one identical artifact with another.
+        let tmp = path.with_extension(format!("{job}.tmp"));
         std::fs::write(&tmp, &bytes).with_context(|| tmp.display().to_string())?;
         std::fs::rename(&tmp, &path)?;
         let entry = CacheEntry {
@@ -441,7 +444,11 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
 
     // Resume: passes and frames whose last task arrived just before a restart.
     for (job, pass) in app.store.unfinished_passes()? {
-        tracing::info!(job, pass = pass.as_str(), "merging a pass finished before the restart");
+        tracing::info!(
+            job,
+            pass = pass.as_str(),
+            "merging a pass finished before the restart"
+        );
         app.spawn_finish_pass(job, pass);
     }
     for (job, frame) in app.store.unstitched_frames()? {

@@ -33,7 +33,6 @@ use crate::sampler::{PixelSampler, Sampler};
 use crate::sampling::power_heuristic;
 use crate::scene::{Material, NO_LIGHT, Scene, SurfaceInteraction};
 use crate::spectrum::{Spectrum, is_black};
-use tessera_scene::PhotonFilter;
 
 /// Specular bounces a gather ray follows before giving up.
 const GATHER_SPECULAR_DEPTH: u32 = 8;
@@ -170,11 +169,7 @@ impl PhotonIntegrator {
             let material = scene.material(si.material);
             let wo = -ray.d;
             if material.flags.smooth {
-                let s = &self.settings;
-                let l =
-                    self.maps
-                        .global
-                        .radiance(&si, material, wo, s.k, s.radius, PhotonFilter::Box);
+                let l = self.maps.gather_radiance(&si, material, wo, &self.settings);
                 return (beta * l, first_t);
             }
             if material.is_black() {

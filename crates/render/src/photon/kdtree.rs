@@ -1,6 +1,7 @@
-//! A balanced kd-tree of photons in one array (Jensen 2001, §6.3): each subarray's median on
-//! its widest axis is its root, the halves on either side are the subtrees. Built once from the
-//! photons in index order, so the tree — and every search — is a pure function of the map.
+//! A balanced kd-tree of points (photons, radiance photons) in one array (Jensen 2001, §6.3):
+//! each subarray's median on its widest axis is its root, the halves on either side are the
+//! subtrees. Built once from the points in index order, so the tree — and every search — is a
+//! pure function of its input.
 //!
 //! Our own rather than kiddo: the search is flattened toward a disc along the query's surface
 //! normal (the distance is |Δ|² + f·(Δ·n)², so photons on a wall around a corner do not leak
@@ -21,17 +22,42 @@ pub struct Photon {
     pub power: Vec3,
     /// Unit direction toward where the photon came from.
     pub wi: Vec3,
+    /// Unit surface normal at `p`, on the side the photon arrived from.
+    pub n: Vec3,
+    /// Material of the surface it rests on.
+    pub material: u32,
 }
 
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct KdTree {
-    photons: Vec<Photon>,
+/// Something with a position, for the tree.
+pub trait Positioned {
+    fn position(&self) -> Vec3;
+}
+
+impl Positioned for Photon {
+    #[inline]
+    fn position(&self) -> Vec3 {
+        self.p
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct KdTree<T = Photon> {
+    photons: Vec<T>,
     /// Split axis of the subtree rooted at each index.
     axes: Vec<u8>,
 }
 
-impl KdTree {
-    pub fn build(mut photons: Vec<Photon>) -> KdTree {
+impl<T> Default for KdTree<T> {
+    fn default() -> Self {
+        KdTree {
+            photons: Vec::new(),
+            axes: Vec::new(),
+        }
+    }
+}
+
+impl<T: Positioned> KdTree<T> {
+    pub fn build(mut photons: Vec<T>) -> KdTree<T> {
         let mut axes = vec![0u8; photons.len()];
         balance(&mut photons, &mut axes);
         KdTree { photons, axes }
@@ -39,7 +65,7 @@ impl KdTree {
 
     /// A tree from the arrays of [`Self::photons`] and [`Self::axes`] (as stored in an
     /// artifact); checked for shape, not balance.
-    pub fn from_parts(photons: Vec<Photon>, axes: Vec<u8>) -> Result<KdTree, String> {
+    pub fn from_parts(photons: Vec<T>, axes: Vec<u8>) -> Result<KdTree<T>, String> {
         if photons.len() != axes.len() || axes.iter().any(|&a| a > 2) {
             return Err(format!(
                 "a photon tree needs one split axis (0–2) per photon: {} photons, {} axes",
@@ -62,11 +88,11 @@ impl KdTree {
         self.photons.is_empty()
     }
 
-    pub fn photons(&self) -> &[Photon] {
+    pub fn photons(&self) -> &[T] {
         &self.photons
     }
 
-    pub fn get(&self, i: u32) -> &Photon {
+    pub fn get(&self, i: u32) -> &T {
         &self.photons[i as usize]
     }
 
@@ -82,9 +108,9 @@ impl KdTree {
             return;
         }
         let mid = (lo + hi) / 2;
-        let ph = &self.photons[mid];
+        let p = self.photons[mid].position();
         let axis = self.axes[mid] as usize;
-        let delta = q[axis] - ph.p[axis];
+        let delta = q[axis] - p[axis];
         // The flattened distance is at least the Euclidean one, so a subtree beyond the
         // current radius along one axis cannot hold a closer photon.
         let (near, far) = if delta < 0.0 {
@@ -93,7 +119,7 @@ impl KdTree {
             ((mid + 1, hi), (lo, mid))
         };
         self.search(near.0, near.1, q, n, flatten, knn);
-        let d = ph.p - q;
+        let d = p - q;
         let dn = d.dot(n);
         let d2 = d.length_squared() + flatten * dn * dn;
         if d2 < knn.max_d2 {
@@ -107,13 +133,13 @@ impl KdTree {
 
 /// Puts the median of `photons` on its widest axis at the middle, smaller ones before and
 /// larger after, recursively.
-fn balance(photons: &mut [Photon], axes: &mut [u8]) {
+fn balance<T: Positioned>(photons: &mut [T], axes: &mut [u8]) {
     if photons.len() <= 1 {
         return;
     }
     let (lo, hi) = photons.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), ph| (lo.min(ph.p), hi.max(ph.p)),
+        |(lo, hi), ph| (lo.min(ph.position()), hi.max(ph.position())),
     );
     let extent = hi - lo;
     let axis = if extent.x >= extent.y && extent.x >= extent.z {
@@ -124,7 +150,9 @@ fn balance(photons: &mut [Photon], axes: &mut [u8]) {
         2
     };
     let mid = photons.len() / 2;
-    photons.select_nth_unstable_by(mid, |a, b| a.p[axis].total_cmp(&b.p[axis]));
+    photons.select_nth_unstable_by(mid, |a, b| {
+        a.position()[axis].total_cmp(&b.position()[axis])
+    });
     axes[mid] = axis as u8;
     let (left, rest) = photons.split_at_mut(mid);
     let (left_axes, rest_axes) = axes.split_at_mut(mid);
@@ -213,6 +241,8 @@ mod tests {
                     p: Vec3::new(c(0), c(21), c(42) * 0.2),
                     power: Vec3::ONE,
                     wi: Vec3::Z,
+                    n: Vec3::Z,
+                    material: 0,
                 }
             })
             .collect()
@@ -253,7 +283,7 @@ mod tests {
 
     #[test]
     fn an_empty_tree_finds_nothing() {
-        let tree = KdTree::build(Vec::new());
+        let tree: KdTree = KdTree::build(Vec::new());
         let mut knn = Knn::new(10, 1.0);
         tree.nearest(Vec3A::ZERO, Vec3A::Z, 0.0, &mut knn);
         assert!(knn.found().is_empty());

@@ -12,7 +12,8 @@
 pub mod kdtree;
 pub mod shoot;
 
-use glam::Vec3A;
+use glam::{Vec3, Vec3A};
+use rayon::prelude::*;
 use tessera_scene::{PhotonFilter, SamplerType, SceneDesc};
 
 use crate::analysis::Analysis;
@@ -21,7 +22,7 @@ use crate::math::{INV_PI, PI};
 use crate::scene::{Material, Scene, SurfaceInteraction};
 use crate::spectrum::Spectrum;
 
-pub use kdtree::{KdTree, Knn, Photon};
+pub use kdtree::{KdTree, Knn, Photon, Positioned};
 pub use shoot::{MapKind, Shooter};
 
 /// The search ellipsoid is this thin along the surface normal, relative to its radius: the
@@ -254,25 +255,139 @@ const GAUSSIAN_INTEGRAL: f32 = {
     GAUSS_ALPHA * (1.0 - (1.0 - (2.0 / GAUSS_BETA) * (1.0 - e_half)) / (1.0 - e_full))
 };
 
-/// The global and caustic maps of a scene.
+/// Outgoing radiance precomputed at a global photon on a Lambertian surface (Christensen,
+/// "Faster Photon Map Global Illumination", 1999): final gathering reads the nearest one
+/// instead of making a k-nearest density estimate per gather ray.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
+pub struct RadiancePhoton {
+    pub p: Vec3,
+    /// Unit normal, on the lit side.
+    pub n: Vec3,
+    /// Radiance leaving the surface, ρ/π · E (W sr⁻¹ m⁻², RGB).
+    pub lo: Vec3,
+}
+
+impl Positioned for RadiancePhoton {
+    #[inline]
+    fn position(&self) -> Vec3 {
+        self.p
+    }
+}
+
+/// Every this-many-th global photon (in the balanced order) gets a radiance photon.
+pub const RADIANCE_STRIDE: usize = 4;
+
+/// A radiance photon serves a gather point whose normal is within this cosine of its own.
+const RADIANCE_NORMAL_COS: f32 = 0.7;
+
+/// Radiance photons over `global`: at every [`RADIANCE_STRIDE`]-th photon resting on a
+/// material `rho` calls Lambertian, E from its k nearest photons arriving on its side (same
+/// search as [`PhotonMap::radiance`]) and Lo = ρE/π. In parallel, in order: deterministic.
+pub fn radiance_photons(
+    global: &PhotonMap,
+    rho: &(dyn Fn(u32) -> Option<Spectrum> + Sync),
+    s: &PhotonSettings,
+) -> KdTree<RadiancePhoton> {
+    let photons = global.tree.photons();
+    let out: Vec<RadiancePhoton> = (0..photons.len())
+        .into_par_iter()
+        .step_by(RADIANCE_STRIDE)
+        .filter_map(|i| {
+            let ph = &photons[i];
+            let rho = rho(ph.material)?;
+            let n = Vec3A::from(ph.n);
+            let mut knn = Knn::new(s.k as usize, s.radius * s.radius);
+            global.tree.nearest(ph.p.into(), n, FLATTEN, &mut knn);
+            let r2 = if knn.is_full() {
+                knn.max_d2
+            } else {
+                s.radius * s.radius
+            };
+            let mut flux = Spectrum::ZERO;
+            for &(_, j) in knn.found() {
+                let q = global.tree.get(j);
+                if Vec3A::from(q.wi).dot(n) > 0.0 {
+                    flux += Vec3A::from(q.power);
+                }
+            }
+            let e = flux * (INV_PI / r2);
+            Some(RadiancePhoton {
+                p: ph.p,
+                n: ph.n,
+                lo: Vec3::from(rho * e * INV_PI),
+            })
+        })
+        .collect();
+    KdTree::build(out)
+}
+
+/// The global and caustic maps of a scene, and the radiance photons over the global one.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PhotonMaps {
     pub global: PhotonMap,
     pub caustic: PhotonMap,
+    pub radiance: KdTree<RadiancePhoton>,
 }
 
 impl PhotonMaps {
+    /// The maps of the photons of each, given in index order (as [`Shooter::shoot`] ranges
+    /// concatenate), and their radiance photons; `rho` gives a material's Lambertian
+    /// reflectance.
+    pub fn build(
+        global: Vec<Photon>,
+        caustic: Vec<Photon>,
+        settings: &PhotonSettings,
+        rho: &(dyn Fn(u32) -> Option<Spectrum> + Sync),
+    ) -> PhotonMaps {
+        let global = PhotonMap::build(global, settings.photons);
+        let radiance = radiance_photons(&global, rho, settings);
+        PhotonMaps {
+            global,
+            caustic: PhotonMap::build(caustic, settings.caustic_photons),
+            radiance,
+        }
+    }
+
     /// Shoots both maps in-process, in chunks on the rayon pool: the same photons a farm's
     /// pass tasks would shoot, concatenated in index order.
     pub fn shoot(scene: &Scene, settings: &PhotonSettings) -> PhotonMaps {
-        let map = |kind: MapKind, count: u32| {
-            let shooter = Shooter::new(scene, settings, kind);
-            PhotonMap::build(shooter.shoot_parallel(0..count), count)
+        let shoot = |kind: MapKind, count: u32| {
+            Shooter::new(scene, settings, kind).shoot_parallel(0..count)
         };
-        PhotonMaps {
-            global: map(MapKind::Global, settings.photons),
-            caustic: map(MapKind::Caustic, settings.caustic_photons),
+        PhotonMaps::build(
+            shoot(MapKind::Global, settings.photons),
+            shoot(MapKind::Caustic, settings.caustic_photons),
+            settings,
+            &|m| scene.material(m).bsdf.lambertian(),
+        )
+    }
+
+    /// Radiance leaving `si` toward `wo`, as a final-gather ray reads it: the nearest radiance
+    /// photon facing the same way where the surface is Lambertian (and one is near), else the
+    /// global map's estimate with the BSDF.
+    pub fn gather_radiance(
+        &self,
+        si: &SurfaceInteraction,
+        material: &Material,
+        wo: Vec3A,
+        s: &PhotonSettings,
+    ) -> Spectrum {
+        if material.bsdf.lambertian().is_some() && !self.radiance.is_empty() {
+            let n = if si.ns.dot(wo) < 0.0 { -si.ns } else { si.ns };
+            let mut knn = Knn::new(8, s.radius * s.radius);
+            self.radiance.nearest(si.p, n, FLATTEN, &mut knn);
+            let best = knn
+                .found()
+                .iter()
+                .filter(|&&(_, i)| Vec3A::from(self.radiance.get(i).n).dot(n) > RADIANCE_NORMAL_COS)
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            if let Some(&(_, i)) = best {
+                return Vec3A::from(self.radiance.get(i).lo);
+            }
         }
+        self.global
+            .radiance(si, material, wo, s.k, s.radius, PhotonFilter::Box)
     }
 }
 
@@ -314,6 +429,8 @@ mod tests {
                     p: glam::Vec3::new((i as f32 + jx) * spacing, (j as f32 + jy) * spacing, 0.0),
                     power: glam::Vec3::splat(e * spacing * spacing),
                     wi: glam::Vec3::new(0.3, 0.0, 1.0).normalize(),
+                    n: glam::Vec3::Z,
+                    material: 0,
                 });
             }
         }

@@ -220,10 +220,13 @@ impl<'a> Shooter<'a> {
                     MapKind::Caustic => depth > 0 && specular_path,
                 };
                 if store {
+                    let n = if si.ns.dot(wo) < 0.0 { -si.ns } else { si.ns };
                     out.push(Photon {
                         p: Vec3::from(si.p),
                         power: Vec3::from(power),
                         wi: Vec3::from(wo),
+                        n: Vec3::from(n),
+                        material: si.material,
                     });
                 }
                 if self.kind == MapKind::Caustic {
@@ -303,6 +306,10 @@ mod tests {
             let a = crate::photon::PhotonMap::build(whole, 7000);
             let b = crate::photon::PhotonMap::build(split, 7000);
             assert_eq!(a, b);
+            let rho = |m: u32| scene.material(m).bsdf.lambertian();
+            let ra = crate::photon::radiance_photons(&a, &rho, &s);
+            assert!(kind == MapKind::Caustic || !ra.is_empty());
+            assert_eq!(ra, crate::photon::radiance_photons(&b, &rho, &s));
         }
     }
 

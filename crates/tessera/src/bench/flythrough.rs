@@ -89,11 +89,7 @@ async fn wait_all(client: &Client, ids: &[i64]) -> anyhow::Result<Vec<JobStatus>
             }
             tokio::time::sleep(Duration::from_millis(50)).await;
         };
-        anyhow::ensure!(
-            s.state == JobState::Done,
-            "job {id} failed: {:?}",
-            s.error
-        );
+        anyhow::ensure!(s.state == JobState::Done, "job {id} failed: {:?}", s.error);
         done.push(s);
     }
     Ok(done)
@@ -162,7 +158,12 @@ pub async fn run(args: FlythroughArgs) -> anyhow::Result<()> {
         } else {
             let mut ids = Vec::new();
             for f in frames.iter() {
-                ids.push(client.submit(&request(FrameRange::single(f), false)).await?.id);
+                ids.push(
+                    client
+                        .submit(&request(FrameRange::single(f), false))
+                        .await?
+                        .id,
+                );
             }
             ids
         };
@@ -228,7 +229,10 @@ pub async fn run(args: FlythroughArgs) -> anyhow::Result<()> {
             let inside = r.x >= 2.0 && r.y >= 2.0 && r.x <= w as f32 - 2.0 && r.y <= h as f32 - 2.0;
             let ray = camera.generate_ray(r, Vec2::splat(0.5));
             let dist = (p - ray.o).length();
-            inside && scene.intersect(&ray).is_some_and(|si| (si.t - dist).abs() < 1e-3 * dist)
+            inside
+                && scene
+                    .intersect(&ray)
+                    .is_some_and(|si| (si.t - dist).abs() < 1e-3 * dist)
         })
     };
     let points: Vec<Vec3A> = (0..64)
@@ -317,7 +321,12 @@ fn mean(v: &[f64]) -> f64 {
 fn markdown(r: &Report) -> String {
     let mut s = format!(
         "# Fly-through: {} frames {}, {} local workers\n\n| run | wall s | passes task-s | frame {} task-s | frames {}–{} mean task-s | region points | flicker z mean / max | region Δ mean % |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
-        r.scene, r.frames, r.workers, r.frames.first, r.frames.first + 1, r.frames.last
+        r.scene,
+        r.frames,
+        r.workers,
+        r.frames.first,
+        r.frames.first + 1,
+        r.frames.last
     );
     for run in &r.runs {
         let rel: Vec<f64> = (1..run.region_mean.len())
