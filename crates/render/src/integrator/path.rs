@@ -1,14 +1,15 @@
 //! Path tracing with next-event estimation and MIS (Veach's thesis ch. 9; pbrt-v4 §13.4).
 
-use glam::Vec2;
+use glam::{Vec2, Vec3A};
 
 use super::{Integrator, RadianceSample, RayStats, consistent, sample_direct};
 use crate::bsdf::TransportMode;
 use crate::integrator::FirstHit;
+use crate::math::Frame;
 use crate::ray::Ray;
 use crate::sampler::{PixelSampler, Sampler};
 use crate::sampling::power_heuristic;
-use crate::scene::{NO_LIGHT, Scene};
+use crate::scene::{Material, NO_LIGHT, Scene, SurfaceInteraction};
 use crate::spectrum::{Spectrum, is_black};
 
 #[derive(Debug, Clone)]
@@ -40,13 +41,39 @@ impl PathIntegrator {
     }
 }
 
+/// What a path does at a surface with a diffuse component, if not continue: the radiance
+/// leaving it toward `wo` (all of it, emission aside), after which the path ends. Photon mapping
+/// gathers here.
+pub(crate) type Gather<'a> = &'a dyn Fn(
+    &SurfaceInteraction,
+    &Material,
+    &Frame,
+    Vec3A,
+    &mut PixelSampler,
+    &mut RayStats,
+) -> Spectrum;
+
 impl Integrator for PathIntegrator {
     fn li(
+        &self,
+        scene: &Scene,
+        ray: Ray,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+    ) -> RadianceSample {
+        self.trace(scene, ray, sampler, stats, None)
+    }
+}
+
+impl PathIntegrator {
+    /// The path tracer, with `gather` ending paths at their first diffuse vertex if given.
+    pub(crate) fn trace(
         &self,
         scene: &Scene,
         mut ray: Ray,
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
+        gather: Option<Gather>,
     ) -> RadianceSample {
         let mode = TransportMode::Radiance;
         let mut l = Spectrum::ZERO;
@@ -108,6 +135,12 @@ impl Integrator for PathIntegrator {
             }
             depth += 1;
             let frame = material.frame(&si, wo);
+            if let Some(gather) = gather
+                && material.flags.diffuse
+            {
+                l += beta * gather(&si, material, &frame, wo, sampler, stats);
+                break;
+            }
             let wo_local = frame.to_local(wo);
 
             // Next-event estimation: one light chosen by power, one point on it.

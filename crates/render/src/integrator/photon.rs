@@ -20,7 +20,7 @@ use tessera_scene::SceneDesc;
 
 use crate::analysis::Analysis;
 
-use super::{FirstHit, Integrator, RadianceSample, RayStats, consistent, sample_direct};
+use super::{Integrator, PathIntegrator, RadianceSample, RayStats, consistent, sample_direct};
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
 use crate::film::Tile;
@@ -30,8 +30,7 @@ use crate::photon::{PhotonMaps, PhotonSettings};
 use crate::ray::Ray;
 use crate::sampler::hash::hash;
 use crate::sampler::{PixelSampler, Sampler};
-use crate::sampling::power_heuristic;
-use crate::scene::{Material, NO_LIGHT, Scene, SurfaceInteraction};
+use crate::scene::{Material, Scene, SurfaceInteraction};
 use crate::spectrum::{Spectrum, is_black};
 
 /// Specular bounces a gather ray follows before giving up.
@@ -54,7 +53,8 @@ pub fn keyframes(frames: std::ops::RangeInclusive<u32>, step: u32) -> Vec<u32> {
 
 pub struct PhotonIntegrator {
     settings: PhotonSettings,
-    rr_depth: u32,
+    /// The camera paths' tracer, up to their first diffuse vertex.
+    path: PathIntegrator,
     maps: Arc<PhotonMaps>,
     cache: Option<Arc<IrradianceCache>>,
 }
@@ -74,8 +74,8 @@ impl PhotonIntegrator {
         cache: Option<Arc<IrradianceCache>>,
     ) -> Self {
         PhotonIntegrator {
+            path: PathIntegrator::new(settings.max_depth, rr_depth),
             settings,
-            rr_depth,
             maps,
             cache,
         }
@@ -402,122 +402,35 @@ impl PhotonIntegrator {
 }
 
 impl Integrator for PhotonIntegrator {
+    /// Path tracing through specular and glossy surfaces, ended at the first diffuse one by
+    /// direct light (light sampling alone: the path stops, so nothing else finds emitters),
+    /// caustics and indirect light.
     fn li(
         &self,
         scene: &Scene,
-        mut ray: Ray,
+        ray: Ray,
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
     ) -> RadianceSample {
         let s = &self.settings;
-        let mut l = Spectrum::ZERO;
-        let mut beta = Spectrum::ONE;
-        let mut eta_scale = 1.0f32;
-        let mut specular = true;
-        let mut prev_p = ray.o;
-        let mut prev_pdf = 0.0f32;
-        let mut first_hit = None;
-        let mut depth = 0u32;
-        loop {
-            stats.rays += 1;
-            let Some(si) = scene.intersect(&ray) else {
-                for (i, light) in scene.lights.environment() {
-                    let w = if specular {
-                        1.0
-                    } else {
-                        power_heuristic(
-                            prev_pdf,
-                            scene.lights.pmf(i) * light.pdf_li_direction(ray.d),
-                        )
-                    };
-                    l += beta * light.le_direction(ray.d) * w;
-                }
-                break;
-            };
-            let material = scene.material(si.material);
-            if depth == 0 {
-                first_hit = Some(FirstHit {
-                    albedo: material.bsdf.albedo(),
-                    normal: si.ns,
-                    p: si.p,
-                });
-            }
-            let wo = -ray.d;
-            if si.light != NO_LIGHT {
-                let light = scene.lights.get(si.light);
-                let le = light.le_surface(si.ng, wo);
-                if !is_black(le) {
-                    let w = if specular {
-                        1.0
-                    } else {
-                        power_heuristic(
-                            prev_pdf,
-                            scene.lights.pmf(si.light) * light.pdf_li_surface(prev_p, si.p, si.ng),
-                        )
-                    };
-                    l += beta * le * w;
-                }
-            }
-            if depth >= s.max_depth || material.is_black() {
-                break;
-            }
-            depth += 1;
-            let frame = material.frame(&si, wo);
-            if material.flags.diffuse {
-                // The gather vertex: direct + caustics + indirect, and the path ends.
-                let u = sampler.get_3d();
-                let mut here = sample_direct(scene, &si, material, &frame, wo, u, false, stats);
-                here += self.maps.caustic.radiance(
-                    &si,
-                    material,
-                    wo,
-                    s.caustic_k,
-                    s.caustic_radius,
-                    s.caustic_filter,
-                );
-                here += self.indirect(scene, &si, material, &frame, wo, sampler, stats);
-                l += beta * here;
-                break;
-            }
-            // Specular or glossy: traced like a path tracer.
-            if material.flags.smooth {
-                let u = sampler.get_3d();
-                l += beta * sample_direct(scene, &si, material, &frame, wo, u, true, stats);
-            }
-            let wo_local = frame.to_local(wo);
-            let u = sampler.get_4d();
-            let Some(bs) =
-                material
-                    .bsdf
-                    .sample(wo_local, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
-            else {
-                break;
-            };
-            let wi = frame.to_world(bs.wi);
-            if !consistent(&si, wo, wi, wo_local, bs.wi) {
-                break;
-            }
-            beta *= bs.weight();
-            if bs.transmission {
-                eta_scale *= bs.eta * bs.eta;
-            }
-            specular = bs.specular;
-            prev_pdf = bs.pdf;
-            prev_p = si.p;
-            ray = si.spawn(wi);
-            if is_black(beta) {
-                break;
-            }
-            if depth >= self.rr_depth {
-                let survive = (beta * eta_scale).max_element();
-                if survive < 1.0 {
-                    if u.w >= survive {
-                        break;
-                    }
-                    beta /= survive;
-                }
-            }
-        }
-        RadianceSample { l, first_hit }
+        let gather = |si: &SurfaceInteraction,
+                      material: &Material,
+                      frame: &Frame,
+                      wo: Vec3A,
+                      sampler: &mut PixelSampler,
+                      stats: &mut RayStats| {
+            let u = sampler.get_3d();
+            let direct = sample_direct(scene, si, material, frame, wo, u, false, stats);
+            let caustic = self.maps.caustic.radiance(
+                si,
+                material,
+                wo,
+                s.caustic_k,
+                s.caustic_radius,
+                s.caustic_filter,
+            );
+            direct + caustic + self.indirect(scene, si, material, frame, wo, sampler, stats)
+        };
+        self.path.trace(scene, ray, sampler, stats, Some(&gather))
     }
 }

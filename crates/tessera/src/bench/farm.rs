@@ -52,6 +52,8 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// A coordinator on loopback with `local_workers` supervised workers, once they have all
+/// asked for work (their start is not part of any job's time), and a client of it.
 pub(super) async fn local_coordinator(
     data: PathBuf,
     local_workers: u32,
@@ -66,6 +68,14 @@ pub(super) async fn local_coordinator(
     config.local_workers = local_workers;
     let running = coordinator::start(config).await?;
     let client = Client::new(&format!("http://{}", running.addr), &token)?;
+    let start = Instant::now();
+    while client.workers().await?.len() < local_workers as usize {
+        anyhow::ensure!(
+            start.elapsed() < Duration::from_secs(30),
+            "local workers did not start"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
     Ok((running, client))
 }
 
@@ -73,15 +83,6 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
     let dir = tempfile_dir()?;
     let exe = std::env::current_exe()?;
     let (running, client) = local_coordinator(dir.join("data"), args.workers).await?;
-    // Wait for the local workers to come up: their start is not part of a job's time.
-    let start = Instant::now();
-    while client.workers().await?.len() < args.workers as usize {
-        anyhow::ensure!(
-            start.elapsed() < Duration::from_secs(30),
-            "local workers did not start"
-        );
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
     let (bundle, _, scene_name) = Bundle::pack_scene(&args.scene)?;
     let tar = bundle.to_tar();
     let (mut local, mut farm) = (Vec::new(), Vec::new());

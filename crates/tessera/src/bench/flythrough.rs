@@ -126,14 +126,6 @@ pub async fn run(args: FlythroughArgs) -> anyhow::Result<()> {
     });
     let dir = tempfile_dir()?;
     let (running, client) = local_coordinator(dir.join("data"), args.workers).await?;
-    let start = Instant::now();
-    while client.workers().await?.len() < args.workers as usize {
-        anyhow::ensure!(
-            start.elapsed() < Duration::from_secs(30),
-            "local workers did not start"
-        );
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
     let (bundle, _, scene_name) = Bundle::pack_scene(&args.scene)?;
     let info = client.upload_bundle(bundle.to_tar()).await?;
     let request = |frames: FrameRange, reuse: bool| JobRequest {
