@@ -59,14 +59,16 @@ pub enum IntegratorName {
     Direct,
     Auto,
     Photon,
+    Sppm,
 }
 
 impl IntegratorName {
-    pub const ALL: [IntegratorName; 4] = [
+    pub const ALL: [IntegratorName; 5] = [
         IntegratorName::Path,
         IntegratorName::Direct,
         IntegratorName::Auto,
         IntegratorName::Photon,
+        IntegratorName::Sppm,
     ];
 
     pub fn kind(self) -> IntegratorKind {
@@ -75,6 +77,7 @@ impl IntegratorName {
             IntegratorName::Direct => IntegratorKind::Direct,
             IntegratorName::Auto => IntegratorKind::Auto,
             IntegratorName::Photon => IntegratorKind::Photon,
+            IntegratorName::Sppm => IntegratorKind::Sppm,
         }
     }
 
@@ -84,6 +87,7 @@ impl IntegratorName {
             IntegratorName::Direct => "direct",
             IntegratorName::Auto => "auto",
             IntegratorName::Photon => "photon",
+            IntegratorName::Sppm => "sppm",
         }
     }
 }
@@ -229,6 +233,14 @@ pub fn apply(
         return Err(format!(
             "spp: expected 1 to {max_spp} samples per pixel, got {spp}"
         ));
+    }
+    if desc
+        .integrator
+        .photon
+        .alpha
+        .is_some_and(|a| !(a > 0.0 && a < 1.0))
+    {
+        return Err("integrator.photon_map.alpha: expected a fraction in (0, 1)".into());
     }
     let (w, h) = (desc.film.width, desc.film.height);
     if w > limits.max_resolution || h > limits.max_resolution {
@@ -443,10 +455,13 @@ impl Prepared {
     pub fn new(desc: SceneDesc, frames: FrameRange) -> Self {
         let start = Instant::now();
         let mut p = Self::scene_only(desc);
-        let (integrator, passes) =
-            integrator::prepare(&p.desc, &p.scene, &p.analysis, frames.first..=frames.last);
-        p.integrator = Some(integrator);
-        p.passes = passes;
+        // SPPM renders whole frames (`sppm::render`), not tiles.
+        if p.analysis.integrator != IntegratorKind::Sppm {
+            let (integrator, passes) =
+                integrator::prepare(&p.desc, &p.scene, &p.analysis, frames.first..=frames.last);
+            p.integrator = Some(integrator);
+            p.passes = passes;
+        }
         p.build_seconds = start.elapsed().as_secs_f64();
         p
     }
@@ -458,8 +473,7 @@ impl Prepared {
         let analysis = tessera_render::analysis::analyze(&desc);
         let photon = (analysis.integrator == IntegratorKind::Photon)
             .then(|| PhotonSettings::resolve(&desc, &analysis).0);
-        let integrator = photon
-            .is_none()
+        let integrator = (photon.is_none() && analysis.integrator != IntegratorKind::Sppm)
             .then(|| integrator::prepare(&desc, &scene, &analysis, 1..=1).0);
         Prepared {
             desc,

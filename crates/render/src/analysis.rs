@@ -277,10 +277,10 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
             reason: format!(
                 "specular surfaces ({}) can focus light onto diffuse ones{}",
                 names(&specular),
-                if integrator == IntegratorKind::Photon {
+                if matches!(integrator, IntegratorKind::Photon | IntegratorKind::Sppm) {
                     ""
                 } else {
-                    " (used by the photon integrator; path tracing renders caustics with more noise)"
+                    " (used by the photon and sppm integrators; path tracing renders caustics with more noise)"
                 }
             ),
         }

@@ -18,7 +18,8 @@ use tessera_scene::IntegratorKind;
 /// relMSE and mean ratio against `reference-32.exr` of scene `name` rendered by photon mapping
 /// (no irradiance cache: final gathering at every sample) with `photons` global and caustic
 /// photons, `gather` final-gather rays and `spp` samples per pixel.
-fn photon_error(name: &str, photons: u32, gather: u32, spp: u32) -> (f64, f64) {
+/// Scene `name` at the size of its 32×32 reference, and the reference.
+fn scene_and_reference(name: &str) -> (tessera_scene::SceneDesc, tessera_scene::image::RgbImage) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../scenes")
         .join(name);
@@ -26,6 +27,11 @@ fn photon_error(name: &str, photons: u32, gather: u32, spp: u32) -> (f64, f64) {
     let mut desc = tessera_scene::load(&root.join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
     desc.film.width = reference.width;
     desc.film.height = reference.height;
+    (desc, reference)
+}
+
+fn photon_error(name: &str, photons: u32, gather: u32, spp: u32) -> (f64, f64) {
+    let (mut desc, reference) = scene_and_reference(name);
     desc.integrator.kind = IntegratorKind::Photon;
     let p = &mut desc.integrator.photon;
     p.photons = Some(photons);
@@ -52,6 +58,14 @@ fn photon_error(name: &str, photons: u32, gather: u32, spp: u32) -> (f64, f64) {
         )
         .0
     });
+    error_against(&image, &reference)
+}
+
+/// relMSE and mean ratio of `image` against `reference`, emitter pixels left out.
+fn error_against(
+    image: &tessera_render::Image,
+    reference: &tessera_scene::image::RgbImage,
+) -> (f64, f64) {
     let rgb: Vec<glam::Vec3A> = image.pixels.iter().map(|p| p.rgb.into()).collect();
     let refs: Vec<glam::Vec3A> = reference.pixels.iter().map(|&t| t.into()).collect();
     // Pixels on or beside the visible emitter are left out: their error is the film's
@@ -102,4 +116,48 @@ fn photon_mapped_cornell_box_converges_to_the_path_traced_reference() {
 #[test]
 fn photon_mapped_cornell_glass_converges_to_the_path_traced_reference() {
     assert_converges("cornell-glass");
+}
+
+/// SPPM of `name` at 32×32 with `iterations` iterations of `photons` photons.
+fn sppm_error(name: &str, photons: u32, iterations: u32) -> (f64, f64) {
+    use tessera_render::integrator::sppm::{SppmSettings, render};
+    let (mut desc, reference) = scene_and_reference(name);
+    desc.integrator.kind = IntegratorKind::Sppm;
+    desc.integrator.photon.photons = Some(photons);
+    let analysis = tessera_render::analysis::analyze(&desc);
+    let settings = tessera_render::photon::PhotonSettings::resolve(&desc, &analysis).0;
+    let s = SppmSettings::from_photon_settings(&settings, iterations, 2.0 / 3.0);
+    let scene = Scene::build(&desc);
+    let camera = Camera::new(&desc.camera, &desc.film);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool");
+    let (image, _) = pool.install(|| render(&scene, &camera, &settings, &s, &|_| ()));
+    error_against(&image, &reference)
+}
+
+fn assert_sppm_converges(name: &str) {
+    let iterations = [4, 16, 64];
+    let errors: Vec<(f64, f64)> = iterations
+        .iter()
+        .map(|&t| sppm_error(name, 20_000, t))
+        .collect();
+    for (t, (rel, mean)) in iterations.iter().zip(&errors) {
+        eprintln!(
+            "{name}: sppm {t} iterations of 20000 photons: relMSE {rel:.3e}, mean/ref {mean:.4}"
+        );
+    }
+    assert!(
+        errors.windows(2).all(|w| w[1].0 < w[0].0),
+        "{name}: SPPM's relMSE must fall with iterations: {errors:?}"
+    );
+    let (_, mean) = errors[2];
+    assert!((mean - 1.0).abs() < 0.03, "{name}: mean/ref {mean}");
+}
+
+#[test]
+fn sppm_converges_to_the_path_traced_reference() {
+    assert_sppm_converges("cornell-box");
+    assert_sppm_converges("cornell-glass");
 }

@@ -91,6 +91,9 @@ pub enum IntegratorKind {
     /// Photon mapping: direct light exact, caustics from the caustic map, indirect diffuse by
     /// final gathering over the global map (through an irradiance cache where enabled).
     Photon,
+    /// Stochastic progressive photon mapping: `spp` iterations of one camera sample per pixel
+    /// and `photon_map.photons` photons each.
+    Sppm,
 }
 
 /// Photon-mapping knobs as the scene gives them; `None` = chosen from the scene.
@@ -106,6 +109,8 @@ pub struct PhotonDesc {
     pub caustic_filter: PhotonFilter,
     /// `None`: no irradiance cache (final gathering at every camera sample).
     pub irradiance_cache: Option<IrradianceCacheDesc>,
+    /// SPPM's α.
+    pub alpha: Option<f32>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

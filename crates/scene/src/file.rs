@@ -235,6 +235,8 @@ pub enum IntegratorType {
     Auto,
     /// Jensen's photon mapping with final gathering (and Ward's irradiance cache).
     Photon,
+    /// Stochastic progressive photon mapping (Hachisuka & Jensen 2009): consistent.
+    Sppm,
 }
 
 /// How caustic photons are weighted by distance in a radiance estimate (Jensen 2001, §7.2).
@@ -271,6 +273,8 @@ pub struct PhotonMapFile {
     pub gather_rays: Option<u32>,
     pub caustic_filter: Option<PhotonFilter>,
     pub irradiance_cache: Option<IrradianceCacheFile>,
+    /// SPPM: fraction of new photons kept per iteration, in (0, 1) (default 2/3).
+    pub alpha: Option<f32>,
 }
 
 /// Ward's irradiance cache for the indirect diffuse term.

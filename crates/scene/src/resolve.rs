@@ -539,6 +539,7 @@ impl Ctx<'_> {
                 IntegratorType::Direct => IntegratorKind::Direct,
                 IntegratorType::Auto => IntegratorKind::Auto,
                 IntegratorType::Photon => IntegratorKind::Photon,
+                IntegratorType::Sppm => IntegratorKind::Sppm,
             },
             spp: i.spp,
             max_depth: i.max_depth,
@@ -568,6 +569,14 @@ impl Ctx<'_> {
             if let Some(v) = v {
                 self.positive(&format!("{P}.{name}"), v);
             }
+        }
+        if let Some(a) = f.alpha
+            && !(a > 0.0 && a < 1.0)
+        {
+            self.problem(
+                format!("{P}.alpha"),
+                format!("expected a fraction in (0, 1), got {a}"),
+            );
         }
         let irradiance_cache = match f.irradiance_cache {
             Some(ic) if !ic.enabled => None,
@@ -610,6 +619,7 @@ impl Ctx<'_> {
             gather_rays: self.count("gather_rays", f.gather_rays, 1, MAX_GATHER_RAYS),
             caustic_filter: f.caustic_filter.unwrap_or_default(),
             irradiance_cache,
+            alpha: f.alpha,
         }
     }
 

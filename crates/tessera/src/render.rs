@@ -137,7 +137,30 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         first_spp: job::ADAPTIVE_FIRST_SPP.min(spp),
         max_spp: spp,
     });
+    let sppm = analysis.integrator == tessera_scene::IntegratorKind::Sppm;
+    anyhow::ensure!(
+        !(sppm && adaptive.is_some()),
+        "--target-error/--time-limit: sppm refines every pixel each iteration; give --spp (its iterations) instead"
+    );
     let (image, stats, extra, spp_text) = match &adaptive {
+        None if sppm => {
+            use tessera_render::integrator::sppm::{self, SppmSettings};
+            let (settings, _) = tessera_render::photon::PhotonSettings::resolve(desc, analysis);
+            let alpha = desc.integrator.photon.alpha.unwrap_or(2.0 / 3.0);
+            let s = SppmSettings::from_photon_settings(&settings, spp, alpha);
+            progress.set_length(spp as u64);
+            let (image, stats) = pool.install(|| {
+                sppm::render(&prepared.scene, &camera, &settings, &s, &|_| {
+                    progress.inc(1)
+                })
+            });
+            let text = format!(
+                "sppm: {spp} iterations of {} photons, initial radius {:.4}, α {alpha}",
+                s.photons, s.initial_radius
+            );
+            let extra = vec![("sppm".to_string(), text.clone())];
+            (image, stats, extra, text)
+        }
         None => {
             let outputs: Vec<TaskOutput> = pool.install(|| {
                 tasks

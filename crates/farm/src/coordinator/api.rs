@@ -265,12 +265,17 @@ async fn submit_job(
         });
         job::apply(&mut desc, &req.settings, frames, &app2.config.limits)
             .map_err(AppError::bad_request)?;
+        let analysis = tessera_render::analysis::analyze(&desc);
+        if analysis.integrator == tessera_scene::IntegratorKind::Sppm {
+            return Err(AppError::bad_request(
+                "integrator: sppm runs in tessera render only (its iterations are not farm tasks yet); use photon or path on the farm",
+            ));
+        }
         let tasks = frames
             .iter()
             .map(|f| job::plan_frame(&desc, &req.settings, f))
             .collect();
         let mut decisions = job::decisions(&desc);
-        let analysis = tessera_render::analysis::analyze(&desc);
         let mut new_passes = Vec::new();
         if let Some(plan) = passes::plan(&desc, &analysis, frames) {
             decisions.extend(plan.decisions.iter().cloned());

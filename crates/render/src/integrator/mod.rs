@@ -8,6 +8,7 @@
 
 mod path;
 mod photon;
+pub mod sppm;
 
 use glam::{Vec2, Vec3A};
 use tessera_scene::{IntegratorDesc, IntegratorKind, SceneDesc};
@@ -151,6 +152,17 @@ pub fn prepare(
             let (p, why) = PhotonIntegrator::prepare(desc, scene, analysis, frames);
             (Box::new(p), why)
         }
+        // SPPM renders whole frames (`sppm::render`); asked for tiles, a path tracer renders
+        // the same image without its photon passes, and says so.
+        IntegratorKind::Sppm => (
+            Box::new(path_family(&IntegratorDesc {
+                kind: IntegratorKind::Path,
+                ..desc.integrator
+            })),
+            vec![
+                "sppm renders whole frames (tessera render); per-tile rendering path traces".into(),
+            ],
+        ),
         kind => (
             Box::new(path_family(&IntegratorDesc {
                 kind,

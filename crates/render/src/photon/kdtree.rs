@@ -103,6 +103,35 @@ impl<T: Positioned> KdTree<T> {
         self.search(0, self.photons.len(), q, Vec3::from(n), flatten, knn);
     }
 
+    /// Calls `f(index, squared distance)` for every point within squared radius `r2` of `p`,
+    /// in a fixed (tree) order.
+    pub fn within(&self, p: Vec3A, r2: f32, f: &mut impl FnMut(u32, f32)) {
+        self.within_range(0, self.photons.len(), Vec3::from(p), r2, f);
+    }
+
+    fn within_range(&self, lo: usize, hi: usize, q: Vec3, r2: f32, f: &mut impl FnMut(u32, f32)) {
+        if lo >= hi {
+            return;
+        }
+        let mid = (lo + hi) / 2;
+        let p = self.photons[mid].position();
+        let axis = self.axes[mid] as usize;
+        let delta = q[axis] - p[axis];
+        let (near, far) = if delta < 0.0 {
+            ((lo, mid), (mid + 1, hi))
+        } else {
+            ((mid + 1, hi), (lo, mid))
+        };
+        self.within_range(near.0, near.1, q, r2, f);
+        let d2 = (p - q).length_squared();
+        if d2 <= r2 {
+            f(mid as u32, d2);
+        }
+        if delta * delta <= r2 {
+            self.within_range(far.0, far.1, q, r2, f);
+        }
+    }
+
     fn search(&self, lo: usize, hi: usize, q: Vec3, n: Vec3, flatten: f32, knn: &mut Knn) {
         if lo >= hi {
             return;
@@ -278,6 +307,26 @@ mod tests {
                 assert_eq!(got, want, "k {k} r² {r2} flatten {flatten}");
                 assert_eq!(knn.is_full(), want.len() == k);
             }
+        }
+    }
+
+    #[test]
+    fn within_finds_exactly_the_points_in_the_ball() {
+        let photons = random_photons(3000);
+        let tree = KdTree::build(photons.clone());
+        let q = Vec3A::new(0.4, 0.6, 0.1);
+        for r2 in [0.0001f32, 0.01, 0.2] {
+            let mut got = Vec::new();
+            tree.within(q, r2, &mut |i, d2| got.push((d2, tree.get(i).p.to_array())));
+            let mut want: Vec<f32> = photons
+                .iter()
+                .map(|p| (Vec3A::from(p.p) - q).length_squared())
+                .filter(|&d| d <= r2)
+                .collect();
+            let mut got_d: Vec<f32> = got.iter().map(|g| g.0).collect();
+            got_d.sort_by(f32::total_cmp);
+            want.sort_by(f32::total_cmp);
+            assert_eq!(got_d, want);
         }
     }
 

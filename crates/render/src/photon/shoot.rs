@@ -35,6 +35,9 @@ use crate::spectrum::is_black;
 pub enum MapKind {
     Global,
     Caustic,
+    /// Every diffuse hit after the first bounce (SPPM: direct light is computed at the visible
+    /// points), one pass of `photons` per iteration.
+    Indirect,
 }
 
 impl MapKind {
@@ -42,6 +45,7 @@ impl MapKind {
         match self {
             MapKind::Global => "global",
             MapKind::Caustic => "caustic",
+            MapKind::Indirect => "indirect",
         }
     }
 }
@@ -94,13 +98,13 @@ fn bounding(targets: &[Target]) -> Option<Target> {
 impl<'a> Shooter<'a> {
     pub fn new(scene: &'a Scene, settings: &PhotonSettings, kind: MapKind) -> Self {
         let count = match kind {
-            MapKind::Global => settings.photons,
+            MapKind::Global | MapKind::Indirect => settings.photons,
             MapKind::Caustic => settings.caustic_photons,
         };
         let targets: Vec<Target> = scene
             .objects
             .iter()
-            .filter(|(_, m)| kind == MapKind::Global || scene.material(*m).flags.specular)
+            .filter(|(_, m)| kind != MapKind::Caustic || scene.material(*m).flags.specular)
             .map(|(t, _)| *t)
             .collect();
         let aims = (0..scene.lights.len() as u32)
@@ -127,7 +131,7 @@ impl<'a> Shooter<'a> {
             // Area lights light everything around them: aiming global photons would only
             // cut their hemisphere into cells.
             Some(_)
-                if kind == MapKind::Global
+                if kind != MapKind::Caustic
                     && matches!(light, Light::Triangle(_) | Light::Sphere(_)) =>
             {
                 LightAim::Everywhere
@@ -218,6 +222,7 @@ impl<'a> Shooter<'a> {
                 let store = match self.kind {
                     MapKind::Global => true,
                     MapKind::Caustic => depth > 0 && specular_path,
+                    MapKind::Indirect => depth > 0,
                 };
                 if store {
                     let n = if si.ns.dot(wo) < 0.0 { -si.ns } else { si.ns };

@@ -63,9 +63,15 @@ fn parse_budget(s: &str) -> anyhow::Result<Budget> {
 }
 
 fn integrator_kind(name: &str) -> anyhow::Result<IntegratorKind> {
-    name.parse::<tessera_farm::job::IntegratorName>()
+    let kind = name
+        .parse::<tessera_farm::job::IntegratorName>()
         .map(|n| n.kind())
-        .map_err(|e| anyhow::anyhow!("--integrators: {e}"))
+        .map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
+    anyhow::ensure!(
+        kind != IntegratorKind::Sppm,
+        "--integrators: sppm is not progressive per tile; compare it with tessera render --integrator sppm --spp N and tessera compare"
+    );
+    Ok(kind)
 }
 
 /// One checkpoint of one integrator.
