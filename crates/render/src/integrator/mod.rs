@@ -40,6 +40,28 @@ pub(crate) fn consistent(
     (wo.dot(si.ng) * wi.dot(si.ng) > 0.0) == (wo_local.z * wi_local.z > 0.0)
 }
 
+/// Continues a path at `si` by sampling `material`'s BSDF toward the camera side `wo` (three
+/// sample values): the throughput weight f|cos θ|/p and the ray leaving along the sampled
+/// direction; `None` where sampling fails. For the specular chains photon mapping follows.
+#[inline]
+pub(crate) fn scatter(
+    si: &SurfaceInteraction,
+    material: &Material,
+    wo: Vec3A,
+    sampler: &mut PixelSampler,
+) -> Option<(Spectrum, Ray)> {
+    use crate::sampler::Sampler;
+    let frame = material.frame(si, wo);
+    let u = sampler.get_3d();
+    let bs = material.bsdf.sample(
+        frame.to_local(wo),
+        u.x,
+        Vec2::new(u.y, u.z),
+        TransportMode::Radiance,
+    )?;
+    Some((bs.weight(), si.spawn(frame.to_world(bs.wi))))
+}
+
 /// Next-event estimation at `si`: one light chosen by power (`u.x`), one point on it
 /// (`u.y`, `u.z`), f·Li·|cos θi| / p toward `wo`; weighted by the power heuristic against BSDF
 /// sampling when `mis` (the caller then also counts emitters its BSDF samples hit).

@@ -20,7 +20,9 @@ use tessera_scene::SceneDesc;
 
 use crate::analysis::Analysis;
 
-use super::{Integrator, PathIntegrator, RadianceSample, RayStats, consistent, sample_direct};
+use super::{
+    Integrator, PathIntegrator, RadianceSample, RayStats, consistent, sample_direct, scatter,
+};
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
 use crate::film::Tile;
@@ -176,21 +178,14 @@ impl PhotonIntegrator {
                 break;
             }
             // Delta-only surface: follow it.
-            let frame = material.frame(&si, wo);
-            let wo_local = frame.to_local(wo);
-            let u = sampler.get_3d();
-            let Some(bs) =
-                material
-                    .bsdf
-                    .sample(wo_local, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
-            else {
+            let Some((weight, next)) = scatter(&si, material, wo, sampler) else {
                 break;
             };
-            beta *= bs.weight();
+            beta *= weight;
             if is_black(beta) {
                 break;
             }
-            ray = si.spawn(frame.to_world(bs.wi));
+            ray = next;
         }
         (Spectrum::ZERO, first_t)
     }
@@ -299,15 +294,7 @@ impl PhotonIntegrator {
             if !material.flags.specular {
                 return None;
             }
-            let frame = material.frame(&si, wo);
-            let u = sampler.get_3d();
-            let bs = material.bsdf.sample(
-                frame.to_local(wo),
-                u.x,
-                Vec2::new(u.y, u.z),
-                TransportMode::Radiance,
-            )?;
-            ray = si.spawn(frame.to_world(bs.wi));
+            ray = scatter(&si, material, wo, sampler)?.1;
         }
         None
     }

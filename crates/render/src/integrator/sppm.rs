@@ -17,7 +17,7 @@
 use glam::{DVec3, UVec2, Vec2, Vec3A};
 use rayon::prelude::*;
 
-use super::{RayStats, sample_direct};
+use super::{RayStats, sample_direct, scatter};
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
 use crate::film::{Image, Pixel};
@@ -102,26 +102,20 @@ fn visible_point(
         if material.is_black() {
             break;
         }
-        let frame = material.frame(&si, wo);
         if material.flags.smooth {
+            let frame = material.frame(&si, wo);
             let u = sampler.get_3d();
             l += beta * sample_direct(scene, &si, material, &frame, wo, u, false, stats);
             return (l, Some(VisiblePoint { si, wo, beta }));
         }
-        let u = sampler.get_3d();
-        let Some(bs) = material.bsdf.sample(
-            frame.to_local(wo),
-            u.x,
-            Vec2::new(u.y, u.z),
-            TransportMode::Radiance,
-        ) else {
+        let Some((weight, next)) = scatter(&si, material, wo, sampler) else {
             break;
         };
-        beta *= bs.weight();
+        beta *= weight;
         if is_black(beta) {
             break;
         }
-        ray = si.spawn(frame.to_world(bs.wi));
+        ray = next;
     }
     (l, None)
 }
