@@ -113,9 +113,14 @@ fn submit(url: &str, tile: u32, spp: u32) -> i64 {
 
 /// Submits the fly-through with `args`; returns the job id.
 fn submit_with(url: &str, args: &[&str]) -> i64 {
+    submit_scene(url, &flythrough(), args)
+}
+
+/// Submits `scene` with `args`; returns the job id.
+fn submit_scene(url: &str, scene: &Path, args: &[&str]) -> i64 {
     let o = Command::new(exe())
         .arg("submit")
-        .arg(flythrough())
+        .arg(scene)
         .args(["--coordinator", url, "--token", CLIENT_TOKEN])
         .args(args)
         .output()
@@ -454,20 +459,7 @@ fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_chan
     let client = Client::new(&url, CLIENT_TOKEN).expect("client");
     let args = ["--integrator", "photon", "--size", "32x32", "--spp", "2"];
     let submit = || {
-        let o = Command::new(exe())
-            .arg("submit")
-            .arg(&scene)
-            .args(["--coordinator", &url, "--token", CLIENT_TOKEN])
-            .args(args)
-            .output()
-            .expect("run tessera submit");
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let out = String::from_utf8_lossy(&o.stdout).into_owned();
-        let id: i64 = out
-            .split_whitespace()
-            .nth(1)
-            .and_then(|id| id.parse().ok())
-            .unwrap_or_else(|| panic!("no job id in {out}"));
+        let id = submit_scene(&url, &scene, &args);
         let job = wait_for(&rt, &client, id, Duration::from_secs(120));
         assert_eq!(job.state, JobState::Done, "{:?}", job.error);
         job

@@ -15,7 +15,7 @@
 
 use sha2::{Digest, Sha256};
 use tessera_render::camera::Camera;
-use tessera_render::integrator::{PhotonIntegrator, RECORD_TILE, keyframes};
+use tessera_render::integrator::{PhotonIntegrator, keyframes, record_tiles};
 use tessera_render::irradiance::{IrradianceCache, Record};
 use tessera_render::photon::{
     KdTree, MapKind, Photon, PhotonMap, PhotonMaps, PhotonSettings, RadiancePhoton, Shooter,
@@ -109,14 +109,10 @@ impl PassPlan {
 
     /// The record-pass tasks: every tile of every keyframe's candidate grid, in merge order.
     pub fn record_tasks(&self, desc: &SceneDesc) -> Vec<TaskSpec> {
-        let Some(ic) = self.settings.irradiance_cache else {
-            return Vec::new();
-        };
-        let s = ic.spacing.max(1);
-        let grid = (desc.film.width.div_ceil(s), desc.film.height.div_ceil(s));
+        let tiles = record_tiles(&self.settings, desc.film.width, desc.film.height);
         let mut out = Vec::new();
         for &frame in &self.keyframes {
-            for t in tessera_render::film::tiles(grid.0, grid.1, RECORD_TILE) {
+            for &t in &tiles {
                 out.push(TaskSpec {
                     kind: TaskKind::Records,
                     frame,

@@ -18,6 +18,7 @@ use crate::job::{self, FrameRange, Limits, PassKind, Prepared, TaskKind};
 use crate::passes;
 use crate::protocol::{Failure, Heartbeat, LeaseGrant, LeaseRequest, WorkerInfo};
 use tessera_render::integrator::PhotonIntegrator;
+use tessera_render::photon::PhotonMaps;
 
 #[derive(Debug, Clone)]
 pub struct WorkerConfig {
@@ -76,6 +77,8 @@ struct Worker {
     cache: Mutex<Vec<(i64, SceneCell)>>,
     /// Photon-mapping integrators by (job, artifact keys), built from downloaded artifacts.
     integrators: Mutex<Vec<((i64, String), IntegratorCell)>>,
+    /// Decoded photon maps by artifact key.
+    maps: Cells<String, Arc<PhotonMaps>>,
 }
 
 pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
@@ -93,6 +96,7 @@ pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
         scene_builds: AtomicU64::new(0),
         cache: Mutex::new(Vec::new()),
         integrators: Mutex::new(Vec::new()),
+        maps: Mutex::new(Vec::new()),
         config,
     });
     tracing::info!(worker = %worker.id, coordinator = %worker.config.coordinator, slots = worker.config.slots, "worker started");
@@ -264,6 +268,35 @@ impl Worker {
         }
     }
 
+    async fn download(&self, key: &str) -> anyhow::Result<Vec<u8>> {
+        retrying("artifact download", Duration::from_secs(600), || {
+            self.client.download_artifact(key)
+        })
+        .await
+    }
+
+    /// The photon maps with this key, downloaded and decoded once per worker (the record and
+    /// the tile stage of a job both read them).
+    async fn photon_maps(&self, key: &str) -> anyhow::Result<Arc<PhotonMaps>> {
+        let cell = cell_for(&self.maps, key.to_string());
+        let maps = cell
+            .get_or_try_init(|| async {
+                let bytes = self.download(key).await?;
+                let maps = tokio::task::spawn_blocking(move || passes::decode_maps(&bytes))
+                    .await?
+                    .map_err(anyhow::Error::msg)?;
+                anyhow::Ok(Arc::new(maps))
+            })
+            .await;
+        match maps {
+            Ok(m) => Ok(m.clone()),
+            Err(e) => {
+                forget(&self.maps, &key.to_string());
+                Err(e)
+            }
+        }
+    }
+
     /// The photon-mapping integrator of a task's artifacts (maps, and records for tiles),
     /// downloaded and decoded once per worker.
     async fn photon_integrator(
@@ -278,25 +311,19 @@ impl Worker {
             .get_or_try_init(|| async {
                 let (mut maps, mut records) = (None, None);
                 for a in &grant.artifacts {
-                    let bytes = retrying("artifact download", Duration::from_secs(600), || {
-                        self.client.download_artifact(&a.key)
-                    })
-                    .await?;
                     match a.kind {
-                        PassKind::Photons => maps = Some(bytes),
-                        PassKind::Records => records = Some(bytes),
+                        PassKind::Photons => maps = Some(self.photon_maps(&a.key).await?),
+                        PassKind::Records => records = Some(self.download(&a.key).await?),
                     }
                 }
                 let prepared = prepared.clone();
                 let integ = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
                     let maps = maps.context("the task names no photon-map artifact")?;
-                    let maps = passes::decode_maps(&maps).map_err(anyhow::Error::msg)?;
                     let records = records
                         .map(|b| passes::decode_records(&b))
                         .transpose()
                         .map_err(anyhow::Error::msg)?;
-                    passes::integrator(&prepared, Arc::new(maps), records)
-                        .map_err(anyhow::Error::msg)
+                    passes::integrator(&prepared, maps, records).map_err(anyhow::Error::msg)
                 })
                 .await??;
                 tracing::info!(job = grant.job_id, artifacts = %id.1, "pass artifacts loaded");

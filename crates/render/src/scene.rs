@@ -74,6 +74,16 @@ pub struct SurfaceInteraction {
 }
 
 impl SurfaceInteraction {
+    /// The shading normal turned to the side of `w`.
+    #[inline]
+    pub fn ns_toward(&self, w: Vec3A) -> Vec3A {
+        if self.ns.dot(w) < 0.0 {
+            -self.ns
+        } else {
+            self.ns
+        }
+    }
+
     /// A ray leaving the surface in direction `d`, from an origin offset past the error bound.
     #[inline]
     pub fn spawn(&self, d: Vec3A) -> Ray {

@@ -18,6 +18,14 @@ use tessera_scene::IntegratorKind;
 /// relMSE and mean ratio against `reference-32.exr` of scene `name` rendered by photon mapping
 /// (no irradiance cache: final gathering at every sample) with `photons` global and caustic
 /// photons, `gather` final-gather rays and `spp` samples per pixel.
+/// The two threads CI has.
+fn pool() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool")
+}
+
 /// Scene `name` at the size of its 32×32 reference, and the reference.
 fn scene_and_reference(name: &str) -> (tessera_scene::SceneDesc, tessera_scene::image::RgbImage) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -43,10 +51,7 @@ fn photon_error(name: &str, photons: u32, gather: u32, spp: u32) -> (f64, f64) {
     }
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .expect("pool");
+    let pool = pool();
     let image = pool.install(|| {
         let integ = integrator::for_scene(&desc, &scene);
         render_frame(
@@ -129,10 +134,7 @@ fn sppm_error(name: &str, photons: u32, iterations: u32) -> (f64, f64) {
     let s = SppmSettings::from_photon_settings(&settings, iterations, 2.0 / 3.0);
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .expect("pool");
+    let pool = pool();
     let (image, _) = pool.install(|| render(&scene, &camera, &settings, &s, &|_| ()));
     error_against(&image, &reference)
 }

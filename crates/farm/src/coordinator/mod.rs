@@ -116,6 +116,13 @@ impl App {
     fn frame_path(&self, job: i64, frame: u32) -> PathBuf {
         self.job_dir(job).join(job::frame_file_name(frame))
     }
+    /// `path` relative to the data directory, as the store records files.
+    fn relative(&self, path: &Path) -> String {
+        path.strip_prefix(&self.config.data)
+            .unwrap_or(path)
+            .to_string_lossy()
+            .into_owned()
+    }
     /// Where a pass artifact with this key lives.
     fn artifact_path(&self, key: &str) -> PathBuf {
         self.config.data.join("cache").join(format!("{key}.bin"))
@@ -230,11 +237,7 @@ impl App {
             let bytes = std::fs::read(&file)?;
             files.push(Artifact {
                 kind: kind.into(),
-                path: file
-                    .strip_prefix(&self.config.data)
-                    .unwrap_or(&file)
-                    .to_string_lossy()
-                    .into_owned(),
+                path: self.relative(&file),
                 bytes: bytes.len() as u64,
                 sha256: crate::bundle::hash(&bytes),
             });
@@ -306,11 +309,7 @@ impl App {
         let entry = CacheEntry {
             key: key.clone(),
             kind: pass,
-            path: path
-                .strip_prefix(&self.config.data)
-                .unwrap_or(&path)
-                .to_string_lossy()
-                .into_owned(),
+            path: self.relative(&path),
             bytes: bytes.len() as u64,
             sha256: crate::bundle::hash(&bytes),
             job,

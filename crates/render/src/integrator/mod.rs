@@ -24,7 +24,7 @@ use crate::scene::{Material, Scene, SurfaceInteraction};
 use crate::spectrum::{Spectrum, is_black};
 
 pub use path::PathIntegrator;
-pub use photon::{PhotonIntegrator, RECORD_TILE, keyframes};
+pub use photon::{PhotonIntegrator, keyframes, record_tiles};
 
 /// Whether a pair of directions is reflection (same side) both for the geometric normal and
 /// for the BSDF's local frame. Where shading normals disagree with the geometry, light would

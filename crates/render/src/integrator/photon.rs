@@ -14,7 +14,7 @@
 
 use std::sync::Arc;
 
-use glam::{UVec2, Vec2, Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
 use tessera_scene::SceneDesc;
 
@@ -40,6 +40,16 @@ const GATHER_SPECULAR_DEPTH: u32 = 8;
 
 /// Record candidates per side of a record-pass tile.
 pub const RECORD_TILE: u32 = 8;
+
+/// The record pass's tiles: the grid of record candidates of a `width`×`height` film (one per
+/// `spacing` pixels) in 8×8 tiles; none without an irradiance cache.
+pub fn record_tiles(settings: &PhotonSettings, width: u32, height: u32) -> Vec<Tile> {
+    let Some(ic) = settings.irradiance_cache else {
+        return Vec::new();
+    };
+    let s = ic.spacing.max(1);
+    crate::film::tiles(width.div_ceil(s), height.div_ceil(s), RECORD_TILE)
+}
 
 /// The frames whose cameras make the irradiance records of a job rendering `frames`: every
 /// `step`-th frame from the first, and the last (V-Ray's "use camera path", Mental Ray's
@@ -104,7 +114,7 @@ impl PhotonIntegrator {
         let mut integrator = PhotonIntegrator::new(settings, desc.integrator.rr_depth, maps, None);
         if let Some(ic) = settings.irradiance_cache {
             let keyframes = keyframes(frames, ic.keyframe_step);
-            let tiles = integrator.record_tiles(desc.film.width, desc.film.height);
+            let tiles = record_tiles(&settings, desc.film.width, desc.film.height);
             let mut records = Vec::new();
             for &frame in &keyframes {
                 let camera = Camera::new(&desc.camera_at(frame), &desc.film);
@@ -140,12 +150,6 @@ impl PhotonIntegrator {
 
     pub fn cache(&self) -> Option<&IrradianceCache> {
         self.cache.as_deref()
-    }
-
-    /// The record pass's tiles: the candidate grid of a `width`×`height` film in 8×8 tiles.
-    pub fn record_tiles(&self, width: u32, height: u32) -> Vec<Tile> {
-        let grid = self.candidate_grid(width, height);
-        crate::film::tiles(grid.x, grid.y, RECORD_TILE)
     }
 
     /// Radiance arriving along `ray` from the global map at the first non-specular surface it
@@ -288,7 +292,7 @@ impl PhotonIntegrator {
             let material = scene.material(si.material);
             let wo = -ray.d;
             if material.flags.diffuse {
-                let n = if si.ns.dot(wo) < 0.0 { -si.ns } else { si.ns };
+                let n = si.ns_toward(wo);
                 return Some(GatherPoint { si, n });
             }
             if !material.flags.specular {
@@ -357,15 +361,6 @@ impl PhotonIntegrator {
         records
     }
 
-    /// The grid of record candidates for a film of `width`×`height`: one per `spacing` pixels.
-    pub fn candidate_grid(&self, width: u32, height: u32) -> UVec2 {
-        let s = self
-            .settings
-            .irradiance_cache
-            .map_or(1, |c| c.spacing.max(1));
-        UVec2::new(width.div_ceil(s), height.div_ceil(s))
-    }
-
     /// Indirect diffuse radiance toward `wo` at a gather vertex.
     #[allow(clippy::too_many_arguments)]
     fn indirect(
@@ -379,7 +374,7 @@ impl PhotonIntegrator {
         stats: &mut RayStats,
     ) -> Spectrum {
         if let (Some(cache), Some(rho)) = (&self.cache, material.bsdf.lambertian()) {
-            let n = if si.ns.dot(wo) < 0.0 { -si.ns } else { si.ns };
+            let n = si.ns_toward(wo);
             if let Some(e) = cache.lookup(si.p, n) {
                 return rho * e * crate::math::INV_PI;
             }

@@ -98,7 +98,7 @@ impl<T: Positioned> KdTree<T> {
 
     /// Collects into `knn` the nearest photons to `p` under the distance
     /// |Δ|² + `flatten`·(Δ·`n`)² (Δ = photon − p; `n` unit), within `knn`'s radius.
-    pub fn nearest(&self, p: Vec3A, n: Vec3A, flatten: f32, knn: &mut Knn) {
+    pub fn nearest<const N: usize>(&self, p: Vec3A, n: Vec3A, flatten: f32, knn: &mut Knn<N>) {
         let q = Vec3::from(p);
         self.search(0, self.photons.len(), q, Vec3::from(n), flatten, knn);
     }
@@ -132,7 +132,15 @@ impl<T: Positioned> KdTree<T> {
         }
     }
 
-    fn search(&self, lo: usize, hi: usize, q: Vec3, n: Vec3, flatten: f32, knn: &mut Knn) {
+    fn search<const N: usize>(
+        &self,
+        lo: usize,
+        hi: usize,
+        q: Vec3,
+        n: Vec3,
+        flatten: f32,
+        knn: &mut Knn<N>,
+    ) {
         if lo >= hi {
             return;
         }
@@ -190,21 +198,24 @@ fn balance<T: Positioned>(photons: &mut [T], axes: &mut [u8]) {
 }
 
 /// The k nearest photons found so far: a max-heap on distance once full, its top the radius.
-pub struct Knn {
-    items: [(f32, u32); MAX_K],
+/// Its capacity `N` is the most `k` it serves, kept on the stack (and cleared per search, so
+/// small searches use a small `N`).
+pub struct Knn<const N: usize = MAX_K> {
+    items: [(f32, u32); N],
     len: usize,
     k: usize,
-    /// Squared search radius: the initial limit, then the k-th distance once k are found.
+    /// Squared search radius: the initial limit until k are found, then the k-th distance —
+    /// the disc a density estimate divides by.
     pub max_d2: f32,
 }
 
-impl Knn {
-    /// A search for the `k` (≤ [`MAX_K`]) nearest within squared radius `max_d2`.
-    pub fn new(k: usize, max_d2: f32) -> Knn {
+impl<const N: usize> Knn<N> {
+    /// A search for the `k` (≤ `N`) nearest within squared radius `max_d2`.
+    pub fn new(k: usize, max_d2: f32) -> Self {
         Knn {
-            items: [(0.0, 0); MAX_K],
+            items: [(0.0, 0); N],
             len: 0,
-            k: k.clamp(1, MAX_K),
+            k: k.clamp(1, N),
             max_d2,
         }
     }
@@ -290,7 +301,7 @@ mod tests {
                 d.length_squared() + flatten * d.dot(n) * d.dot(n)
             };
             for (k, r2) in [(1usize, 1.0f32), (50, 1.0), (50, 0.001), (700, 0.05)] {
-                let mut knn = Knn::new(k, r2);
+                let mut knn = Knn::<MAX_K>::new(k, r2);
                 tree.nearest(q, n, flatten, &mut knn);
                 let mut got: Vec<f32> = knn
                     .found()
@@ -333,7 +344,7 @@ mod tests {
     #[test]
     fn an_empty_tree_finds_nothing() {
         let tree: KdTree = KdTree::build(Vec::new());
-        let mut knn = Knn::new(10, 1.0);
+        let mut knn = Knn::<16>::new(10, 1.0);
         tree.nearest(Vec3A::ZERO, Vec3A::Z, 0.0, &mut knn);
         assert!(knn.found().is_empty());
     }

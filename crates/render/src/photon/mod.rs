@@ -193,16 +193,13 @@ impl PhotonMap {
         if self.tree.is_empty() {
             return Spectrum::ZERO;
         }
-        let mut knn = Knn::new(k as usize, max_radius * max_radius);
+        let mut knn = Knn::<{ kdtree::MAX_K }>::new(k as usize, max_radius * max_radius);
         self.tree.nearest(si.p, si.ns, FLATTEN, &mut knn);
         if knn.found().is_empty() {
             return Spectrum::ZERO;
         }
-        let r2 = if knn.is_full() {
-            knn.max_d2
-        } else {
-            max_radius * max_radius
-        };
+        // The disc: the k-th photon's distance, or the search limit if fewer were found.
+        let r2 = knn.max_d2;
         let frame = material.frame(si, wo);
         let wo_local = frame.to_local(wo);
         let r = r2.sqrt();
@@ -297,13 +294,9 @@ pub fn radiance_photons(
             let ph = &photons[i];
             let rho = rho(ph.material)?;
             let n = Vec3A::from(ph.n);
-            let mut knn = Knn::new(s.k as usize, s.radius * s.radius);
+            let mut knn = Knn::<{ kdtree::MAX_K }>::new(s.k as usize, s.radius * s.radius);
             global.tree.nearest(ph.p.into(), n, FLATTEN, &mut knn);
-            let r2 = if knn.is_full() {
-                knn.max_d2
-            } else {
-                s.radius * s.radius
-            };
+            let r2 = knn.max_d2;
             let mut flux = Spectrum::ZERO;
             for &(_, j) in knn.found() {
                 let q = global.tree.get(j);
@@ -374,8 +367,8 @@ impl PhotonMaps {
         s: &PhotonSettings,
     ) -> Spectrum {
         if material.bsdf.lambertian().is_some() && !self.radiance.is_empty() {
-            let n = if si.ns.dot(wo) < 0.0 { -si.ns } else { si.ns };
-            let mut knn = Knn::new(8, s.radius * s.radius);
+            let n = si.ns_toward(wo);
+            let mut knn = Knn::<8>::new(8, s.radius * s.radius);
             self.radiance.nearest(si.p, n, FLATTEN, &mut knn);
             let best = knn
                 .found()

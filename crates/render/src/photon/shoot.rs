@@ -225,7 +225,7 @@ impl<'a> Shooter<'a> {
                     MapKind::Indirect => depth > 0,
                 };
                 if store {
-                    let n = if si.ns.dot(wo) < 0.0 { -si.ns } else { si.ns };
+                    let n = si.ns_toward(wo);
                     out.push(Photon {
                         p: Vec3::from(si.p),
                         power: Vec3::from(power),
