@@ -133,6 +133,21 @@ fn submit_scene(url: &str, scene: &Path, args: &[&str]) -> i64 {
         .unwrap_or_else(|| panic!("no job id in {out}"))
 }
 
+/// `tessera render SCENE -q ARGS -o OUT`; returns the EXR's bytes.
+fn render_locally(scene: &Path, args: &[&str], out: &Path) -> Vec<u8> {
+    let o = Command::new(exe())
+        .arg("render")
+        .arg(scene)
+        .arg("-o")
+        .arg(out)
+        .arg("-q")
+        .args(args)
+        .output()
+        .expect("run tessera render");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::read(out).expect("rendered frame")
+}
+
 /// Polls the job until it ends (or `timeout`), tolerating a coordinator that is down.
 fn wait_for(
     rt: &tokio::runtime::Runtime,
@@ -169,23 +184,11 @@ fn assert_frames_match_render(
         let farm = rt
             .block_on(client.frame_exr(job.id, frame))
             .expect("download frame");
-        let path = dir.join(format!("render_{frame}.exr"));
-        let o = Command::new(exe())
-            .arg("render")
-            .arg(flythrough())
-            .arg("-o")
-            .arg(&path)
-            .args([
-                "-q",
-                "--frame",
-                &frame.to_string(),
-                "--spp",
-                &spp.to_string(),
-            ])
-            .output()
-            .expect("run tessera render");
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let local = std::fs::read(&path).expect("rendered frame");
+        let local = render_locally(
+            &flythrough(),
+            &["--frame", &frame.to_string(), "--spp", &spp.to_string()],
+            &dir.join(format!("render_{frame}.exr")),
+        );
         assert!(
             farm == local,
             "frame {frame}: the farm's EXR differs from tessera render's"
@@ -410,19 +413,13 @@ fn an_adaptive_job_adds_rounds_and_equals_an_adaptive_render() {
         .expect("estimate in the status");
     assert!(estimate <= 0.01, "{estimate}");
     let farm = rt.block_on(client.frame_exr(id, 2)).expect("frame");
-    let path = dir.path().join("adaptive.exr");
-    let o = Command::new(exe())
-        .arg("render")
-        .arg(flythrough())
-        .arg("-o")
-        .arg(&path)
-        .args(["-q", "--frame", "2"])
-        .args(args)
-        .output()
-        .expect("run tessera render");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let local = render_locally(
+        &flythrough(),
+        &[&args[..], &["--frame", "2"]].concat(),
+        &dir.path().join("adaptive.exr"),
+    );
     assert!(
-        std::fs::read(&path).expect("render") == farm,
+        local == farm,
         "the farm's adaptive frame differs from tessera render's"
     );
 }
@@ -471,19 +468,9 @@ fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_chan
     assert_eq!((state.as_str(), by), ("built", Some(first.id)));
     assert_eq!(pass(&first, Records).0, "built");
     let farm = rt.block_on(client.frame_exr(first.id, 1)).expect("frame");
-    let local = dir.path().join("local.exr");
-    let o = Command::new(exe())
-        .arg("render")
-        .arg(&scene)
-        .arg("-o")
-        .arg(&local)
-        .arg("-q")
-        .args(args)
-        .output()
-        .expect("run tessera render");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let local = render_locally(&scene, &args, &dir.path().join("local.exr"));
     assert!(
-        std::fs::read(&local).expect("render") == farm,
+        local == farm,
         "the farm's photon-mapped frame differs from tessera render's"
     );
 
@@ -511,5 +498,60 @@ fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_chan
         rt.block_on(client.frame_exr(repainted.id, 1))
             .expect("frame")
             != farm
+    );
+}
+
+#[test]
+fn an_sppm_job_runs_its_iterations_as_tasks_survives_a_restart_and_equals_tessera_render() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let data = dir.path().join("data");
+    let (mut serve1, url) = serve(&data, "127.0.0.1:0", "30");
+    let _a = worker(&url, "a", &dir.path().join("a.log"));
+    let _b = worker(&url, "b", &dir.path().join("b.log"));
+    let rt = runtime();
+    let client = Client::new(&url, CLIENT_TOKEN).expect("client");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-glass/scene.json");
+    // 8 iterations of the default 200 000 photons: 8 photon tasks per iteration.
+    let args = ["--integrator", "sppm", "--size", "48x40", "--spp", "8"];
+    let id = submit_scene(&url, &scene, &args);
+
+    // Kill the coordinator once an iteration or two are folded, mid-job.
+    let start = Instant::now();
+    loop {
+        let tasks = rt.block_on(client.tasks(id)).expect("tasks");
+        if tasks.iter().filter(|t| t.state == "done").count() >= 12 {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60), "no progress");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let png = rt.block_on(client.frame_preview(id, 1)).expect("preview");
+    assert!(png.starts_with(b"\x89PNG"), "not a PNG");
+    let before = rt.block_on(client.job(id)).expect("job");
+    assert!(!before.state.is_final(), "the job finished before the kill");
+    // Progress counts the iterations not queued yet.
+    assert_eq!(before.tasks.planned, 8 * 8);
+    assert!(before.progress < 1.0, "{}", before.progress);
+    serve1.0.kill().expect("SIGKILL the coordinator");
+    let _ = serve1.0.wait();
+    std::thread::sleep(Duration::from_millis(500));
+    let listen = url.trim_start_matches("http://").to_string();
+    let (_serve2, _) = serve(&data, &listen, "30");
+
+    let job = wait_for(&rt, &client, id, Duration::from_secs(180));
+    assert_eq!(job.state, JobState::Done, "{:?}", job.error);
+    assert_eq!(job.tasks.total, 8 * 8, "8 iterations of 8 photon tasks");
+    assert!(
+        job.decisions
+            .iter()
+            .any(|d| d.starts_with("sppm: 8 iterations of 200000 photons")),
+        "{:?}",
+        job.decisions
+    );
+    let farm = rt.block_on(client.frame_exr(id, 1)).expect("frame");
+    let local = render_locally(&scene, &args, &dir.path().join("local.exr"));
+    assert!(
+        local == farm,
+        "the farm's SPPM frame differs from tessera render's"
     );
 }

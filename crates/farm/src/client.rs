@@ -86,6 +86,18 @@ impl Client {
         Ok(r.bytes().await?.to_vec())
     }
 
+    /// The squared radii iteration `t` of an SPPM frame gathers within.
+    pub async fn download_sppm_radii(
+        &self,
+        job: i64,
+        frame: u32,
+        t: u32,
+    ) -> anyhow::Result<Vec<u8>> {
+        let path = format!("/v1/jobs/{job}/frames/{frame}/sppm/{t}/radii");
+        let r = Self::send(self.request(reqwest::Method::GET, &path)).await?;
+        Ok(r.bytes().await?.to_vec())
+    }
+
     pub async fn submit(&self, job: &JobRequest) -> anyhow::Result<JobStatus> {
         Self::json(self.request(reqwest::Method::POST, "/v1/jobs").json(job)).await
     }

@@ -262,6 +262,9 @@ pub fn apply(
     if settings.samples_per_task == Some(0) {
         return Err("samples_per_task: expected at least 1".into());
     }
+    if desc.integrator.kind == IntegratorKind::Sppm {
+        crate::sppm::check(desc, settings)?;
+    }
     let available = desc.frame_count();
     if frames.first == 0 || frames.last < frames.first || frames.last > available {
         return Err(format!(
@@ -299,6 +302,9 @@ pub enum TaskKind {
     /// Irradiance records over the tile `x0..x1 × y0..y1` of the record-candidate grid of
     /// keyframe `frame`.
     Records,
+    /// SPPM iteration `sample_start` of frame `frame`: photons `x0..x1` of the iteration
+    /// (chunk `tile_index`) gathered at every pixel's visible point (see [`crate::sppm`]).
+    Sppm,
 }
 
 impl TaskKind {
@@ -308,6 +314,7 @@ impl TaskKind {
             TaskKind::GlobalPhotons => "global_photons",
             TaskKind::CausticPhotons => "caustic_photons",
             TaskKind::Records => "records",
+            TaskKind::Sppm => "sppm",
         }
     }
 
@@ -316,14 +323,15 @@ impl TaskKind {
             "global_photons" => TaskKind::GlobalPhotons,
             "caustic_photons" => TaskKind::CausticPhotons,
             "records" => TaskKind::Records,
+            "sppm" => TaskKind::Sppm,
             _ => TaskKind::Tile,
         }
     }
 
-    /// The pass this task belongs to (`None` for tiles).
+    /// The pass this task belongs to (`None` for a frame's tasks: tiles, SPPM iterations).
     pub fn pass(self) -> Option<PassKind> {
         match self {
-            TaskKind::Tile => None,
+            TaskKind::Tile | TaskKind::Sppm => None,
             TaskKind::GlobalPhotons | TaskKind::CausticPhotons => Some(PassKind::Photons),
             TaskKind::Records => Some(PassKind::Records),
         }
@@ -395,6 +403,10 @@ impl TaskSpec {
 /// The tasks of one frame, in stitch order: tiles row-major, each tile's sample ranges in
 /// increasing order.
 pub fn plan_frame(desc: &SceneDesc, settings: &RenderSettings, frame: u32) -> Vec<TaskSpec> {
+    // SPPM starts with its first iteration; each later one follows the one before.
+    if desc.integrator.kind == IntegratorKind::Sppm {
+        return crate::sppm::iteration_tasks(desc, frame, 0);
+    }
     // An adaptive frame starts with one round of every tile; later rounds follow its noise.
     let (spp, chunk) = match adaptive_rule(desc, settings) {
         Some(rule) => (rule.first_spp, rule.first_spp),
@@ -644,15 +656,22 @@ pub fn decisions(desc: &SceneDesc) -> Vec<String> {
 pub(crate) mod tests {
     use super::*;
 
-    /// The Cornell box, 24×20 at 5 spp.
-    pub(crate) fn cornell() -> SceneDesc {
-        let path =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
+    /// `scenes/NAME/scene.json` at 24×20 with `spp` samples (or iterations).
+    pub(crate) fn scene(name: &str, spp: u32) -> SceneDesc {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenes")
+            .join(name)
+            .join("scene.json");
         let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
         d.film.width = 24;
         d.film.height = 20;
-        d.integrator.spp = 5;
+        d.integrator.spp = spp;
         d
+    }
+
+    /// The Cornell box, 24×20 at 5 spp.
+    pub(crate) fn cornell() -> SceneDesc {
+        scene("cornell-box", 5)
     }
 
     #[test]

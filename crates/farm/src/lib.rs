@@ -10,5 +10,6 @@ pub mod job;
 pub mod passes;
 pub mod progressive;
 pub mod protocol;
+pub mod sppm;
 pub mod store;
 pub mod worker;

@@ -275,7 +275,9 @@ pub fn execute(
                 &mut RayStats::default(),
             )))
         }
-        TaskKind::Tile => Err("a tile task is not a pass".into()),
+        TaskKind::Tile | TaskKind::Sppm => {
+            Err(format!("a {} task is not a pass", task.kind.as_str()))
+        }
     }
 }
 
@@ -286,20 +288,24 @@ const PHOTONS_MAGIC: &[u8; 4] = b"TPHO";
 const RECORDS_MAGIC: &[u8; 4] = b"TREC";
 const MAPS_MAGIC: &[u8; 4] = b"TMAP";
 
-fn put_f32s(b: &mut Vec<u8>, v: &[f32]) {
+pub(crate) fn put_f32s(b: &mut Vec<u8>, v: &[f32]) {
     for x in v {
         b.extend_from_slice(&x.to_le_bytes());
     }
 }
 
-struct Reader<'a> {
+pub(crate) struct Reader<'a> {
     bytes: &'a [u8],
     at: usize,
     what: &'static str,
 }
 
 impl<'a> Reader<'a> {
-    fn new(bytes: &'a [u8], magic: &[u8; 4], what: &'static str) -> Result<Self, String> {
+    pub(crate) fn new(
+        bytes: &'a [u8],
+        magic: &[u8; 4],
+        what: &'static str,
+    ) -> Result<Self, String> {
         if bytes.len() < 4 || &bytes[..4] != magic {
             return Err(format!(
                 "expected {what} starting with \"{}\"",
@@ -308,7 +314,7 @@ impl<'a> Reader<'a> {
         }
         Ok(Reader { bytes, at: 4, what })
     }
-    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
+    pub(crate) fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
         let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len());
         let Some(end) = end else {
             return Err(format!("{} cut short at byte {}", self.what, self.at));
@@ -317,11 +323,25 @@ impl<'a> Reader<'a> {
         self.at = end;
         Ok(s)
     }
-    fn u64(&mut self) -> Result<u64, String> {
+    pub(crate) fn u64(&mut self) -> Result<u64, String> {
         let s = self.take(8)?;
         Ok(u64::from_le_bytes(s.try_into().map_err(|_| "short")?))
     }
-    fn f32s<const N: usize>(&mut self) -> Result<[f32; N], String> {
+    pub(crate) fn u32(&mut self) -> Result<u32, String> {
+        let s = self.take(4)?;
+        Ok(u32::from_le_bytes(s.try_into().map_err(|_| "short")?))
+    }
+    pub(crate) fn f64s<const N: usize>(&mut self) -> Result<[f64; N], String> {
+        let s = self.take(8 * N)?;
+        let mut out = [0.0; N];
+        for (i, o) in out.iter_mut().enumerate() {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(&s[8 * i..8 * i + 8]);
+            *o = f64::from_le_bytes(b);
+        }
+        Ok(out)
+    }
+    pub(crate) fn f32s<const N: usize>(&mut self) -> Result<[f32; N], String> {
         let s = self.take(4 * N)?;
         let mut out = [0.0; N];
         for (i, o) in out.iter_mut().enumerate() {
@@ -330,7 +350,7 @@ impl<'a> Reader<'a> {
         Ok(out)
     }
     /// A count of items of `size` bytes each, checked against what is left.
-    fn count(&mut self, size: usize) -> Result<usize, String> {
+    pub(crate) fn count(&mut self, size: usize) -> Result<usize, String> {
         let n = self.u64()? as usize;
         if n.checked_mul(size)
             .is_none_or(|b| b > self.bytes.len() - self.at)
@@ -342,7 +362,7 @@ impl<'a> Reader<'a> {
         }
         Ok(n)
     }
-    fn end(&self) -> Result<(), String> {
+    pub(crate) fn end(&self) -> Result<(), String> {
         if self.at == self.bytes.len() {
             Ok(())
         } else {
@@ -472,7 +492,9 @@ pub fn decode_output(bytes: &[u8], task: &TaskSpec) -> Result<PassOutput, String
             r.end()?;
             Ok(PassOutput::Records(rec))
         }
-        TaskKind::Tile => Err("a tile task has no pass output".into()),
+        TaskKind::Tile | TaskKind::Sppm => {
+            Err(format!("a {} task has no pass output", task.kind.as_str()))
+        }
     }
 }
 
@@ -575,12 +597,7 @@ mod tests {
 
     /// The Cornell glass at 24×20, photon mapping with small passes.
     fn glass() -> SceneDesc {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../scenes/cornell-glass/scene.json");
-        let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-        d.film.width = 24;
-        d.film.height = 20;
-        d.integrator.spp = 2;
+        let mut d = job::tests::scene("cornell-glass", 2);
         d.integrator.kind = IntegratorKind::Photon;
         d.integrator.photon.photons = Some(60_000);
         d.integrator.photon.caustic_photons = Some(30_000);

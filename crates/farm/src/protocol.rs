@@ -89,7 +89,12 @@ impl JobState {
 /// Task counts by state.
 #[derive(Debug, Clone, Default, Serialize, Deserialize, ToSchema)]
 pub struct TaskCounts {
+    /// Tasks queued so far, in any state.
     pub total: u64,
+    /// Tasks the job is expected to have in all, counting those not queued yet (tiles after
+    /// the passes, SPPM iterations after the running one); adaptive rounds may add more.
+    #[serde(default)]
+    pub planned: u64,
     pub queued: u64,
     pub leased: u64,
     pub done: u64,

@@ -17,7 +17,9 @@ use crate::codec;
 use crate::job::{self, FrameRange, Limits, PassKind, Prepared, TaskKind};
 use crate::passes;
 use crate::protocol::{Failure, Heartbeat, LeaseGrant, LeaseRequest, WorkerInfo};
+use crate::sppm;
 use tessera_render::integrator::PhotonIntegrator;
+use tessera_render::integrator::sppm::VisiblePoints;
 use tessera_render::photon::PhotonMaps;
 
 #[derive(Debug, Clone)]
@@ -79,6 +81,24 @@ struct Worker {
     integrators: Mutex<Vec<((i64, String), IntegratorCell)>>,
     /// Decoded photon maps by artifact key.
     maps: Cells<String, Arc<PhotonMaps>>,
+    /// SPPM iterations' camera paths and radii by (job, frame, iteration): traced once per
+    /// worker, read by each of the iteration's chunks it runs.
+    sppm: Cells<(i64, u32, u32), Arc<SppmInputs>>,
+}
+
+/// What every task of one SPPM iteration reads.
+struct SppmInputs {
+    points: VisiblePoints,
+    /// Squared gathering radius per pixel.
+    r2: Vec<f32>,
+}
+
+/// What a task reads besides its scene.
+enum Inputs {
+    None,
+    /// The photon-mapping integrator built from the job's artifacts.
+    Photon(Arc<PhotonIntegrator>),
+    Sppm(Arc<SppmInputs>),
 }
 
 pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
@@ -97,6 +117,7 @@ pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
         cache: Mutex::new(Vec::new()),
         integrators: Mutex::new(Vec::new()),
         maps: Mutex::new(Vec::new()),
+        sppm: Mutex::new(Vec::new()),
         config,
     });
     tracing::info!(worker = %worker.id, coordinator = %worker.config.coordinator, slots = worker.config.slots, "worker started");
@@ -141,13 +162,22 @@ fn watch_parent(parent: u32) {
 #[cfg(not(unix))]
 fn watch_parent(_parent: u32) {}
 
-/// Runs one task: a tile with the job's integrator (the photon one when given), or a pass.
-fn run_spec(
-    prepared: &Prepared,
-    photon: Option<&PhotonIntegrator>,
-    spec: &job::TaskSpec,
-) -> Result<Vec<u8>, String> {
+/// Runs one task: a tile with the job's integrator (the photon one when given), a pass, or an
+/// SPPM chunk.
+fn run_spec(prepared: &Prepared, inputs: &Inputs, spec: &job::TaskSpec) -> Result<Vec<u8>, String> {
+    let photon = match inputs {
+        Inputs::Photon(p) => Some(p.as_ref()),
+        _ => None,
+    };
     match spec.kind {
+        TaskKind::Sppm => {
+            let Inputs::Sppm(i) = inputs else {
+                return Err("an sppm task without its iteration's radii".into());
+            };
+            Ok(sppm::encode_output(&sppm::execute(
+                prepared, &i.points, &i.r2, spec,
+            )?))
+        }
         TaskKind::Tile => {
             let integrator: &dyn tessera_render::Integrator = match photon {
                 Some(p) => p,
@@ -339,6 +369,57 @@ impl Worker {
         }
     }
 
+    /// An SPPM iteration's radii (downloaded; the initial ones for iteration 0) and camera
+    /// paths (traced here), once per worker.
+    async fn sppm_inputs(
+        &self,
+        grant: &LeaseGrant,
+        prepared: &Arc<Prepared>,
+    ) -> anyhow::Result<Arc<SppmInputs>> {
+        let (frame, t) = (grant.task.frame, grant.task.sample_start);
+        let id = (grant.job_id, frame, t);
+        let cell = cell_for(&self.sppm, id);
+        let inputs = cell
+            .get_or_try_init(|| async {
+                let pixels = prepared.desc.film.width * prepared.desc.film.height;
+                let radii = if t == 0 {
+                    None
+                } else {
+                    Some(
+                        retrying("sppm radii download", Duration::from_secs(600), || {
+                            self.client.download_sppm_radii(grant.job_id, frame, t)
+                        })
+                        .await?,
+                    )
+                };
+                let prepared = prepared.clone();
+                let inputs = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
+                    let r2 = match radii {
+                        Some(b) => sppm::decode_radii(&b, pixels).map_err(anyhow::Error::msg)?,
+                        None => sppm::initial_radii(&prepared.desc),
+                    };
+                    let points = sppm::visible_points(&prepared, frame, t);
+                    Ok(SppmInputs { points, r2 })
+                })
+                .await??;
+                tracing::debug!(
+                    job = grant.job_id,
+                    frame,
+                    iteration = t,
+                    "sppm camera paths traced"
+                );
+                anyhow::Ok(Arc::new(inputs))
+            })
+            .await;
+        match inputs {
+            Ok(i) => Ok(i.clone()),
+            Err(e) => {
+                forget(&self.sppm, &id);
+                Err(e)
+            }
+        }
+    }
+
     async fn run_task(&self, grant: LeaseGrant) {
         let (task, lease, job) = (grant.task_id, grant.lease, grant.job_id);
         let lost = Arc::new(AtomicBool::new(false));
@@ -347,20 +428,26 @@ impl Worker {
         let outcome = async {
             let prepared = self.prepared(&grant).await.context("loading the scene")?;
             let spec = grant.task;
-            let photon = if spec.kind == TaskKind::Records
+            let inputs = if spec.kind == TaskKind::Sppm {
+                Inputs::Sppm(
+                    self.sppm_inputs(&grant, &prepared)
+                        .await
+                        .context("tracing the sppm iteration's camera paths")?,
+                )
+            } else if spec.kind == TaskKind::Records
                 || (spec.kind == TaskKind::Tile && !grant.artifacts.is_empty())
             {
-                Some(
+                Inputs::Photon(
                     self.photon_integrator(&grant, &prepared)
                         .await
                         .context("loading the pass artifacts")?,
                 )
             } else {
-                None
+                Inputs::None
             };
             tokio::task::spawn_blocking(move || {
                 std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    run_spec(&prepared, photon.as_deref(), &spec)
+                    run_spec(&prepared, &inputs, &spec)
                 }))
             })
             .await?

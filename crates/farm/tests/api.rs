@@ -259,12 +259,13 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
     };
     api.expect(api.submit(&hash, many), bad, &["spp", "1024"])
         .await;
-    // SPPM renders whole frames in one process; the farm says so instead of path tracing.
+    // SPPM refines every pixel in each iteration: no adaptive sampling.
     let sppm = RenderSettings {
         integrator: Some(tessera_farm::job::IntegratorName::Sppm),
+        target_error: Some(0.01),
         ..Default::default()
     };
-    api.expect(api.submit(&hash, sppm), bad, &["sppm", "tessera render"])
+    api.expect(api.submit(&hash, sppm), bad, &["target_error", "sppm"])
         .await;
 
     // An upload over the size limit.

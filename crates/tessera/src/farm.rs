@@ -161,7 +161,7 @@ pub struct SubmitArgs {
     /// maximum per pixel).
     #[arg(long)]
     pub target_error: Option<f64>,
-    /// The integrator: path, direct, auto or photon (overrides the scene's integrator.type).
+    /// The integrator: path, direct, auto, photon or sppm (overrides the scene's integrator.type).
     #[arg(long)]
     pub integrator: Option<job::IntegratorName>,
     /// Build pass artifacts (photon maps, irradiance caches) anew even where the coordinator
@@ -234,7 +234,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         job.width,
         job.height,
         job.spp,
-        job.tasks.total,
+        job.tasks.total.max(job.tasks.planned),
         info.files.len(),
         size,
         client.url(&format!("/v1/jobs/{}", job.id)),
@@ -245,7 +245,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
     let progress = if args.quiet {
         ProgressBar::hidden()
     } else {
-        ProgressBar::new(job.tasks.total)
+        ProgressBar::new(job.tasks.total.max(job.tasks.planned))
     };
     progress.set_style(
         ProgressStyle::with_template(
@@ -263,6 +263,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
             }
             Err(e) => return Err(e),
         };
+        progress.set_length(s.tasks.total.max(s.tasks.planned));
         progress.set_position(s.tasks.done);
         let frames_done = s.frame_status.iter().filter(|f| f.state == "done").count();
         progress.set_message(format!("{frames_done}/{} frames", s.frames.len()));

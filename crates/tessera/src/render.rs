@@ -31,7 +31,7 @@ pub struct RenderArgs {
     /// Film size WxH (overrides the scene's film; the vertical field of view is kept).
     #[arg(long)]
     pub size: Option<Size>,
-    /// The integrator: path, direct, auto or photon (overrides the scene's integrator.type).
+    /// The integrator: path, direct, auto, photon or sppm (overrides the scene's integrator.type).
     #[arg(long)]
     pub integrator: Option<tessera_farm::job::IntegratorName>,
     /// The frame of the scene's camera path to render (1-based).
@@ -145,19 +145,14 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let (image, stats, extra, spp_text) = match &adaptive {
         None if sppm => {
             use tessera_render::integrator::sppm::{self, SppmSettings};
-            let (settings, _) = tessera_render::photon::PhotonSettings::resolve(desc, analysis);
-            let alpha = desc.integrator.photon.alpha.unwrap_or(2.0 / 3.0);
-            let s = SppmSettings::from_photon_settings(&settings, spp, alpha);
+            let (settings, s) = SppmSettings::resolve(desc, analysis);
             progress.set_length(spp as u64);
             let (image, stats) = pool.install(|| {
                 sppm::render(&prepared.scene, &camera, &settings, &s, &|_| {
                     progress.inc(1)
                 })
             });
-            let text = format!(
-                "sppm: {spp} iterations of {} photons, initial radius {:.4}, α {alpha}",
-                s.photons, s.initial_radius
-            );
+            let text = s.describe();
             let extra = vec![("sppm".to_string(), text.clone())];
             (image, stats, extra, text)
         }

@@ -21,7 +21,7 @@ use super::error::json_errors;
 use super::{App, AppError, AppResult, now_ms};
 use crate::bundle::{self, Bundle};
 use crate::codec;
-use crate::job::{self, FrameRange, PassKind, TaskKind};
+use crate::job::{self, FrameRange, PassKind, TaskKind, TaskSpec};
 use crate::passes;
 use crate::protocol::*;
 use crate::store::{CacheEntry, Completion, NewJob, NewPass, PassStart, Retry};
@@ -83,6 +83,7 @@ pub fn router(app: Arc<App>) -> axum::Router {
     let download = OpenApiRouter::new()
         .routes(routes!(download_bundle))
         .routes(routes!(download_artifact))
+        .routes(routes!(sppm_radii))
         .route_layer(auth(Who::Either));
     let workers = OpenApiRouter::new()
         .routes(routes!(lease_task))
@@ -236,6 +237,28 @@ async fn download_artifact(
     Ok(([(header::CONTENT_TYPE, "application/octet-stream")], bytes).into_response())
 }
 
+/// Download the squared gathering radii (f32 per pixel) that iteration `iteration` of an SPPM
+/// frame gathers within; there while that iteration runs.
+#[utoipa::path(get, path = "/v1/jobs/{id}/frames/{frame}/sppm/{iteration}/radii", tag = "workers",
+    params(("id" = i64, Path), ("frame" = u32, Path), ("iteration" = u32, Path)),
+    responses((status = 200, content_type = "application/octet-stream", body = Vec<u8>), (status = 404, body = ErrorBody)),
+    security(("token" = [])))]
+async fn sppm_radii(
+    State(app): State<Arc<App>>,
+    Path((id, frame, iteration)): Path<(i64, u32, u32)>,
+) -> AppResult<Response> {
+    let path = app.sppm_path(id, frame, &format!("{iteration}.radii"));
+    match tokio::fs::read(&path).await {
+        Ok(bytes) => {
+            Ok(([(header::CONTENT_TYPE, "application/octet-stream")], bytes).into_response())
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(AppError::not_found(format!(
+            "job {id} frame {frame} has no sppm iteration {iteration} running"
+        ))),
+        Err(e) => Err(e.into()),
+    }
+}
+
 /// Submit a job: a bundle's scene, frames, settings and priority. The scene is validated
 /// before anything is queued.
 #[utoipa::path(post, path = "/v1/jobs", tag = "clients", request_body = JobRequest,
@@ -266,16 +289,19 @@ async fn submit_job(
         job::apply(&mut desc, &req.settings, frames, &app2.config.limits)
             .map_err(AppError::bad_request)?;
         let analysis = tessera_render::analysis::analyze(&desc);
-        if analysis.integrator == tessera_scene::IntegratorKind::Sppm {
-            return Err(AppError::bad_request(
-                "integrator: sppm runs in tessera render only (its iterations are not farm tasks yet); use photon or path on the farm",
-            ));
-        }
-        let tasks = frames
+        let tasks: Vec<Vec<TaskSpec>> = frames
             .iter()
             .map(|f| job::plan_frame(&desc, &req.settings, f))
             .collect();
         let mut decisions = job::decisions(&desc);
+        if analysis.integrator == tessera_scene::IntegratorKind::Sppm {
+            let s = crate::sppm::settings(&desc).1;
+            decisions.push(format!(
+                "{} — each frame's iterations run in turn (each one's radii come from the one before), each iteration in {} photon tasks",
+                s.describe(),
+                crate::sppm::iteration_tasks(&desc, frames.first, 0).len()
+            ));
+        }
         let mut new_passes = Vec::new();
         if let Some(plan) = passes::plan(&desc, &analysis, frames) {
             decisions.extend(plan.decisions.iter().cloned());
@@ -327,6 +353,20 @@ async fn submit_job(
                 });
             }
         }
+        // Everything the job will queue: passes, tiles, and every SPPM iteration.
+        let mut planned_tasks: u64 = tasks.iter().map(|t| t.len() as u64).sum();
+        if analysis.integrator == tessera_scene::IntegratorKind::Sppm {
+            planned_tasks *= desc.integrator.spp as u64;
+        }
+        if let Some(plan) = passes::plan(&desc, &analysis, frames) {
+            for p in &new_passes {
+                planned_tasks += match (&p.start, p.kind) {
+                    (PassStart::Reused, _) => 0,
+                    (_, PassKind::Photons) => plan.photon_tasks().len() as u64,
+                    (_, PassKind::Records) => plan.record_tasks(&desc).len() as u64,
+                };
+            }
+        }
         Ok(NewJob {
             name: req.name.clone().unwrap_or_else(|| desc.name.clone()),
             priority: req.priority,
@@ -338,6 +378,7 @@ async fn submit_job(
             height: desc.film.height,
             spp: desc.integrator.spp,
             decisions,
+            planned_tasks,
             tasks,
             passes: new_passes,
         })
@@ -445,7 +486,8 @@ async fn frame_exr(
     Ok(([(header::CONTENT_TYPE, "image/x-exr")], bytes).into_response())
 }
 
-/// A PNG preview of a frame: the tiles done so far (black elsewhere), or the finished frame.
+/// A PNG preview of a frame: the tiles done so far (black elsewhere; for SPPM, the estimate
+/// after the iterations done so far), or the finished frame.
 #[utoipa::path(get, path = "/v1/jobs/{id}/frames/{frame}/preview.png", tag = "clients",
     params(("id" = i64, Path), ("frame" = u32, Path)),
     responses((status = 200, content_type = "image/png", body = Vec<u8>), (status = 404, body = ErrorBody)),
@@ -460,15 +502,20 @@ async fn frame_preview(
     } else {
         let app = app.clone();
         tokio::task::spawn_blocking(move || -> AppResult<Vec<u8>> {
-            let film = app
+            let scene = app
                 .job_scene(id)
-                .map_err(|e| AppError::internal(format!("{e:#}")))?
-                .desc
-                .film;
-            let outputs = app
-                .frame_outputs(id, frame)
                 .map_err(|e| AppError::internal(format!("{e:#}")))?;
-            let (image, _) = job::stitch(film.width, film.height, &outputs);
+            let film = scene.desc.film;
+            let image = if scene.sppm.is_some() {
+                // SPPM: the estimate after the iterations folded so far.
+                app.sppm_preview(id, frame, &scene.desc)
+                    .map_err(|e| AppError::internal(format!("{e:#}")))?
+            } else {
+                let outputs = app
+                    .frame_outputs(id, frame)
+                    .map_err(|e| AppError::internal(format!("{e:#}")))?;
+                job::stitch(film.width, film.height, &outputs).0
+            };
             tessera_render::output::encode_png(&image).map_err(AppError::internal)
         })
         .await??
@@ -578,10 +625,16 @@ async fn upload_result(
         tracing::warn!(task = id, lease = q.lease, "stale result dropped");
         return Err(stale(id, q.lease));
     };
-    let checked = if spec.kind == TaskKind::Tile {
-        codec::decode(&body, &spec).map(|_| ())
-    } else {
-        passes::decode_output(&body, &spec).map(|_| ())
+    let checked = match spec.kind {
+        TaskKind::Tile => codec::decode(&body, &spec).map(|_| ()),
+        TaskKind::Sppm => {
+            let job = app
+                .store
+                .job(job_id)?
+                .ok_or_else(|| AppError::not_found(format!("no job {job_id}")))?;
+            crate::sppm::decode_output(&body, &spec, job.width * job.height).map(|_| ())
+        }
+        _ => passes::decode_output(&body, &spec).map(|_| ()),
     };
     checked.map_err(|e| AppError::bad_request(format!("result of task {id}: {e}")))?;
     let path = app.tile_path(job_id, id, q.lease);

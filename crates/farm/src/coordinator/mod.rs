@@ -19,6 +19,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use anyhow::Context;
+use tessera_render::integrator::sppm::SppmSettings;
 use tessera_scene::SceneDesc;
 use tokio::sync::Notify;
 
@@ -29,6 +30,7 @@ use crate::codec;
 use crate::job::{self, FrameRange, Limits, PassKind, RenderSettings, TaskOutput, TaskSpec};
 use crate::passes::{self, PassOutput, PassPlan};
 use crate::progressive::{self, Adaptive, Round, next_round};
+use crate::sppm;
 use crate::store::{Artifact, Retry, Store};
 use crate::store::{CacheEntry, NextStage};
 use metrics::Metrics;
@@ -92,6 +94,19 @@ struct JobScene {
     frames: FrameRange,
     adaptive: Option<Adaptive>,
     plan: Option<PassPlan>,
+    /// SPPM's settings, for an SPPM job.
+    sppm: Option<SppmSettings>,
+}
+
+/// Writes `path` whole or not at all (a temporary file renamed over it), creating its
+/// directory.
+fn replace_file(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
+    }
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes).with_context(|| tmp.display().to_string())?;
+    std::fs::rename(&tmp, path).with_context(|| path.display().to_string())
 }
 
 /// Milliseconds since the Unix epoch.
@@ -159,6 +174,8 @@ impl App {
         let scene = Arc::new(JobScene {
             adaptive: job::adaptive_rule(&desc, &settings),
             plan: passes::plan(&desc, &analysis, frames),
+            sppm: (analysis.integrator == tessera_scene::IntegratorKind::Sppm)
+                .then(|| sppm::settings(&desc).1),
             desc,
             settings,
             frames,
@@ -188,6 +205,9 @@ impl App {
     /// is stitched and its EXR and PNG written. Returns whether the job is now done.
     fn finish_frame(&self, job: i64, frame: u32) -> anyhow::Result<bool> {
         let scene = self.job_scene(job)?;
+        if let Some(s) = &scene.sppm {
+            return self.finish_sppm_iteration(job, frame, &scene.desc, s);
+        }
         let desc = &scene.desc;
         let outputs = self.frame_outputs(job, frame)?;
         let (tiles, stats) = job::merge_tiles(&outputs);
@@ -227,9 +247,120 @@ impl App {
                 }
             }
         }
+        self.write_frame(job, frame, desc, &image, &stats, &extra, estimate)
+    }
+
+    /// An SPPM frame's iteration is done (blocking): fold its tasks' sums into the frame's
+    /// state, then queue the next iteration (with its radii) or write the frame. A restart
+    /// between any two steps repeats only what was not written.
+    fn finish_sppm_iteration(
+        &self,
+        job: i64,
+        frame: u32,
+        desc: &SceneDesc,
+        s: &SppmSettings,
+    ) -> anyhow::Result<bool> {
+        let state_path = self.sppm_path(job, frame, "state");
+        let mut state = match std::fs::read(&state_path) {
+            Ok(bytes) => sppm::decode_state(&bytes)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", state_path.display()))?,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => sppm::FrameState::new(desc, s),
+            Err(e) => return Err(e).context(state_path.display().to_string()),
+        };
+        let t = state.state.iterations;
+        let pixels = desc.film.width * desc.film.height;
+        let results = self.store.sppm_results(job, frame, t)?;
+        if !results.is_empty() {
+            let outputs = results
+                .iter()
+                .map(|(task, lease, spec)| {
+                    let path = self.tile_path(job, *task, *lease);
+                    let bytes = std::fs::read(&path).with_context(|| path.display().to_string())?;
+                    sppm::decode_output(&bytes, spec, pixels)
+                        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+                })
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            anyhow::ensure!(
+                outputs.len() == sppm::iteration_tasks(desc, frame, t).len(),
+                "sppm iteration {t} of frame {frame}: {} of its tasks done",
+                outputs.len()
+            );
+            state.fold(&outputs, s.alpha).map_err(anyhow::Error::msg)?;
+            replace_file(&state_path, &sppm::encode_state(&state))?;
+            // The previous iteration's radii are read by nobody now.
+            let _ = std::fs::remove_file(self.sppm_path(job, frame, &format!("{t}.radii")));
+        }
+        let t = state.state.iterations;
+        if t < s.iterations {
+            let radii = self.sppm_path(job, frame, &format!("{t}.radii"));
+            replace_file(&radii, &sppm::encode_radii(&state.state.radii2()))?;
+            let tasks = sppm::iteration_tasks(desc, frame, t);
+            self.store.add_tasks(job, frame, &tasks)?;
+            tracing::debug!(
+                job,
+                frame,
+                iteration = t,
+                tasks = tasks.len(),
+                "sppm iteration queued"
+            );
+            self.work.notify_waiters();
+            return Ok(false);
+        }
+        let exposure = sppm::camera(desc, frame).exposure;
+        let image = state.state.image(exposure);
+        let done = self.write_frame(
+            job,
+            frame,
+            desc,
+            &image,
+            &state.stats,
+            &sppm::metadata(s),
+            None,
+        )?;
+        let _ = std::fs::remove_file(&state_path);
+        Ok(done)
+    }
+
+    /// An SPPM frame's estimate after the iterations folded so far (black before the first).
+    fn sppm_preview(
+        &self,
+        job: i64,
+        frame: u32,
+        desc: &SceneDesc,
+    ) -> anyhow::Result<tessera_render::Image> {
+        let path = self.sppm_path(job, frame, "state");
+        Ok(match std::fs::read(&path) {
+            Ok(bytes) => sppm::decode_state(&bytes)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+                .state
+                .image(sppm::camera(desc, frame).exposure),
+            Err(_) => tessera_render::Image::new(desc.film.width, desc.film.height),
+        })
+    }
+
+    /// Where an SPPM frame's state (`what` = "state") or radii ("T.radii") live.
+    fn sppm_path(&self, job: i64, frame: u32, what: &str) -> PathBuf {
+        self.job_dir(job)
+            .join("sppm")
+            .join(format!("{frame}.{what}"))
+    }
+
+    /// Writes a frame's EXR and PNG, records them and marks the frame done. Returns whether
+    /// the job is now done.
+    #[allow(clippy::too_many_arguments)]
+    fn write_frame(
+        &self,
+        job: i64,
+        frame: u32,
+        desc: &SceneDesc,
+        image: &tessera_render::Image,
+        stats: &tessera_render::RayStats,
+        extra: &[(String, String)],
+        estimate: Option<f64>,
+    ) -> anyhow::Result<bool> {
         let path = self.frame_path(job, frame);
         let tmp = path.with_extension("tmp.exr");
-        job::write_frame(&tmp, desc, frame, &image, &stats, &extra)?;
+        job::write_frame(&tmp, desc, frame, image, stats, extra)?;
         std::fs::rename(tmp.with_extension("png"), path.with_extension("png"))?;
         std::fs::rename(&tmp, &path)?;
         let mut files = Vec::new();

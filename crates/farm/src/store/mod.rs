@@ -46,7 +46,8 @@ CREATE TABLE IF NOT EXISTS jobs (
     height INTEGER NOT NULL,
     spp INTEGER NOT NULL,
     decisions TEXT NOT NULL,
-    error TEXT
+    error TEXT,
+    planned_tasks INTEGER NOT NULL DEFAULT 0
 );
 CREATE TABLE IF NOT EXISTS frames (
     job_id INTEGER NOT NULL REFERENCES jobs(id),
@@ -146,6 +147,8 @@ pub struct NewJob {
     pub tasks: Vec<Vec<TaskSpec>>,
     /// Precomputation passes, in order (empty for integrators without any).
     pub passes: Vec<NewPass>,
+    /// Tasks expected in all (for progress), counting those queued later.
+    pub planned_tasks: u64,
 }
 
 /// What became of a result.
@@ -226,6 +229,15 @@ impl Store {
         if !has_kind {
             conn.execute_batch("ALTER TABLE tasks ADD COLUMN kind TEXT NOT NULL DEFAULT 'tile'")?;
         }
+        // Stores made before jobs said how many tasks they plan.
+        let has_planned: bool = conn
+            .prepare("SELECT 1 FROM pragma_table_info('jobs') WHERE name = 'planned_tasks'")?
+            .exists([])?;
+        if !has_planned {
+            conn.execute_batch(
+                "ALTER TABLE jobs ADD COLUMN planned_tasks INTEGER NOT NULL DEFAULT 0",
+            )?;
+        }
         Ok(Store {
             conn: Mutex::new(conn),
         })
@@ -256,8 +268,8 @@ impl Store {
         let tx = conn.transaction()?;
         tx.execute(
             "INSERT INTO jobs (name, state, priority, created_ms, bundle, scene, settings,
-                first_frame, last_frame, width, height, spp, decisions)
-             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)",
+                first_frame, last_frame, width, height, spp, decisions, planned_tasks)
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)",
             params![
                 job.name,
                 job.priority,
@@ -271,6 +283,7 @@ impl Store {
                 job.height,
                 job.spp,
                 json(&job.decisions),
+                job.planned_tasks as i64,
             ],
         )?;
         let id = tx.last_insert_rowid();
@@ -638,6 +651,22 @@ impl Store {
         .collect()
     }
 
+    /// Done tasks of iteration `t` of an SPPM frame in fold (chunk) order: (task id, lease,
+    /// spec).
+    pub fn sppm_results(&self, job: i64, frame: u32, t: u32) -> Result<Vec<(i64, i64, TaskSpec)>> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(&format!(
+            "SELECT id, lease, {SPEC_COLUMNS} FROM tasks
+             WHERE job_id = ?1 AND frame = ?2 AND state = 'done' AND kind = 'sppm'
+               AND sample_start = ?3
+             ORDER BY tile_index"
+        ))?;
+        stmt.query_map(params![job, frame, t], |r| {
+            Ok((r.get(0)?, r.get(1)?, task_spec(r, 2)?))
+        })?
+        .collect()
+    }
+
     /// Marks a stitched frame done with its files (kind, path relative to the data
     /// directory, bytes, SHA-256), and the job done when it was its last frame.
     /// Returns whether the job is now done.
@@ -736,7 +765,8 @@ impl Store {
                 j.settings, j.first_frame, j.last_frame, j.width, j.height, j.spp, j.decisions, j.error,
                 COUNT(t.id),
                 SUM(t.state = 'queued'), SUM(t.state = 'leased'), SUM(t.state = 'done'),
-                SUM(t.state = 'failed'), SUM(t.state = 'cancelled'), SUM(t.attempts)
+                SUM(t.state = 'failed'), SUM(t.state = 'cancelled'), SUM(t.attempts),
+                j.planned_tasks
              FROM jobs j LEFT JOIN tasks t ON t.job_id = j.id {filter}
              GROUP BY j.id ORDER BY j.id DESC"
         ))?;
@@ -752,7 +782,9 @@ impl Store {
                     done: count(19)?,
                     failed: count(20)?,
                     cancelled: count(21)?,
+                    planned: count(23)?,
                 };
+                let expected = tasks.total.max(tasks.planned);
                 Ok(JobStatus {
                     id: r.get(0)?,
                     name: r.get(1)?,
@@ -772,10 +804,10 @@ impl Store {
                     spp: r.get(13)?,
                     decisions: serde_json::from_str(&r.get::<_, String>(14)?).unwrap_or_default(),
                     error: r.get(15)?,
-                    progress: if tasks.total == 0 {
+                    progress: if expected == 0 {
                         0.0
                     } else {
-                        tasks.done as f64 / tasks.total as f64
+                        tasks.done as f64 / expected as f64
                     },
                     attempts: count(22)?,
                     tasks,
@@ -959,6 +991,7 @@ mod tests {
                         decisions: vec![],
                         tasks: vec![(0..tasks).map(|i| task(1, i)).collect()],
                         passes: vec![],
+                        planned_tasks: tasks as u64,
                     },
                     0,
                 )

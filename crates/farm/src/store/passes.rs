@@ -85,7 +85,7 @@ impl Store {
         kind: TaskKind,
     ) -> Result<Vec<ArtifactRef>> {
         let wanted: &[PassKind] = match kind {
-            TaskKind::GlobalPhotons | TaskKind::CausticPhotons => &[],
+            TaskKind::GlobalPhotons | TaskKind::CausticPhotons | TaskKind::Sppm => &[],
             TaskKind::Records => &[PassKind::Photons],
             TaskKind::Tile => &[PassKind::Photons, PassKind::Records],
         };

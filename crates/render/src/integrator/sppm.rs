@@ -11,20 +11,29 @@
 //! 3. per pixel (f64): N' = N + αM, r' = r √(N'/(N + M)), τ' = (τ + Φ) r'²/r², N = N'.
 //!
 //! The radiance is L_direct/T + τ / (T π r²) after T iterations; r shrinks so bias and
-//! variance both vanish as T grows. Everything is per pixel, and the photon sums run in tree
-//! order, so the image is a pure function of (scene, camera, settings).
+//! variance both vanish as T grows.
+//!
+//! An iteration's photons are gathered in chunks of [`PHOTONS_PER_CHUNK`] (each chunk its own
+//! tree, each pixel's Φ summed in tree order), and the chunks' sums are added in chunk order
+//! ([`SppmState::add_iteration`]). A chunk is what a farm task does, so `render` here and the
+//! farm add the same numbers in the same order: the image is a pure function of (scene,
+//! camera, settings), however the work is split.
+
+use std::ops::Range;
 
 use glam::{DVec3, UVec2, Vec2, Vec3A};
 use rayon::prelude::*;
 
 use super::{RayStats, sample_direct, scatter};
+use crate::analysis::Analysis;
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
 use crate::film::{Image, Pixel};
-use crate::photon::{KdTree, MapKind, Photon, PhotonSettings, Shooter};
+use crate::photon::{DEFAULT_PHOTONS, KdTree, MapKind, Photon, PhotonSettings, Shooter};
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::{NO_LIGHT, Scene, SurfaceInteraction};
 use crate::spectrum::{Spectrum, is_black};
+use tessera_scene::SceneDesc;
 
 /// Where a pixel's camera path met its first surface with a density, this iteration.
 struct VisiblePoint {
@@ -34,14 +43,135 @@ struct VisiblePoint {
     beta: Spectrum,
 }
 
-/// A pixel's statistics across iterations (f64: they accumulate for thousands of them).
-#[derive(Debug, Clone, Copy)]
-struct PixelState {
-    /// Emitted and direct light summed over iterations.
-    ld: DVec3,
-    tau: DVec3,
-    n: f64,
-    r: f64,
+/// Photons per gathering chunk (and per farm task).
+pub const PHOTONS_PER_CHUNK: u32 = 25_000;
+
+/// What an iteration's camera paths add by themselves, per pixel (row-major).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraPass {
+    /// Emitted and direct light, times the filter weight.
+    pub ld: Vec<Spectrum>,
+    /// The film filter's weight f/pdf of the pixel's sample.
+    pub w: Vec<f32>,
+    /// The camera paths' rays; one sample per pixel.
+    pub stats: RayStats,
+}
+
+/// Every pixel's camera path of one iteration.
+pub struct VisiblePoints {
+    pub camera: CameraPass,
+    points: Vec<Option<VisiblePoint>>,
+}
+
+/// What one chunk of photons left at one pixel's visible point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PixelSum {
+    /// Row-major pixel index.
+    pub pixel: u32,
+    /// Photons within the pixel's radius (M).
+    pub m: u32,
+    /// Σ β f Φp over them (Φ).
+    pub phi: [f64; 3],
+}
+
+/// Every pixel's statistics across iterations, row-major (f64: they accumulate over
+/// thousands of iterations). This is what a farm coordinator keeps between iterations.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SppmState {
+    pub width: u32,
+    pub height: u32,
+    /// Iterations folded in.
+    pub iterations: u32,
+    /// Emitted and direct light summed over iterations (filter-weighted).
+    pub ld: Vec<DVec3>,
+    /// Filter weights summed over iterations (the iteration count for a box filter).
+    pub w: Vec<f64>,
+    pub tau: Vec<DVec3>,
+    pub n: Vec<f64>,
+    pub r: Vec<f64>,
+}
+
+impl SppmState {
+    pub fn new(width: u32, height: u32, initial_radius: f32) -> Self {
+        let len = width as usize * height as usize;
+        SppmState {
+            width,
+            height,
+            iterations: 0,
+            ld: vec![DVec3::ZERO; len],
+            w: vec![0.0; len],
+            tau: vec![DVec3::ZERO; len],
+            n: vec![0.0; len],
+            r: vec![initial_radius as f64; len],
+        }
+    }
+
+    /// Squared gathering radius per pixel for the next iteration, as the gather uses it.
+    pub fn radii2(&self) -> Vec<f32> {
+        self.r.iter().map(|r| (r * r) as f32).collect()
+    }
+
+    /// Folds one iteration in: each pixel's direct light and filter weight from `camera`,
+    /// then the sums of the iteration's chunks, added in the order given (chunk order), then
+    /// Hachisuka & Jensen's update N' = N + αM, r' = r √(N'/(N + M)), τ' = (τ + Φ) r'²/r².
+    pub fn add_iteration<'a>(
+        &mut self,
+        camera: &CameraPass,
+        chunks: impl IntoIterator<Item = &'a [PixelSum]>,
+        alpha: f32,
+    ) {
+        let len = self.r.len();
+        let (mut phi, mut m) = (vec![DVec3::ZERO; len], vec![0u64; len]);
+        for chunk in chunks {
+            for s in chunk {
+                let i = s.pixel as usize;
+                if i < len {
+                    phi[i] += DVec3::from_array(s.phi);
+                    m[i] += s.m as u64;
+                }
+            }
+        }
+        let alpha = alpha as f64;
+        for i in 0..len {
+            if let Some(l) = camera.ld.get(i).filter(|l| l.is_finite()) {
+                self.ld[i] += DVec3::new(l.x as f64, l.y as f64, l.z as f64);
+            }
+            if let Some(&w) = camera.w.get(i).filter(|w| w.is_finite()) {
+                self.w[i] += w as f64;
+            }
+            if m[i] > 0 {
+                let (n, r, m) = (self.n[i], self.r[i], m[i] as f64);
+                let n_new = n + alpha * m;
+                let r_new = r * (n_new / (n + m)).sqrt();
+                self.tau[i] = (self.tau[i] + phi[i]) * (r_new * r_new) / (r * r);
+                self.n[i] = n_new;
+                self.r[i] = r_new;
+            }
+        }
+        self.iterations += 1;
+    }
+
+    /// The estimate after the iterations so far: (L_d + τ/(π r²)) / W, times `exposure`,
+    /// where W sums the filter weights (T for a box filter), so the pixel is the film
+    /// filter's weighted mean as in the path tracer.
+    pub fn image(&self, exposure: f32) -> Image {
+        let exposure = exposure as f64;
+        let mut image = Image::new(self.width, self.height);
+        for (i, px) in image.pixels.iter_mut().enumerate() {
+            let (r, w) = (self.r[i], self.w[i]);
+            let l = if w != 0.0 {
+                (self.ld[i] + self.tau[i] / (std::f64::consts::PI * r * r)) * (exposure / w)
+            } else {
+                DVec3::ZERO
+            };
+            *px = Pixel {
+                rgb: [l.x as f32, l.y as f32, l.z as f32],
+                alpha: 1.0,
+                ..Pixel::default()
+            };
+        }
+        image
+    }
 }
 
 /// SPPM's own settings.
@@ -55,6 +185,9 @@ pub struct SppmSettings {
     pub alpha: f32,
 }
 
+/// Hachisuka & Jensen's suggested α.
+pub const DEFAULT_ALPHA: f32 = 2.0 / 3.0;
+
 impl SppmSettings {
     pub fn from_photon_settings(p: &PhotonSettings, iterations: u32, alpha: f32) -> Self {
         SppmSettings {
@@ -64,6 +197,37 @@ impl SppmSettings {
             alpha,
         }
     }
+
+    /// The settings of `desc`: its `integrator.spp` iterations of `photon_map.photons`
+    /// photons, the photon search radius as the initial radius, `photon_map.alpha`.
+    pub fn resolve(desc: &SceneDesc, analysis: &Analysis) -> (PhotonSettings, SppmSettings) {
+        let (photon, _) = PhotonSettings::resolve(desc, analysis);
+        let alpha = desc.integrator.photon.alpha.unwrap_or(DEFAULT_ALPHA);
+        let s = Self::from_photon_settings(&photon, desc.integrator.spp, alpha);
+        (photon, s)
+    }
+
+    /// How they read in a report and in the image's metadata.
+    pub fn describe(&self) -> String {
+        format!(
+            "sppm: {} iterations of {} photons, initial radius {:.4}, α {}",
+            self.iterations, self.photons, self.initial_radius, self.alpha
+        )
+    }
+}
+
+/// Photons per iteration `desc` asks for.
+pub fn photons_per_iteration(desc: &SceneDesc) -> u32 {
+    desc.integrator.photon.photons.unwrap_or(DEFAULT_PHOTONS)
+}
+
+/// An iteration of `photons` photons in gathering chunks: photon offsets within the
+/// iteration, in order.
+pub fn chunks(photons: u32) -> Vec<Range<u32>> {
+    (0..photons)
+        .step_by(PHOTONS_PER_CHUNK as usize)
+        .map(|s| s..s.saturating_add(PHOTONS_PER_CHUNK).min(photons))
+        .collect()
 }
 
 fn visible_point(
@@ -74,16 +238,18 @@ fn visible_point(
     max_depth: u32,
     sampler: &mut PixelSampler,
     stats: &mut RayStats,
-) -> (Spectrum, Option<VisiblePoint>) {
+) -> (Spectrum, f32, Option<VisiblePoint>) {
     sampler.start_pixel_sample(pixel, iteration);
-    let film = pixel.as_vec2() + sampler.get_2d();
+    // The film filter as the path tracer samples it: the weight rides on β.
+    let (offset, w) = scene.filter.sample(sampler.get_2d());
+    let film = pixel.as_vec2() + Vec2::splat(0.5) + offset;
     let u_lens = if camera.has_aperture() {
         sampler.get_2d()
     } else {
         Vec2::ZERO
     };
     let mut ray = camera.generate_ray(film, u_lens);
-    let mut beta = Spectrum::ONE;
+    let mut beta = Spectrum::splat(w);
     let mut l = Spectrum::ZERO;
     for _ in 0..max_depth.max(1) {
         stats.rays += 1;
@@ -106,7 +272,7 @@ fn visible_point(
             let frame = material.frame(&si, wo);
             let u = sampler.get_3d();
             l += beta * sample_direct(scene, &si, material, &frame, wo, u, false, stats);
-            return (l, Some(VisiblePoint { si, wo, beta }));
+            return (l, w, Some(VisiblePoint { si, wo, beta }));
         }
         let Some((weight, next)) = scatter(&si, material, wo, sampler) else {
             break;
@@ -117,7 +283,178 @@ fn visible_point(
         }
         ray = next;
     }
-    (l, None)
+    (l, w, None)
+}
+
+/// One frame's SPPM: its settings and photon shooter. Iteration t's camera paths are pixel
+/// samples t; its photons are indices t·M + chunk.
+pub struct Sppm<'a> {
+    scene: &'a Scene,
+    pub settings: SppmSettings,
+    max_depth: u32,
+    shooter: Shooter<'a>,
+    sampler: PixelSampler,
+}
+
+impl<'a> Sppm<'a> {
+    pub fn new(scene: &'a Scene, photon: &PhotonSettings, settings: SppmSettings) -> Self {
+        let shooter = Shooter::new(
+            scene,
+            &PhotonSettings {
+                photons: settings.photons,
+                ..*photon
+            },
+            MapKind::Indirect,
+        );
+        Sppm {
+            scene,
+            settings,
+            max_depth: photon.max_depth,
+            shooter,
+            sampler: PixelSampler::new(photon.sampler, photon.seed),
+        }
+    }
+
+    /// Camera paths of iteration `t` for the row-major pixels `pixels` (one thread).
+    pub fn visible_points(&self, camera: &Camera, t: u32, pixels: Range<u32>) -> VisiblePoints {
+        let w = self.scene.film.width;
+        let mut sampler = self.sampler.clone();
+        let mut stats = RayStats::default();
+        let (mut ld, mut ws, mut points) = (Vec::new(), Vec::new(), Vec::new());
+        for i in pixels {
+            let (l, w, vp) = visible_point(
+                self.scene,
+                camera,
+                UVec2::new(i % w, i / w),
+                t,
+                self.max_depth,
+                &mut sampler,
+                &mut stats,
+            );
+            stats.samples += 1;
+            ld.push(l);
+            ws.push(w);
+            points.push(vp);
+        }
+        VisiblePoints {
+            camera: CameraPass { ld, w: ws, stats },
+            points,
+        }
+    }
+
+    /// [`Self::visible_points`] of the whole frame on the rayon pool; the same result.
+    pub fn visible_points_parallel(&self, camera: &Camera, t: u32) -> VisiblePoints {
+        let (w, h) = (self.scene.film.width, self.scene.film.height);
+        let rows: Vec<VisiblePoints> = (0..h)
+            .into_par_iter()
+            .map(|y| self.visible_points(camera, t, y * w..(y + 1) * w))
+            .collect();
+        let n = (w * h) as usize;
+        let mut all = VisiblePoints {
+            camera: CameraPass {
+                ld: Vec::with_capacity(n),
+                w: Vec::with_capacity(n),
+                stats: RayStats::default(),
+            },
+            points: Vec::with_capacity(n),
+        };
+        for r in rows {
+            all.camera.ld.extend(r.camera.ld);
+            all.camera.w.extend(r.camera.w);
+            all.camera.stats.add(&r.camera.stats);
+            all.points.extend(r.points);
+        }
+        all
+    }
+
+    /// The photons of chunk `chunk` of iteration `t`, in a tree; `parallel` shoots on the
+    /// rayon pool (the same photons).
+    pub fn shoot(&self, t: u32, chunk: Range<u32>, parallel: bool) -> KdTree<Photon> {
+        let base = t as u64 * self.settings.photons as u64;
+        let at = |o: u32| (base + o as u64).min(u32::MAX as u64) as u32;
+        let range = at(chunk.start)..at(chunk.end);
+        KdTree::build(if parallel {
+            self.shooter.shoot_parallel(range)
+        } else {
+            self.shooter.shoot(range)
+        })
+    }
+
+    /// Gathers `photons` at the visible points of `pixels` (indices into `vps`, which holds
+    /// the whole frame) within each pixel's squared radius `r2`: the pixels that received
+    /// any, in pixel order.
+    pub fn gather(
+        &self,
+        vps: &VisiblePoints,
+        r2: &[f32],
+        photons: &KdTree<Photon>,
+        pixels: Range<u32>,
+    ) -> Vec<PixelSum> {
+        let mut out = Vec::new();
+        for i in pixels {
+            let Some(Some(vp)) = vps.points.get(i as usize) else {
+                continue;
+            };
+            let material = self.scene.material(vp.si.material);
+            let frame = material.frame(&vp.si, vp.wo);
+            let wo_local = frame.to_local(vp.wo);
+            let (mut phi, mut m) = (DVec3::ZERO, 0u32);
+            let r2 = r2.get(i as usize).copied().unwrap_or(0.0);
+            photons.within(vp.si.p, r2, &mut |j, _| {
+                let ph = photons.get(j);
+                let wi = Vec3A::from(ph.wi);
+                let f = material
+                    .bsdf
+                    .eval(wo_local, frame.to_local(wi), TransportMode::Radiance);
+                let c = vp.beta * f * Vec3A::from(ph.power);
+                if c.is_finite() {
+                    phi += DVec3::new(c.x as f64, c.y as f64, c.z as f64);
+                }
+                m += 1;
+            });
+            if m > 0 {
+                out.push(PixelSum {
+                    pixel: i,
+                    m,
+                    phi: phi.to_array(),
+                });
+            }
+        }
+        out
+    }
+
+    /// Runs the next iteration (`state.iterations`) on the rayon pool and folds it into
+    /// `state`; returns the camera paths' counters.
+    pub fn iterate(&self, camera: &Camera, state: &mut SppmState) -> RayStats {
+        let t = state.iterations;
+        let vps = self.visible_points_parallel(camera, t);
+        let r2 = state.radii2();
+        let sums: Vec<Vec<PixelSum>> = chunks(self.settings.photons)
+            .into_iter()
+            .map(|c| self.gather_parallel(&vps, &r2, &self.shoot(t, c, true)))
+            .collect();
+        state.add_iteration(
+            &vps.camera,
+            sums.iter().map(Vec::as_slice),
+            self.settings.alpha,
+        );
+        vps.camera.stats
+    }
+
+    /// [`Self::gather`] over the whole frame on the rayon pool; the same result.
+    pub fn gather_parallel(
+        &self,
+        vps: &VisiblePoints,
+        r2: &[f32],
+        photons: &KdTree<Photon>,
+    ) -> Vec<PixelSum> {
+        let (w, h) = (self.scene.film.width, self.scene.film.height);
+        let rows: Vec<Vec<PixelSum>> = (0..h)
+            .into_par_iter()
+            .map(|y| self.gather(vps, r2, photons, y * w..(y + 1) * w))
+            .collect();
+        rows.concat()
+    }
 }
 
 /// Renders the frame seen by `camera` with `s.iterations` SPPM iterations on the rayon pool;
@@ -129,106 +466,52 @@ pub fn render(
     s: &SppmSettings,
     progress: &(dyn Fn(u32) + Sync),
 ) -> (Image, RayStats) {
-    let (w, h) = (scene.film.width, scene.film.height);
-    let r0 = s.initial_radius as f64;
-    let mut states = vec![
-        PixelState {
-            ld: DVec3::ZERO,
-            tau: DVec3::ZERO,
-            n: 0.0,
-            r: r0,
-        };
-        (w * h) as usize
-    ];
-    let base = PixelSampler::new(photon.sampler, photon.seed);
-    let shooter = Shooter::new(
-        scene,
-        &PhotonSettings {
-            photons: s.photons,
-            ..*photon
-        },
-        MapKind::Indirect,
-    );
+    let sppm = Sppm::new(scene, photon, *s);
+    let mut state = SppmState::new(scene.film.width, scene.film.height, s.initial_radius);
     let mut stats = RayStats::default();
     for t in 0..s.iterations {
-        // 1. Camera pass.
-        let points: Vec<(Spectrum, Option<VisiblePoint>, RayStats)> = (0..w * h)
-            .into_par_iter()
-            .map_init(
-                || base.clone(),
-                |sampler, i| {
-                    let mut st = RayStats::default();
-                    let (l, vp) = visible_point(
-                        scene,
-                        camera,
-                        UVec2::new(i % w, i / w),
-                        t,
-                        photon.max_depth,
-                        sampler,
-                        &mut st,
-                    );
-                    st.samples = 1;
-                    (l, vp, st)
-                },
-            )
-            .collect();
-        // 2. Photon pass: this iteration's index range, in a tree.
-        let start = (t as u64 * s.photons as u64).min(u32::MAX as u64) as u32;
-        let end = start.saturating_add(s.photons);
-        let photons: KdTree<Photon> = KdTree::build(shooter.shoot_parallel(start..end));
-        // 3. Gather at each visible point and update its pixel.
-        let alpha = s.alpha as f64;
-        states
-            .par_iter_mut()
-            .zip(points.par_iter())
-            .for_each(|(st, (l, vp, _))| {
-                if l.is_finite() {
-                    st.ld += DVec3::new(l.x as f64, l.y as f64, l.z as f64);
-                }
-                let Some(vp) = vp else {
-                    return;
-                };
-                let material = scene.material(vp.si.material);
-                let frame = material.frame(&vp.si, vp.wo);
-                let wo_local = frame.to_local(vp.wo);
-                let (mut phi, mut m) = (DVec3::ZERO, 0u64);
-                photons.within(vp.si.p, (st.r * st.r) as f32, &mut |i, _| {
-                    let ph = photons.get(i);
-                    let wi = Vec3A::from(ph.wi);
-                    let f =
-                        material
-                            .bsdf
-                            .eval(wo_local, frame.to_local(wi), TransportMode::Radiance);
-                    let c = vp.beta * f * Vec3A::from(ph.power);
-                    if c.is_finite() {
-                        phi += DVec3::new(c.x as f64, c.y as f64, c.z as f64);
-                    }
-                    m += 1;
-                });
-                if m > 0 {
-                    let m = m as f64;
-                    let n_new = st.n + alpha * m;
-                    let r_new = st.r * (n_new / (st.n + m)).sqrt();
-                    st.tau = (st.tau + phi) * (r_new * r_new) / (st.r * st.r);
-                    st.n = n_new;
-                    st.r = r_new;
-                }
-            });
-        for (_, _, st) in &points {
-            stats.add(st);
-        }
+        stats.add(&sppm.iterate(camera, &mut state));
         progress(t);
     }
-    let iters = s.iterations.max(1) as f64;
-    let exposure = camera.exposure as f64;
-    let mut image = Image::new(w, h);
-    for (px, st) in image.pixels.iter_mut().zip(&states) {
-        let l = (st.ld / iters + st.tau / (iters * std::f64::consts::PI * st.r * st.r)) * exposure;
-        *px = Pixel {
-            rgb: [l.x as f32, l.y as f32, l.z as f32],
-            alpha: 1.0,
-            ..Pixel::default()
+    (state.image(camera.exposure), stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Hachisuka & Jensen's update on numbers worked by hand: chunks add before the update,
+    /// a pixel without photons keeps N, r and τ, and the estimate is L_d/T + τ/(Tπr²) with
+    /// unit filter weights.
+    #[test]
+    fn an_iteration_updates_n_r_and_tau_as_the_paper_does() {
+        let mut s = SppmState::new(2, 1, 1.0);
+        let sum = |pixel, m, phi| PixelSum {
+            pixel,
+            m,
+            phi: [phi; 3],
         };
+        let chunk_a = [sum(0, 1, 1.0)];
+        let chunk_b = [sum(0, 3, 2.0)];
+        let camera = CameraPass {
+            ld: vec![Spectrum::splat(0.5), Spectrum::splat(f32::NAN)],
+            w: vec![1.0, 1.0],
+            stats: RayStats::default(),
+        };
+        s.add_iteration(&camera, [&chunk_a[..], &chunk_b[..]], 0.5);
+        // M = 4, Φ = 3: N' = 0 + 0.5·4 = 2, r'² = 1·2/4, τ' = 3·r'²/r² = 1.5.
+        assert_eq!(s.n[0], 2.0);
+        assert!((s.r[0] * s.r[0] - 0.5).abs() < 1e-15);
+        assert!((s.tau[0].x - 1.5).abs() < 1e-15);
+        assert_eq!((s.n[1], s.r[1], s.tau[1]), (0.0, 1.0, DVec3::ZERO));
+        assert_eq!(s.ld[1], DVec3::ZERO, "a non-finite direct term is dropped");
+        let l = s.image(1.0).pixels[0].rgb[0] as f64;
+        let expect = 0.5 + 1.5 / (std::f64::consts::PI * 0.5);
+        assert!((l - expect).abs() < 1e-6, "{l} vs {expect}");
+        // A second iteration with M = 2, Φ = 1: N'' = 2 + 1 = 3, r''² = 0.5·3/4.
+        s.add_iteration(&camera, [&[sum(0, 2, 1.0)][..]], 0.5);
+        assert!((s.r[0] * s.r[0] - 0.375).abs() < 1e-15);
+        assert!((s.tau[0].x - 2.5 * 0.75).abs() < 1e-15);
+        assert_eq!(s.iterations, 2);
     }
-    (image, stats)
 }

@@ -6,7 +6,11 @@
 //! Our own rather than kiddo: the search is flattened toward a disc along the query's surface
 //! normal (the distance is |Δ|² + f·(Δ·n)², so photons on a wall around a corner do not leak
 //! into the floor's estimate), a metric that depends on the query, which kiddo's fixed
-//! per-type distance metrics cannot express.
+//! per-type distance metrics cannot express. Not for speed: measured on the Cornell box's
+//! global map (398k photons, 99.6k queries, k = 64 within the default radius, plain Euclidean
+//! so all three can run it; 2 rounds on this 2-core machine), ours 18–21 µs per query, kiddo
+//! 5's `KdTree` 17–19 µs, its `ImmutableKdTree` 9–10 µs; builds 121, 83 and 53 ms. Leaf
+//! buckets as in `ImmutableKdTree` are the known way to halve our search.
 
 use glam::{Vec3, Vec3A};
 

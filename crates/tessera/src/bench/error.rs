@@ -11,6 +11,8 @@ use anyhow::{Context, ensure};
 use serde::Serialize;
 use tessera_farm::job::{self, FrameRange, Limits, Prepared, RenderSettings};
 use tessera_farm::progressive::Accumulator;
+use tessera_render::camera::Camera;
+use tessera_render::integrator::sppm::{Sppm, SppmSettings, SppmState};
 use tessera_render::metrics;
 use tessera_scene::IntegratorKind;
 
@@ -22,7 +24,8 @@ pub struct ErrorArgs {
     /// vertical field of view is kept, as `tessera reference --size` does).
     #[arg(long)]
     pub reference: Option<PathBuf>,
-    /// Integrators to compare, comma-separated: path, direct, auto, photon.
+    /// Integrators to compare, comma-separated: path, direct, auto, photon, sppm (whose
+    /// sample budgets are iterations).
     #[arg(long, value_delimiter = ',', default_value = "path,direct")]
     pub integrators: Vec<String>,
     /// Budgets, comma-separated and increasing: samples per pixel (`64`) or seconds of wall
@@ -67,10 +70,6 @@ fn integrator_kind(name: &str) -> anyhow::Result<IntegratorKind> {
         .parse::<tessera_farm::job::IntegratorName>()
         .map(|n| n.kind())
         .map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
-    anyhow::ensure!(
-        kind != IntegratorKind::Sppm,
-        "--integrators: sppm is not progressive per tile; compare it with tessera render --integrator sppm --spp N and tessera compare"
-    );
     Ok(kind)
 }
 
@@ -85,8 +84,9 @@ pub struct Run {
     pub rel_mse: f64,
     pub rmse: f64,
     pub mean_ratio: f64,
-    /// relMSE estimated from the render's own per-pixel variance (no reference needed).
-    pub estimated_rel_mse: f64,
+    /// relMSE estimated from the render's own per-pixel variance (no reference needed);
+    /// `None` for SPPM, which keeps no per-pixel variance.
+    pub estimated_rel_mse: Option<f64>,
 }
 
 /// Wall seconds an integrator needed to reach an error level (log-log interpolation between
@@ -167,21 +167,29 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
             ))?;
         }
         let camera = prepared.camera(1);
-        let mut acc = Accumulator::new(&desc, job::DEFAULT_TILE);
+        let mut acc = if *kind == IntegratorKind::Sppm {
+            let (photon, s) = SppmSettings::resolve(&desc, &prepared.analysis);
+            Progressive::Sppm(
+                Box::new(Sppm::new(&prepared.scene, &photon, s)),
+                SppmState::new(desc.film.width, desc.film.height, s.initial_radius),
+            )
+        } else {
+            Progressive::Tiles(Accumulator::new(&desc, job::DEFAULT_TILE))
+        };
         for budget in &budgets {
             match *budget {
                 Budget::Samples(n) => pool.install(|| acc.render_to(&prepared, &camera, n)),
                 Budget::Seconds(limit) => {
                     // Double the samples until the wall time reaches the budget.
                     while start.elapsed().as_secs_f64() < limit {
-                        let next = (acc.samples * 2).max(acc.samples + 1);
+                        let next = (acc.samples() * 2).max(acc.samples() + 1);
                         pool.install(|| acc.render_to(&prepared, &camera, next));
                     }
                 }
             }
             let wall_s = start.elapsed().as_secs_f64();
             let cpu_s = crate::render::cpu_seconds().zip(cpu0).map(|(b, a)| b - a);
-            let (image, _) = acc.image();
+            let image = acc.image(&camera);
             let rgb: Vec<glam::Vec3A> = image.pixels.iter().map(|p| p.rgb.into()).collect();
             let e = metrics::compare(&rgb, &reference);
             let run = Run {
@@ -190,21 +198,22 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                     Budget::Samples(n) => format!("{n} spp"),
                     Budget::Seconds(s) => format!("{s} s"),
                 },
-                spp: acc.samples,
+                spp: acc.samples(),
                 wall_s,
                 cpu_s,
                 rel_mse: e.rel_mse,
                 rmse: e.rmse,
                 mean_ratio: e.mean_ratio,
-                estimated_rel_mse: metrics::estimated_rel_mse(&image),
+                estimated_rel_mse: (*kind != IntegratorKind::Sppm)
+                    .then(|| metrics::estimated_rel_mse(&image)),
             };
             crate::print(&format!(
-                "{:>8} {:>6} spp  {:8.2} s wall  relMSE {:.3e} (estimated {:.3e})  RMSE {:.3e}  mean/ref {:.4}\n",
+                "{:>8} {:>6} spp  {:8.2} s wall  relMSE {:.3e} (estimated {})  RMSE {:.3e}  mean/ref {:.4}\n",
                 run.integrator,
                 run.spp,
                 run.wall_s,
                 run.rel_mse,
-                run.estimated_rel_mse,
+                estimate(run.estimated_rel_mse),
                 run.rmse,
                 run.mean_ratio
             ))?;
@@ -227,6 +236,45 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         "wrote {0}/report.json, report.csv, report.md and report.png\n",
         args.output.display()
     ))
+}
+
+/// A render that can be continued: tiles' sample sums, or SPPM's per-pixel state (whose
+/// samples are iterations). Either way the image after N is that of a fresh N render.
+enum Progressive<'a> {
+    Tiles(Accumulator),
+    Sppm(Box<Sppm<'a>>, SppmState),
+}
+
+impl Progressive<'_> {
+    fn samples(&self) -> u32 {
+        match self {
+            Progressive::Tiles(acc) => acc.samples,
+            Progressive::Sppm(_, state) => state.iterations,
+        }
+    }
+
+    fn render_to(&mut self, prepared: &Prepared, camera: &Camera, n: u32) {
+        match self {
+            Progressive::Tiles(acc) => acc.render_to(prepared, camera, n),
+            Progressive::Sppm(sppm, state) => {
+                while state.iterations < n {
+                    sppm.iterate(camera, state);
+                }
+            }
+        }
+    }
+
+    fn image(&self, camera: &Camera) -> tessera_render::Image {
+        match self {
+            Progressive::Tiles(acc) => acc.image().0,
+            Progressive::Sppm(_, state) => state.image(camera.exposure),
+        }
+    }
+}
+
+/// An estimated relMSE as the report prints it.
+fn estimate(e: Option<f64>) -> String {
+    e.map_or_else(|| "–".into(), |e| format!("{e:.3e}"))
 }
 
 fn time_to_error(kinds: &[(String, IntegratorKind)], runs: &[Run]) -> Vec<TimeToError> {
@@ -276,7 +324,7 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
     for r in &report.runs {
         let _ = writeln!(
             csv,
-            "{},{},{},{:.4},{},{:.6e},{:.6e},{:.6},{:.6e}",
+            "{},{},{},{:.4},{},{:.6e},{:.6e},{:.6},{}",
             r.integrator,
             r.budget,
             r.spp,
@@ -286,6 +334,8 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
             r.rmse,
             r.mean_ratio,
             r.estimated_rel_mse
+                .map(|e| format!("{e:.6e}"))
+                .unwrap_or_default()
         );
     }
     write("report.csv", csv.as_bytes())?;
@@ -298,7 +348,7 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
     for r in &report.runs {
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.2} | {} | {:.3e} | {:.3e} | {:.3e} | {:.4} |",
+            "| {} | {} | {} | {:.2} | {} | {:.3e} | {} | {:.3e} | {:.4} |",
             r.integrator,
             r.budget,
             r.spp,
@@ -307,7 +357,7 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
                 .map(|c| format!("{c:.2}"))
                 .unwrap_or_else(|| "–".into()),
             r.rel_mse,
-            r.estimated_rel_mse,
+            estimate(r.estimated_rel_mse),
             r.rmse,
             r.mean_ratio
         );
