@@ -149,7 +149,7 @@ fn floats(h: &mut Sha256, v: &[glam::Vec3]) {
 /// round-trip, so the form is exact).
 pub fn photons_key(desc: &SceneDesc, settings: &PhotonSettings) -> String {
     let mut h = Sha256::new();
-    h.update(b"tessera photons v1\0");
+    h.update(b"tessera photons v2\0");
     h.update(desc.metres_per_unit.to_le_bytes());
     for m in &desc.materials {
         h.update(format!("{:?}", m.kind));

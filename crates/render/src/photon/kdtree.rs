@@ -6,11 +6,14 @@
 //! Our own rather than kiddo: the search is flattened toward a disc along the query's surface
 //! normal (the distance is |Δ|² + f·(Δ·n)², so photons on a wall around a corner do not leak
 //! into the floor's estimate), a metric that depends on the query, which kiddo's fixed
-//! per-type distance metrics cannot express. Not for speed: measured on the Cornell box's
-//! global map (398k photons, 99.6k queries, k = 64 within the default radius, plain Euclidean
-//! so all three can run it; 2 rounds on this 2-core machine), ours 18–21 µs per query, kiddo
-//! 5's `KdTree` 17–19 µs, its `ImmutableKdTree` 9–10 µs; builds 121, 83 and 53 ms. Leaf
-//! buckets as in `ImmutableKdTree` are the known way to halve our search.
+//! per-type distance metrics cannot express. Leaves of up to [`LEAF`] points are scanned in
+//! index order and the positions sit in their own array (16 bytes read per point). Measured
+//! (`cargo bench -p tessera-render --bench knn`: the Cornell box's global map, 398k photons,
+//! 99.6k queries within the default radius, plain Euclidean so kiddo 5 can run them too; this
+//! 2-core machine, µs per query, ours / kiddo `ImmutableKdTree` / kiddo `KdTree`): k = 64:
+//! 6.4–7.3 / 7.1–7.8 / 13–15; k = 8: 1.9–2.1 / 3.1–3.7 / 13; k = 1: 0.78–0.89 / 1.35–1.38 /
+//! 11. Builds 70–80 / 43–45 / 65–70 ms. Before leaves and the position array ours took
+//! 18–21 µs at k = 64.
 
 use glam::{Vec3, Vec3A};
 
@@ -44,11 +47,17 @@ impl Positioned for Photon {
     }
 }
 
+/// Ranges of at most this many points are leaves: scanned in index order, not split.
+const LEAF: usize = 32;
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct KdTree<T = Photon> {
     photons: Vec<T>,
-    /// Split axis of the subtree rooted at each index.
+    /// Split axis of the subtree rooted at each index (0 within leaves).
     axes: Vec<u8>,
+    /// The points' positions, apart so that a search reads 16 bytes per point, not the
+    /// whole photon.
+    points: Vec<Vec3A>,
 }
 
 impl<T> Default for KdTree<T> {
@@ -56,6 +65,7 @@ impl<T> Default for KdTree<T> {
         KdTree {
             photons: Vec::new(),
             axes: Vec::new(),
+            points: Vec::new(),
         }
     }
 }
@@ -64,7 +74,16 @@ impl<T: Positioned> KdTree<T> {
     pub fn build(mut photons: Vec<T>) -> KdTree<T> {
         let mut axes = vec![0u8; photons.len()];
         balance(&mut photons, &mut axes);
-        KdTree { photons, axes }
+        Self::with_points(photons, axes)
+    }
+
+    fn with_points(photons: Vec<T>, axes: Vec<u8>) -> KdTree<T> {
+        let points = photons.iter().map(|p| Vec3A::from(p.position())).collect();
+        KdTree {
+            photons,
+            axes,
+            points,
+        }
     }
 
     /// A tree from the arrays of [`Self::photons`] and [`Self::axes`] (as stored in an
@@ -77,7 +96,7 @@ impl<T: Positioned> KdTree<T> {
                 axes.len()
             ));
         }
-        Ok(KdTree { photons, axes })
+        Ok(Self::with_points(photons, axes))
     }
 
     pub fn axes(&self) -> &[u8] {
@@ -103,22 +122,27 @@ impl<T: Positioned> KdTree<T> {
     /// Collects into `knn` the nearest photons to `p` under the distance
     /// |Δ|² + `flatten`·(Δ·`n`)² (Δ = photon − p; `n` unit), within `knn`'s radius.
     pub fn nearest<const N: usize>(&self, p: Vec3A, n: Vec3A, flatten: f32, knn: &mut Knn<N>) {
-        let q = Vec3::from(p);
-        self.search(0, self.photons.len(), q, Vec3::from(n), flatten, knn);
+        self.search(0, self.photons.len(), p, n, flatten, knn);
     }
 
     /// Calls `f(index, squared distance)` for every point within squared radius `r2` of `p`,
     /// in a fixed (tree) order.
     pub fn within(&self, p: Vec3A, r2: f32, f: &mut impl FnMut(u32, f32)) {
-        self.within_range(0, self.photons.len(), Vec3::from(p), r2, f);
+        self.within_range(0, self.photons.len(), p, r2, f);
     }
 
-    fn within_range(&self, lo: usize, hi: usize, q: Vec3, r2: f32, f: &mut impl FnMut(u32, f32)) {
-        if lo >= hi {
+    fn within_range(&self, lo: usize, hi: usize, q: Vec3A, r2: f32, f: &mut impl FnMut(u32, f32)) {
+        if hi - lo <= LEAF {
+            for (i, p) in self.points[lo..hi].iter().enumerate() {
+                let d2 = (*p - q).length_squared();
+                if d2 <= r2 {
+                    f((lo + i) as u32, d2);
+                }
+            }
             return;
         }
         let mid = (lo + hi) / 2;
-        let p = self.photons[mid].position();
+        let p = self.points[mid];
         let axis = self.axes[mid] as usize;
         let delta = q[axis] - p[axis];
         let (near, far) = if delta < 0.0 {
@@ -140,16 +164,24 @@ impl<T: Positioned> KdTree<T> {
         &self,
         lo: usize,
         hi: usize,
-        q: Vec3,
-        n: Vec3,
+        q: Vec3A,
+        n: Vec3A,
         flatten: f32,
         knn: &mut Knn<N>,
     ) {
-        if lo >= hi {
+        if hi - lo <= LEAF {
+            for (i, p) in self.points[lo..hi].iter().enumerate() {
+                let d = *p - q;
+                let dn = d.dot(n);
+                let d2 = d.length_squared() + flatten * dn * dn;
+                if d2 < knn.max_d2 {
+                    knn.insert(d2, (lo + i) as u32);
+                }
+            }
             return;
         }
         let mid = (lo + hi) / 2;
-        let p = self.photons[mid].position();
+        let p = self.points[mid];
         let axis = self.axes[mid] as usize;
         let delta = q[axis] - p[axis];
         // The flattened distance is at least the Euclidean one, so a subtree beyond the
@@ -173,9 +205,9 @@ impl<T: Positioned> KdTree<T> {
 }
 
 /// Puts the median of `photons` on its widest axis at the middle, smaller ones before and
-/// larger after, recursively.
+/// larger after, recursively, down to leaves of at most [`LEAF`] points.
 fn balance<T: Positioned>(photons: &mut [T], axes: &mut [u8]) {
-    if photons.len() <= 1 {
+    if photons.len() <= LEAF {
         return;
     }
     let (lo, hi) = photons.iter().fold(
