@@ -11,19 +11,28 @@ use kiddo::SquaredEuclidean;
 use tessera_render::photon::{KdTree, Knn, MapKind, PhotonSettings, Shooter};
 
 fn main() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scenes/cornell-box/scene.json");
     let desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     let scene = tessera_render::Scene::build(&desc);
     let analysis = tessera_render::analysis::analyze(&desc);
     let (settings, _) = PhotonSettings::resolve(&desc, &analysis);
     let photons = Shooter::new(&scene, &settings, MapKind::Global).shoot(0..settings.photons);
-    println!("{} photons stored, k {}, radius {}", photons.len(), settings.k, settings.radius);
+    println!(
+        "{} photons stored, k {}, radius {}",
+        photons.len(),
+        settings.k,
+        settings.radius
+    );
     let queries: Vec<(Vec3A, Vec3A)> = photons
         .iter()
         .step_by(4)
         .map(|p| (Vec3A::from(p.p) + Vec3A::splat(1e-3), Vec3A::from(p.n)))
         .collect();
-    let k: usize = std::env::var("K").ok().and_then(|v| v.parse().ok()).unwrap_or(settings.k as usize);
+    let k: usize = std::env::var("K")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(settings.k as usize);
     let r2 = settings.radius * settings.radius;
 
     let t = Instant::now();

@@ -47,6 +47,14 @@ fn area_to_solid_angle(pdf_area: f32, p: Vec3A, p_light: Vec3A, n_light: Vec3A) 
 }
 
 impl TriangleLight {
+    pub fn area(&self) -> f32 {
+        self.area
+    }
+
+    pub fn two_sided(&self) -> bool {
+        self.two_sided
+    }
+
     /// `v` wound so that its normal is the front face. Degenerate triangles have zero area
     /// and are never chosen.
     pub fn new(v: [Vec3A; 3], radiance: Spectrum, two_sided: bool) -> Self {
@@ -142,6 +150,14 @@ pub struct SphereLight {
 }
 
 impl SphereLight {
+    pub fn area(&self) -> f32 {
+        4.0 * PI * self.radius * self.radius
+    }
+
+    pub fn two_sided(&self) -> bool {
+        self.two_sided
+    }
+
     pub fn new(center: Vec3A, radius: f32, radiance: Spectrum, two_sided: bool) -> Self {
         SphereLight {
             center,

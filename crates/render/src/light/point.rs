@@ -58,9 +58,14 @@ pub(super) fn emit_from_point(
             crate::sampling::UNIFORM_SPHERE_PDF,
         ),
     };
+    let le = intensity(d);
     Some(Emission {
         ray: Ray::new(position, d),
-        flux: intensity(d) / pdf,
+        flux: le / pdf,
+        le,
+        n: Vec3A::ZERO,
+        pdf_pos: 1.0,
+        pdf_dir: pdf,
     })
 }
 
