@@ -60,15 +60,17 @@ pub enum IntegratorName {
     Auto,
     Photon,
     Sppm,
+    Bdpt,
 }
 
 impl IntegratorName {
-    pub const ALL: [IntegratorName; 5] = [
+    pub const ALL: [IntegratorName; 6] = [
         IntegratorName::Path,
         IntegratorName::Direct,
         IntegratorName::Auto,
         IntegratorName::Photon,
         IntegratorName::Sppm,
+        IntegratorName::Bdpt,
     ];
 
     pub fn kind(self) -> IntegratorKind {
@@ -78,6 +80,7 @@ impl IntegratorName {
             IntegratorName::Auto => IntegratorKind::Auto,
             IntegratorName::Photon => IntegratorKind::Photon,
             IntegratorName::Sppm => IntegratorKind::Sppm,
+            IntegratorName::Bdpt => IntegratorKind::Bdpt,
         }
     }
 
@@ -88,6 +91,7 @@ impl IntegratorName {
             IntegratorName::Auto => "auto",
             IntegratorName::Photon => "photon",
             IntegratorName::Sppm => "sppm",
+            IntegratorName::Bdpt => "bdpt",
         }
     }
 }
@@ -467,8 +471,8 @@ impl Prepared {
     pub fn new(desc: SceneDesc, frames: FrameRange) -> Self {
         let start = Instant::now();
         let mut p = Self::scene_only(desc);
-        // SPPM renders whole frames (`sppm::render`), not tiles.
-        if p.analysis.integrator != IntegratorKind::Sppm {
+        // SPPM and BDPT render whole frames, not tiles.
+        if !p.analysis.integrator.whole_frame() {
             let (integrator, passes) =
                 integrator::prepare(&p.desc, &p.scene, &p.analysis, frames.first..=frames.last);
             p.integrator = Some(integrator);
@@ -485,7 +489,7 @@ impl Prepared {
         let analysis = tessera_render::analysis::analyze(&desc);
         let photon = (analysis.integrator == IntegratorKind::Photon)
             .then(|| PhotonSettings::resolve(&desc, &analysis).0);
-        let integrator = (photon.is_none() && analysis.integrator != IntegratorKind::Sppm)
+        let integrator = (photon.is_none() && !analysis.integrator.whole_frame())
             .then(|| integrator::prepare(&desc, &scene, &analysis, 1..=1).0);
         Prepared {
             desc,

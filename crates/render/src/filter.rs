@@ -18,6 +18,8 @@ pub struct Filter {
     radius: f32,
     /// |f| along one axis for separable, non-box filters.
     table: Option<Distribution1D>,
+    /// ∫ f along one axis.
+    integral: f32,
 }
 
 /// Mitchell–Netravali cubic on t = |2x/r| ∈ [0, 2] (Mitchell & Netravali 1988).
@@ -50,7 +52,9 @@ impl Filter {
             desc,
             radius,
             table: None,
+            integral: 1.0,
         };
+        f.integral = f.integral_1d();
         if !matches!(desc, FilterDesc::Box { .. }) {
             let values: Vec<f32> = (0..TABLE)
                 .map(|i| {
@@ -61,6 +65,35 @@ impl Filter {
             f.table = Some(Distribution1D::new(&values));
         }
         f
+    }
+
+    /// Half-width of the filter's support, pixels.
+    pub fn radius(&self) -> f32 {
+        self.radius
+    }
+
+    /// The filter at offset `d` pixels from a pixel centre, divided by its integral: the
+    /// share of a splat at `d` that the pixel receives. A pixel's camera samples estimate
+    /// ∫ f(x − c) L(x) dx / ∫ f (see [`Self::sample`]), so a splat shared this way estimates
+    /// the same; the shares sum to 1 on average over where a splat lands, not at every point
+    /// (a narrow Gaussian is no partition of unity).
+    pub fn splat_weight(&self, d: Vec2) -> f32 {
+        self.eval_1d(d.x) * self.eval_1d(d.y) / (self.integral * self.integral)
+    }
+
+    /// ∫ f along one axis (midpoint rule, 1024 steps; exact for the box).
+    fn integral_1d(&self) -> f32 {
+        match self.desc {
+            FilterDesc::Box { radius } => 2.0 * radius,
+            _ => {
+                let n = 1024;
+                let h = 2.0 * self.radius / n as f32;
+                (0..n)
+                    .map(|i| self.eval_1d(-self.radius + (i as f32 + 0.5) * h))
+                    .sum::<f32>()
+                    * h
+            }
+        }
     }
 
     /// The filter along one axis at offset `x` pixels.
@@ -99,6 +132,45 @@ impl Filter {
 mod tests {
     use super::*;
 
+    const GAUSSIAN: FilterDesc = FilterDesc::Gaussian {
+        radius: 1.5,
+        sigma: 0.5,
+    };
+    const MITCHELL: FilterDesc = FilterDesc::Mitchell {
+        radius: 2.0,
+        b: 1.0 / 3.0,
+        c: 1.0 / 3.0,
+    };
+
+    /// A splat's shares over the pixels around it sum to 1 on average over where in a pixel
+    /// it lands (a 32×32 grid of positions; exact for the box at every position).
+    #[test]
+    fn splat_weights_sum_to_one_on_average() {
+        for desc in [FilterDesc::Box { radius: 0.5 }, GAUSSIAN, MITCHELL] {
+            let f = Filter::new(desc);
+            let n = 32;
+            let mut mean = 0.0f64;
+            for j in 0..n * n {
+                let at = Vec2::new(
+                    ((j % n) as f32 + 0.5) / n as f32,
+                    ((j / n) as f32 + 0.5) / n as f32,
+                );
+                let mut sum = 0.0;
+                for y in -4..=4 {
+                    for x in -4..=4 {
+                        let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                        sum += f.splat_weight(at - centre);
+                    }
+                }
+                if matches!(desc, FilterDesc::Box { .. }) {
+                    assert!((sum - 1.0).abs() < 1e-6, "box at {at}: {sum}");
+                }
+                mean += sum as f64 / (n * n) as f64;
+            }
+            assert!((mean - 1.0).abs() < 2e-3, "{desc:?}: {mean}");
+        }
+    }
+
     #[test]
     fn box_offsets_cover_the_pixel_with_unit_weight() {
         let f = Filter::new(FilterDesc::Box { radius: 0.5 });
@@ -110,17 +182,7 @@ mod tests {
     fn weighted_mean_reproduces_the_filter_average() {
         // For a linear function g(x) = x + 1 the filtered value at the centre is 1 (symmetric
         // filters), whatever the filter: Σ w g / Σ w must converge to 1.
-        for desc in [
-            FilterDesc::Gaussian {
-                radius: 1.5,
-                sigma: 0.5,
-            },
-            FilterDesc::Mitchell {
-                radius: 2.0,
-                b: 1.0 / 3.0,
-                c: 1.0 / 3.0,
-            },
-        ] {
+        for desc in [GAUSSIAN, MITCHELL] {
             let f = Filter::new(desc);
             let (mut swg, mut sw) = (0.0f64, 0.0f64);
             let n = 256;

@@ -12,6 +12,26 @@ use crate::integrator::{Integrator, RayStats};
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::Scene;
 
+/// The camera ray of the pixel sample `sampler` was started at, and its filter weight f/pdf:
+/// the film position drawn from the film's filter about the pixel centre, then the lens
+/// point. Every integrator starts its pixel samples here, so they see the same film.
+#[inline]
+pub(crate) fn camera_ray(
+    scene: &Scene,
+    camera: &Camera,
+    pixel: glam::UVec2,
+    sampler: &mut PixelSampler,
+) -> (crate::ray::Ray, f32) {
+    let (offset, w) = scene.filter.sample(sampler.get_2d());
+    let film = pixel.as_vec2() + Vec2::splat(0.5) + offset;
+    let u_lens = if camera.has_aperture() {
+        sampler.get_2d()
+    } else {
+        Vec2::ZERO
+    };
+    (camera.generate_ray(film, u_lens), w)
+}
+
 /// Renders samples `range` of every pixel of `tile`, seen by `camera`.
 pub fn render_tile(
     scene: &Scene,
@@ -24,14 +44,10 @@ pub fn render_tile(
     let mut stats = RayStats::default();
     let mut sampler = PixelSampler::new(scene.integrator.sampler, scene.integrator.seed);
     let exposure = camera.exposure;
-    let lens = camera.has_aperture();
     for (pixel, acc) in tile.pixels().zip(sums.pixels.iter_mut()) {
         for index in range.start..range.end {
             sampler.start_pixel_sample(pixel, index);
-            let (offset, w) = scene.filter.sample(sampler.get_2d());
-            let film = pixel.as_vec2() + Vec2::splat(0.5) + offset;
-            let u_lens = if lens { sampler.get_2d() } else { Vec2::ZERO };
-            let ray = camera.generate_ray(film, u_lens);
+            let (ray, w) = camera_ray(scene, camera, pixel, &mut sampler);
             let out = integrator.li(scene, ray, &mut sampler, &mut stats);
             stats.samples += 1;
             let l = out.l * exposure;

@@ -353,22 +353,34 @@ impl Scene {
 
     /// Whether nothing blocks the light sample `ls` as seen from `si`.
     pub fn unoccluded(&self, si: &SurfaceInteraction, ls: &LightSample) -> bool {
-        let o = offset_ray_origin(si.p, si.p_error, si.ng, ls.wi);
         match ls.target {
-            ShadowTarget::Infinite => !self.accel.occluded(&Ray::new(o, ls.wi), f32::INFINITY),
+            ShadowTarget::Infinite => {
+                let o = offset_ray_origin(si.p, si.p_error, si.ng, ls.wi);
+                !self.accel.occluded(&Ray::new(o, ls.wi), f32::INFINITY)
+            }
             ShadowTarget::Point { p, p_error, n } => {
-                let target = if n == Vec3A::ZERO {
-                    p
-                } else {
-                    offset_ray_origin(p, p_error, n, o - p)
-                };
-                let d = target - o;
-                let dist = d.length();
-                dist == 0.0
-                    || !self
-                        .accel
-                        .occluded(&Ray::new(o, d / dist), dist * (1.0 - SHADOW_EPSILON))
+                self.unoccluded_between((si.p, si.p_error, si.ng), (p, p_error, n))
             }
         }
+    }
+
+    /// Whether nothing blocks the segment between two points, each (position, error bound,
+    /// normal; a zero normal for a point in space, such as a pinhole or a point light).
+    pub fn unoccluded_between(&self, a: (Vec3A, Vec3A, Vec3A), b: (Vec3A, Vec3A, Vec3A)) -> bool {
+        let end = |(p, e, n): (Vec3A, Vec3A, Vec3A), toward: Vec3A| {
+            if n == Vec3A::ZERO {
+                p
+            } else {
+                offset_ray_origin(p, e, n, toward - p)
+            }
+        };
+        let o = end(a, b.0);
+        let target = end(b, o);
+        let d = target - o;
+        let dist = d.length();
+        dist == 0.0
+            || !self
+                .accel
+                .occluded(&Ray::new(o, d / dist), dist * (1.0 - SHADOW_EPSILON))
     }
 }

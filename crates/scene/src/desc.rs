@@ -94,6 +94,17 @@ pub enum IntegratorKind {
     /// Stochastic progressive photon mapping: `spp` iterations of one camera sample per pixel
     /// and `photon_map.photons` photons each.
     Sppm,
+    /// Bidirectional path tracing: every connection of a camera and a light subpath, weighted
+    /// by multiple importance sampling.
+    Bdpt,
+}
+
+impl IntegratorKind {
+    /// Whether the integrator renders whole frames rather than independent tiles (its samples
+    /// reach pixels other than their own: light-tracing splats, SPPM's shared photons).
+    pub fn whole_frame(self) -> bool {
+        matches!(self, IntegratorKind::Sppm | IntegratorKind::Bdpt)
+    }
 }
 
 /// Photon-mapping knobs as the scene gives them; `None` = chosen from the scene.

@@ -237,6 +237,8 @@ pub enum IntegratorType {
     Photon,
     /// Stochastic progressive photon mapping (Hachisuka & Jensen 2009): consistent.
     Sppm,
+    /// Bidirectional path tracing (Veach 1997): unbiased.
+    Bdpt,
 }
 
 /// How caustic photons are weighted by distance in a radiance estimate (Jensen 2001, §7.2).

@@ -540,6 +540,7 @@ impl Ctx<'_> {
                 IntegratorType::Auto => IntegratorKind::Auto,
                 IntegratorType::Photon => IntegratorKind::Photon,
                 IntegratorType::Sppm => IntegratorKind::Sppm,
+                IntegratorType::Bdpt => IntegratorKind::Bdpt,
             },
             spp: i.spp,
             max_depth: i.max_depth,

@@ -161,7 +161,7 @@ pub struct SubmitArgs {
     /// maximum per pixel).
     #[arg(long)]
     pub target_error: Option<f64>,
-    /// The integrator: path, direct, auto, photon or sppm (overrides the scene's integrator.type).
+    /// The integrator: path, direct, auto, photon, sppm or bdpt (overrides the scene's integrator.type).
     #[arg(long)]
     pub integrator: Option<job::IntegratorName>,
     /// Build pass artifacts (photon maps, irradiance caches) anew even where the coordinator

@@ -31,7 +31,7 @@ pub struct RenderArgs {
     /// Film size WxH (overrides the scene's film; the vertical field of view is kept).
     #[arg(long)]
     pub size: Option<Size>,
-    /// The integrator: path, direct, auto, photon or sppm (overrides the scene's integrator.type).
+    /// The integrator: path, direct, auto, photon, sppm or bdpt (overrides the scene's integrator.type).
     #[arg(long)]
     pub integrator: Option<tessera_farm::job::IntegratorName>,
     /// The frame of the scene's camera path to render (1-based).
@@ -138,9 +138,14 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         max_spp: spp,
     });
     let sppm = analysis.integrator == tessera_scene::IntegratorKind::Sppm;
+    let bdpt = analysis.integrator == tessera_scene::IntegratorKind::Bdpt;
     anyhow::ensure!(
         !(sppm && adaptive.is_some()),
         "--target-error/--time-limit: sppm refines every pixel each iteration; give --spp (its iterations) instead"
+    );
+    anyhow::ensure!(
+        !(bdpt && adaptive.is_some()),
+        "--target-error/--time-limit: bdpt renders whole frames (its splats reach every tile); give --spp instead"
     );
     let (image, stats, extra, spp_text) = match &adaptive {
         None if sppm => {
@@ -153,8 +158,18 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
                 })
             });
             let text = s.describe();
-            let extra = vec![("sppm".to_string(), text.clone())];
-            (image, stats, extra, text)
+            (image, stats, tessera_farm::sppm::metadata(&s), text)
+        }
+        None if bdpt => {
+            use tessera_render::integrator::bdpt::Bdpt;
+            let b = Bdpt {
+                max_depth: desc.integrator.max_depth,
+            };
+            let range = tessera_render::SampleRange { start: 0, end: spp };
+            let (image, stats) = pool
+                .install(|| b.render(&prepared.scene, &camera, range, &|n| progress.inc(n)))
+                .map_err(anyhow::Error::msg)?;
+            (image, stats, Vec::new(), format!("{spp} spp, bdpt"))
         }
         None => {
             let outputs: Vec<TaskOutput> = pool.install(|| {

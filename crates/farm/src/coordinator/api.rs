@@ -289,6 +289,11 @@ async fn submit_job(
         job::apply(&mut desc, &req.settings, frames, &app2.config.limits)
             .map_err(AppError::bad_request)?;
         let analysis = tessera_render::analysis::analyze(&desc);
+        if analysis.integrator == tessera_scene::IntegratorKind::Bdpt {
+            return Err(AppError::bad_request(
+                "integrator: bdpt runs in tessera render only for now (its light-tracing splats land anywhere on the film; farm tasks over sample ranges of the whole image are not built yet); use path, photon or sppm on the farm",
+            ));
+        }
         let tasks: Vec<Vec<TaskSpec>> = frames
             .iter()
             .map(|f| job::plan_frame(&desc, &req.settings, f))

@@ -6,6 +6,7 @@
 //! - `direct`: the same estimator stopped after the first diffuse or glossy vertex (specular
 //!   chains before it are followed): emitted plus directly reflected light.
 
+pub mod bdpt;
 mod path;
 mod photon;
 pub mod sppm;
@@ -174,16 +175,17 @@ pub fn prepare(
             let (p, why) = PhotonIntegrator::prepare(desc, scene, analysis, frames);
             (Box::new(p), why)
         }
-        // SPPM renders whole frames (`sppm::render`); asked for tiles, a path tracer renders
-        // the same image without its photon passes, and says so.
-        IntegratorKind::Sppm => (
+        // SPPM and BDPT render whole frames (`sppm::render`, `Bdpt::render`); asked for
+        // tiles, a path tracer renders the same image, and says so.
+        kind @ (IntegratorKind::Sppm | IntegratorKind::Bdpt) => (
             Box::new(path_family(&IntegratorDesc {
                 kind: IntegratorKind::Path,
                 ..desc.integrator
             })),
-            vec![
-                "sppm renders whole frames (tessera render); per-tile rendering path traces".into(),
-            ],
+            vec![format!(
+                "{} renders whole frames (tessera render); per-tile rendering path traces",
+                format!("{kind:?}").to_lowercase()
+            )],
         ),
         kind => (
             Box::new(path_family(&IntegratorDesc {

@@ -21,7 +21,7 @@
 
 use std::ops::Range;
 
-use glam::{DVec3, UVec2, Vec2, Vec3A};
+use glam::{DVec3, UVec2, Vec3A};
 use rayon::prelude::*;
 
 use super::{RayStats, sample_direct, scatter};
@@ -241,14 +241,7 @@ fn visible_point(
 ) -> (Spectrum, f32, Option<VisiblePoint>) {
     sampler.start_pixel_sample(pixel, iteration);
     // The film filter as the path tracer samples it: the weight rides on β.
-    let (offset, w) = scene.filter.sample(sampler.get_2d());
-    let film = pixel.as_vec2() + Vec2::splat(0.5) + offset;
-    let u_lens = if camera.has_aperture() {
-        sampler.get_2d()
-    } else {
-        Vec2::ZERO
-    };
-    let mut ray = camera.generate_ray(film, u_lens);
+    let (mut ray, w) = crate::render::camera_ray(scene, camera, pixel, sampler);
     let mut beta = Spectrum::splat(w);
     let mut l = Spectrum::ZERO;
     for _ in 0..max_depth.max(1) {

@@ -70,6 +70,10 @@ fn integrator_kind(name: &str) -> anyhow::Result<IntegratorKind> {
         .parse::<tessera_farm::job::IntegratorName>()
         .map(|n| n.kind())
         .map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
+    anyhow::ensure!(
+        kind != IntegratorKind::Bdpt,
+        "--integrators: bdpt is not in the bench yet; compare tessera render --integrator bdpt --spp N with tessera compare"
+    );
     Ok(kind)
 }
 

@@ -1,0 +1,742 @@
+//! Bidirectional path tracing (Veach's thesis ch. 10; pbrt-v3 §16.3).
+//!
+//! Each pixel sample traces a camera subpath and a light subpath and connects every prefix
+//! pair (s light vertices, t camera vertices): s = 0 is a camera path that hits an emitter,
+//! s = 1 samples a point on a light for the camera path's end (next-event estimation), t = 1
+//! connects a light subpath vertex to the lens (light tracing: the contribution lands on
+//! whatever pixel it projects to, a *splat*), and the rest join the two ends with a shadow ray.
+//! Every strategy is weighted by the power heuristic over all strategies that could have made
+//! the same path, from the densities of each vertex sampled forward (`pdf_fwd`) and reverse
+//! (`pdf_rev`), in area measure.
+//!
+//! Light tracing splats anywhere on the film, so BDPT renders whole frames: samples of every
+//! pixel, with the splats accumulated in fixed point (integer addition is associative, so the
+//! image does not depend on the order the threads add in).
+
+use std::sync::atomic::{AtomicI64, Ordering::Relaxed};
+
+use glam::{Vec2, Vec3A};
+use rayon::prelude::*;
+
+use super::{RayStats, consistent};
+use crate::bsdf::TransportMode;
+use crate::camera::Camera;
+use crate::film::{Image, TileSums, tiles};
+use crate::light::{Aim, Light, ShadowTarget, Target};
+use crate::render::camera_ray;
+use crate::sampler::{PixelSampler, Sampler};
+use crate::scene::{NO_LIGHT, Scene, SurfaceInteraction};
+use crate::spectrum::{Spectrum, is_black};
+use crate::{SampleRange, Tile};
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    Camera,
+    /// A point on a light (the first vertex of a light subpath, or one sampled for s = 1).
+    Light(u32),
+    Surface,
+}
+
+/// A subpath vertex.
+#[derive(Debug, Clone, Copy)]
+struct Vertex {
+    kind: Kind,
+    p: Vec3A,
+    p_error: Vec3A,
+    /// Geometric normal; zero for a point in space (a pinhole, a point light).
+    ng: Vec3A,
+    /// Shading normal (the geometric one where there is no surface to shade).
+    ns: Vec3A,
+    /// For surfaces: the hit, and the direction toward the previous vertex of the subpath.
+    si: Option<SurfaceInteraction>,
+    wo: Vec3A,
+    beta: Spectrum,
+    /// Sampled by a specular lobe: no other strategy can make it.
+    delta: bool,
+    /// Density of this vertex sampled from the previous one of its subpath, per unit area.
+    pdf_fwd: f32,
+    /// Density of this vertex sampled from the next one (the other direction), per unit area.
+    pdf_rev: f32,
+}
+
+impl Vertex {
+    fn point(kind: Kind, p: Vec3A, p_error: Vec3A, n: Vec3A, beta: Spectrum, pdf: f32) -> Self {
+        Vertex {
+            kind,
+            p,
+            p_error,
+            ng: n,
+            ns: n,
+            si: None,
+            wo: Vec3A::ZERO,
+            beta,
+            delta: false,
+            pdf_fwd: pdf,
+            pdf_rev: 0.0,
+        }
+    }
+
+    fn on_surface(&self) -> bool {
+        self.ng != Vec3A::ZERO
+    }
+
+    fn end(&self) -> (Vec3A, Vec3A, Vec3A) {
+        (self.p, self.p_error, self.ng)
+    }
+
+    /// A per-solid-angle density `pdf` of sampling `next` from here, per unit area at `next`.
+    fn convert_density(&self, pdf: f32, next: &Vertex) -> f32 {
+        let w = next.p - self.p;
+        let d2 = w.length_squared();
+        if d2 == 0.0 {
+            return 0.0;
+        }
+        let mut pdf = pdf / d2;
+        if next.on_surface() {
+            pdf *= next.ng.dot(w).abs() / d2.sqrt();
+        }
+        pdf
+    }
+}
+
+/// The settings BDPT runs with.
+#[derive(Debug, Clone, Copy)]
+pub struct Bdpt {
+    /// Most scattering vertices on a path (the path tracer's `max_depth`).
+    pub max_depth: u32,
+}
+
+/// Longest subpaths: the camera's has the lens and `max_depth` + 1 more vertices.
+const MAX_VERTICES: usize = 66;
+
+struct Ctx<'a> {
+    scene: &'a Scene,
+    camera: &'a Camera,
+    /// The sphere the lights' bidirectional densities are defined over (infinite lights).
+    bounds: Target,
+}
+
+impl Ctx<'_> {
+    fn light_of(&self, v: &Vertex) -> Option<(u32, &Light)> {
+        let i = match v.kind {
+            Kind::Light(i) => i,
+            Kind::Surface => v.si.map_or(NO_LIGHT, |si| si.light),
+            Kind::Camera => NO_LIGHT,
+        };
+        (i != NO_LIGHT).then(|| (i, self.scene.lights.get(i)))
+    }
+
+    /// f at a surface vertex for light leaving toward `wo` (the vertex's own) and arriving
+    /// from `next`, with the shading-normal correction of importance transport (Veach §5.3).
+    fn f(&self, v: &Vertex, next: &Vertex, mode: TransportMode) -> Spectrum {
+        let Some(si) = &v.si else {
+            return Spectrum::ZERO;
+        };
+        let wi = (next.p - v.p).normalize_or_zero();
+        let material = self.scene.material(si.material);
+        let frame = material.frame(si, v.wo);
+        let (wo_l, wi_l) = (frame.to_local(v.wo), frame.to_local(wi));
+        if !consistent(si, v.wo, wi, wo_l, wi_l) {
+            return Spectrum::ZERO;
+        }
+        material.bsdf.eval(wo_l, wi_l, mode) * shading_correction(si, v.wo, wi, mode)
+    }
+
+    /// Density per unit area at `next` of sampling it from `v` (whose subpath came from
+    /// `prev`): BSDF sampling at surfaces, emission at lights, importance at the camera.
+    fn pdf(&self, v: &Vertex, prev: Option<&Vertex>, next: &Vertex) -> f32 {
+        let wn = (next.p - v.p).normalize_or_zero();
+        let pdf = match v.kind {
+            Kind::Light(_) => return self.pdf_light(v, next),
+            Kind::Camera => self.camera.pdf_we(v.p, wn).1,
+            Kind::Surface => {
+                let (Some(si), Some(prev)) = (&v.si, prev) else {
+                    return 0.0;
+                };
+                let wp = (prev.p - v.p).normalize_or_zero();
+                let material = self.scene.material(si.material);
+                let frame = material.frame(si, wp);
+                material.bsdf.pdf(
+                    frame.to_local(wp),
+                    frame.to_local(wn),
+                    TransportMode::Radiance,
+                )
+            }
+        };
+        v.convert_density(pdf, next)
+    }
+
+    /// Density per unit area at `to` of a light emitting from `v` toward it.
+    fn pdf_light(&self, v: &Vertex, to: &Vertex) -> f32 {
+        let Some((_, light)) = self.light_of(v) else {
+            return 0.0;
+        };
+        let w = (to.p - v.p).normalize_or_zero();
+        let (_, pdf_dir) = light.pdf_le(v.ng, w, self.bounds);
+        v.convert_density(pdf_dir, to)
+    }
+
+    /// Density per unit area of choosing the light at `v` and the point `v` on it (toward
+    /// `to`, for lights whose position density depends on it).
+    fn pdf_light_origin(&self, v: &Vertex, to: &Vertex) -> f32 {
+        let Some((i, light)) = self.light_of(v) else {
+            return 0.0;
+        };
+        let w = (to.p - v.p).normalize_or_zero();
+        let (pdf_pos, _) = light.pdf_le(v.ng, w, self.bounds);
+        self.scene.lights.pmf(i) * pdf_pos
+    }
+
+    /// Radiance an emitter vertex sends toward `to`.
+    fn le(&self, v: &Vertex, to: &Vertex) -> Spectrum {
+        let Some((_, light)) = self.light_of(v) else {
+            return Spectrum::ZERO;
+        };
+        light.le_surface(v.ng, (to.p - v.p).normalize_or_zero())
+    }
+
+    /// Whether a light vertex is a delta in position (a point light).
+    fn is_delta_light(&self, v: &Vertex) -> bool {
+        matches!(
+            self.light_of(v),
+            Some((_, Light::Point(_) | Light::Spot(_)))
+        )
+    }
+
+    /// Extends `path` (whose last vertex is where `ray` left, with solid-angle density `pdf`)
+    /// by BSDF sampling until it leaves the scene, is absorbed or has `max` vertices.
+    #[allow(clippy::too_many_arguments)]
+    fn random_walk(
+        &self,
+        path: &mut Vec<Vertex>,
+        mut ray: crate::ray::Ray,
+        mut beta: Spectrum,
+        mut pdf_fwd: f32,
+        max: usize,
+        mode: TransportMode,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+    ) {
+        while path.len() < max && !is_black(beta) {
+            stats.rays += 1;
+            let Some(si) = self.scene.intersect(&ray) else {
+                break;
+            };
+            let wo = -ray.d;
+            let prev = path.len() - 1;
+            let mut v = Vertex::point(Kind::Surface, si.p, si.p_error, si.ng, beta, 0.0);
+            v.ns = si.ns;
+            v.si = Some(si);
+            v.wo = wo;
+            v.pdf_fwd = path[prev].convert_density(pdf_fwd, &v);
+            path.push(v);
+            if path.len() >= max {
+                break;
+            }
+            let material = self.scene.material(si.material);
+            if material.is_black() {
+                break;
+            }
+            let frame = material.frame(&si, wo);
+            let wo_l = frame.to_local(wo);
+            let u = sampler.get_3d();
+            let Some(bs) = material.bsdf.sample(wo_l, u.x, Vec2::new(u.y, u.z), mode) else {
+                break;
+            };
+            let wi = frame.to_world(bs.wi);
+            if !consistent(&si, wo, wi, wo_l, bs.wi) {
+                break;
+            }
+            let cur = path.len() - 1;
+            let mut pdf_rev = material.bsdf.pdf(bs.wi, wo_l, mode);
+            pdf_fwd = bs.pdf;
+            if bs.specular {
+                path[cur].delta = true;
+                pdf_rev = 0.0;
+                pdf_fwd = 0.0;
+            }
+            beta *= bs.weight() * shading_correction(&si, wo, wi, mode);
+            let rev = path[cur].convert_density(pdf_rev, &path[prev]);
+            path[prev].pdf_rev = rev;
+            ray = si.spawn(wi);
+        }
+    }
+
+    /// The camera subpath of a sample: the lens vertex, then the walk.
+    fn camera_subpath(
+        &self,
+        ray: crate::ray::Ray,
+        max_depth: u32,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+        path: &mut Vec<Vertex>,
+    ) {
+        path.clear();
+        let (_, pdf_dir) = self.camera.pdf_we(ray.o, ray.d);
+        path.push(Vertex::point(
+            Kind::Camera,
+            ray.o,
+            Vec3A::ZERO,
+            Vec3A::ZERO,
+            Spectrum::ONE,
+            0.0,
+        ));
+        let max = (max_depth as usize + 2).min(MAX_VERTICES);
+        self.random_walk(
+            path,
+            ray,
+            Spectrum::ONE,
+            pdf_dir,
+            max,
+            TransportMode::Radiance,
+            sampler,
+            stats,
+        );
+    }
+
+    /// The light subpath of a sample: a light chosen by power, an emission from it, the walk.
+    fn light_subpath(
+        &self,
+        max_depth: u32,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+        path: &mut Vec<Vertex>,
+    ) {
+        path.clear();
+        let u = sampler.get_4d();
+        let u_dir = sampler.get_2d();
+        let Some((li, pmf)) = self.scene.lights.choose(u.x) else {
+            return;
+        };
+        let light = self.scene.lights.get(li);
+        let Some(e) = light.sample_le(&Aim::Everywhere, Vec2::new(u.y, u.z), u_dir, u.w) else {
+            return;
+        };
+        let mut v = Vertex::point(
+            Kind::Light(li),
+            e.ray.o,
+            Vec3A::ZERO,
+            e.n,
+            e.le,
+            pmf * e.pdf_pos,
+        );
+        v.delta = false;
+        path.push(v);
+        let max = (max_depth as usize + 1).min(MAX_VERTICES);
+        self.random_walk(
+            path,
+            e.ray,
+            e.flux / pmf,
+            e.pdf_dir,
+            max,
+            TransportMode::Importance,
+            sampler,
+            stats,
+        );
+    }
+
+    /// The power-heuristic weight of the strategy (s, t), with the connection's endpoints
+    /// replaced by `sampled` where it made them (s = 1: a light point; t = 1: the lens).
+    fn mis_weight(
+        &self,
+        light: &[Vertex],
+        camera: &[Vertex],
+        sampled: Option<&Vertex>,
+        s: usize,
+        t: usize,
+    ) -> f32 {
+        if s + t == 2 {
+            return 1.0;
+        }
+        // The four vertices whose reverse densities the connection changes, and the two
+        // endpoints, which a connection never treats as specular.
+        let qs = match (s, sampled) {
+            (0, _) => None,
+            (1, Some(v)) => Some(*v),
+            _ => Some(light[s - 1]),
+        };
+        let pt = match (t, sampled) {
+            (1, Some(v)) => *v,
+            _ => camera[t - 1],
+        };
+        let qs_minus = (s >= 2).then(|| light[s - 2]);
+        let pt_minus = (t >= 2).then(|| camera[t - 2]);
+        let pt_rev = match &qs {
+            Some(q) => self.pdf(q, qs_minus.as_ref(), &pt),
+            None => pt_minus.map_or(0.0, |m| self.pdf_light_origin(&pt, &m)),
+        };
+        let pt_minus_rev = pt_minus.map(|m| match &qs {
+            Some(q) => self.pdf(&pt, Some(q), &m),
+            None => self.pdf_light(&pt, &m),
+        });
+        let qs_rev = qs.map(|q| self.pdf(&pt, pt_minus.as_ref(), &q));
+        let qs_minus_rev = match (&qs, &qs_minus) {
+            (Some(q), Some(m)) => Some(self.pdf(q, Some(&pt), m)),
+            _ => None,
+        };
+        let remap = |p: f32| if p != 0.0 { p * p } else { 1.0 };
+        let mut sum = 0.0f32;
+
+        // Camera side: strategies with fewer camera vertices.
+        let cam = |i: usize| -> (f32, f32, bool) {
+            let v = if i == t - 1 { &pt } else { &camera[i] };
+            let rev = if i == t - 1 {
+                pt_rev
+            } else if i + 2 == t {
+                pt_minus_rev.unwrap_or(v.pdf_rev)
+            } else {
+                v.pdf_rev
+            };
+            let delta = if i == t - 1 { false } else { v.delta };
+            (rev, v.pdf_fwd, delta)
+        };
+        let mut ri = 1.0f32;
+        for i in (1..t).rev() {
+            let (rev, fwd, delta) = cam(i);
+            ri *= remap(rev) / remap(fwd);
+            if !delta && !cam(i - 1).2 {
+                sum += ri;
+            }
+        }
+
+        // Light side: strategies with fewer light vertices.
+        let lig = |i: usize| -> (f32, f32, bool) {
+            let v = match (&qs, i + 1 == s) {
+                (Some(q), true) => q,
+                _ => &light[i],
+            };
+            let rev = if i + 1 == s {
+                qs_rev.unwrap_or(v.pdf_rev)
+            } else if i + 2 == s {
+                qs_minus_rev.unwrap_or(v.pdf_rev)
+            } else {
+                v.pdf_rev
+            };
+            let delta = if i + 1 == s { false } else { v.delta };
+            (rev, v.pdf_fwd, delta)
+        };
+        let mut ri = 1.0f32;
+        for i in (0..s).rev() {
+            let (rev, fwd, delta) = lig(i);
+            ri *= remap(rev) / remap(fwd);
+            let delta_light = if i > 0 {
+                lig(i - 1).2
+            } else {
+                let first = match (&qs, s) {
+                    (Some(q), 1) => q,
+                    _ => &light[0],
+                };
+                self.is_delta_light(first)
+            };
+            if !delta && !delta_light {
+                sum += ri;
+            }
+        }
+        1.0 / (1.0 + sum)
+    }
+
+    /// The contribution of strategy (s, t), MIS-weighted; for t = 1 also where it lands.
+    #[allow(clippy::too_many_arguments)]
+    fn connect(
+        &self,
+        light: &[Vertex],
+        camera: &[Vertex],
+        s: usize,
+        t: usize,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+    ) -> (Spectrum, Option<Vec2>) {
+        let pt = camera[t - 1];
+        let mut raster = None;
+        let mut sampled = None;
+        let l = if s == 0 {
+            // The camera subpath hit an emitter.
+            if t < 2 || self.light_of(&pt).is_none() {
+                return (Spectrum::ZERO, None);
+            }
+            pt.beta * self.le(&pt, &camera[t - 2])
+        } else if t == 1 {
+            // Light tracing: the light subpath's vertex seen through the lens.
+            let qs = light[s - 1];
+            if !self.connectible(&qs) {
+                return (Spectrum::ZERO, None);
+            }
+            let u = sampler.get_2d();
+            let Some(is) = self.camera.sample_wi(qs.p, u) else {
+                return (Spectrum::ZERO, None);
+            };
+            if is.pdf <= 0.0 || is.we <= 0.0 {
+                return (Spectrum::ZERO, None);
+            }
+            let cam = Vertex::point(
+                Kind::Camera,
+                is.p_lens,
+                Vec3A::ZERO,
+                Vec3A::ZERO,
+                Spectrum::splat(is.we / is.pdf),
+                0.0,
+            );
+            let mut l = qs.beta * self.f(&qs, &cam, TransportMode::Importance) * cam.beta;
+            if qs.on_surface() {
+                l *= is.wi.dot(qs.ns).abs();
+            }
+            if is_black(l) {
+                return (Spectrum::ZERO, None);
+            }
+            stats.rays += 1;
+            if !self.scene.unoccluded_between(qs.end(), cam.end()) {
+                return (Spectrum::ZERO, None);
+            }
+            raster = Some(is.raster);
+            sampled = Some(cam);
+            l
+        } else if s == 1 {
+            // Next-event estimation: a fresh point on a light for the camera path's end.
+            if !self.connectible(&pt) {
+                return (Spectrum::ZERO, None);
+            }
+            let u = sampler.get_3d();
+            let Some((li, pmf)) = self.scene.lights.choose(u.x) else {
+                return (Spectrum::ZERO, None);
+            };
+            let light = self.scene.lights.get(li);
+            let Some(ls) = light.sample_li(pt.p, Vec2::new(u.y, u.z)) else {
+                return (Spectrum::ZERO, None);
+            };
+            let ShadowTarget::Point { p, p_error, n } = ls.target else {
+                return (Spectrum::ZERO, None);
+            };
+            if ls.pdf <= 0.0 {
+                return (Spectrum::ZERO, None);
+            }
+            let mut v = Vertex::point(Kind::Light(li), p, p_error, n, ls.li / (ls.pdf * pmf), 0.0);
+            v.pdf_fwd = self.pdf_light_origin(&v, &pt);
+            let mut l = pt.beta * self.f(&pt, &v, TransportMode::Radiance) * v.beta;
+            if pt.on_surface() {
+                l *= ls.wi.dot(pt.ns).abs();
+            }
+            if is_black(l) {
+                return (Spectrum::ZERO, None);
+            }
+            stats.rays += 1;
+            if !self.scene.unoccluded_between(pt.end(), v.end()) {
+                return (Spectrum::ZERO, None);
+            }
+            sampled = Some(v);
+            l
+        } else {
+            // Both subpaths joined by a shadow ray.
+            let qs = light[s - 1];
+            if !self.connectible(&qs) || !self.connectible(&pt) {
+                return (Spectrum::ZERO, None);
+            }
+            let l = qs.beta
+                * self.f(&qs, &pt, TransportMode::Importance)
+                * self.f(&pt, &qs, TransportMode::Radiance)
+                * pt.beta;
+            if is_black(l) {
+                return (Spectrum::ZERO, None);
+            }
+            let w = pt.p - qs.p;
+            let d2 = w.length_squared();
+            if d2 == 0.0 {
+                return (Spectrum::ZERO, None);
+            }
+            let wn = w / d2.sqrt();
+            let g = qs.ns.dot(wn).abs() * pt.ns.dot(wn).abs() / d2;
+            stats.rays += 1;
+            if !self.scene.unoccluded_between(qs.end(), pt.end()) {
+                return (Spectrum::ZERO, None);
+            }
+            l * g
+        };
+        if is_black(l) {
+            return (Spectrum::ZERO, None);
+        }
+        let w = self.mis_weight(light, camera, sampled.as_ref(), s, t);
+        (l * w, raster)
+    }
+
+    /// Whether a vertex can be joined to another: a surface with a smooth lobe, any light
+    /// (area or point), the lens.
+    fn connectible(&self, v: &Vertex) -> bool {
+        match v.kind {
+            Kind::Surface => {
+                v.si.is_some_and(|si| self.scene.material(si.material).flags.smooth)
+            }
+            _ => true,
+        }
+    }
+}
+
+/// Veach's correction for shading normals in importance transport (thesis §5.3, eq. 5.19):
+/// |ωo·ns| |ωi·ng| / (|ωo·ng| |ωi·ns|); 1 for radiance.
+fn shading_correction(si: &SurfaceInteraction, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> f32 {
+    if mode == TransportMode::Radiance {
+        return 1.0;
+    }
+    let den = wo.dot(si.ng).abs() * wi.dot(si.ns).abs();
+    if den == 0.0 {
+        return 0.0;
+    }
+    wo.dot(si.ns).abs() * wi.dot(si.ng).abs() / den
+}
+
+/// Splats in fixed point, 2⁻³² units (integer sums: the same whatever order they arrive in).
+struct Splats {
+    rgb: Vec<[AtomicI64; 3]>,
+    width: u32,
+    height: u32,
+}
+
+const SPLAT_SCALE: f64 = 4_294_967_296.0;
+
+impl Splats {
+    fn new(width: u32, height: u32) -> Self {
+        Splats {
+            rgb: (0..width as usize * height as usize)
+                .map(|_| [AtomicI64::new(0), AtomicI64::new(0), AtomicI64::new(0)])
+                .collect(),
+            width,
+            height,
+        }
+    }
+
+    /// Adds `l` arriving at raster position `at`, shared among the pixels under the filter.
+    fn add(&self, scene: &Scene, at: Vec2, l: Spectrum) {
+        if !l.is_finite() {
+            return;
+        }
+        let r = scene.filter.radius();
+        let (x0, x1) = (
+            (at.x - r - 0.5).ceil() as i64,
+            (at.x + r - 0.5).floor() as i64,
+        );
+        let (y0, y1) = (
+            (at.y - r - 0.5).ceil() as i64,
+            (at.y + r - 0.5).floor() as i64,
+        );
+        for y in y0.max(0)..=y1.min(self.height as i64 - 1) {
+            for x in x0.max(0)..=x1.min(self.width as i64 - 1) {
+                let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let w = scene.filter.splat_weight(at - centre);
+                if w == 0.0 {
+                    continue;
+                }
+                let px = &self.rgb[(y * self.width as i64 + x) as usize];
+                for c in 0..3 {
+                    let v = (l[c] as f64 * w as f64 * SPLAT_SCALE)
+                        .clamp(-(i64::MAX as f64) / 4.0, i64::MAX as f64 / 4.0);
+                    px[c].fetch_add(v as i64, Relaxed);
+                }
+            }
+        }
+    }
+
+    fn get(&self, i: usize) -> Spectrum {
+        let [r, g, b] = &self.rgb[i];
+        let f = |a: &AtomicI64| (a.load(Relaxed) as f64 / SPLAT_SCALE) as f32;
+        Spectrum::new(f(r), f(g), f(b))
+    }
+}
+
+impl Bdpt {
+    /// Renders samples `range` of every pixel of the frame seen by `camera` on the rayon
+    /// pool: the camera-side estimates in the film's sums, plus the light-tracing splats
+    /// divided by the samples per pixel. Refuses lights at infinity (not implemented).
+    pub fn render(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        range: SampleRange,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<(Image, RayStats), String> {
+        if scene.lights.environment().next().is_some()
+            || (0..scene.lights.len() as u32)
+                .any(|i| matches!(scene.lights.get(i), Light::Directional(_)))
+        {
+            return Err(
+                "bdpt: lights at infinity (environment, directional) are not supported yet; use the path integrator".into(),
+            );
+        }
+        let (w, h) = (scene.film.width, scene.film.height);
+        let ctx = Ctx {
+            scene,
+            camera,
+            bounds: Target {
+                center: scene.center,
+                radius: scene.radius,
+            },
+        };
+        let splats = Splats::new(w, h);
+        let results: Vec<(TileSums, RayStats)> = tiles(w, h, 16)
+            .into_par_iter()
+            .map(|tile| {
+                let r = self.render_tile(&ctx, tile, range, &splats);
+                progress(tile.pixel_count() as u64);
+                r
+            })
+            .collect();
+        let mut stats = RayStats::default();
+        let sums: Vec<TileSums> = results
+            .into_iter()
+            .map(|(s, st)| {
+                stats.add(&st);
+                s
+            })
+            .collect();
+        let mut image = Image::from_tiles(w, h, &sums);
+        let spp = range.end.saturating_sub(range.start).max(1) as f32;
+        for (i, px) in image.pixels.iter_mut().enumerate() {
+            let l = splats.get(i) * (camera.exposure / spp);
+            for c in 0..3 {
+                px.rgb[c] += l[c];
+            }
+        }
+        Ok((image, stats))
+    }
+
+    fn render_tile(
+        &self,
+        ctx: &Ctx,
+        tile: Tile,
+        range: SampleRange,
+        splats: &Splats,
+    ) -> (TileSums, RayStats) {
+        let scene = ctx.scene;
+        let mut sums = TileSums::new(tile, range);
+        let mut stats = RayStats::default();
+        let mut sampler = PixelSampler::new(scene.integrator.sampler, scene.integrator.seed);
+        let (mut cam, mut lig) = (Vec::with_capacity(16), Vec::with_capacity(16));
+        for (pixel, acc) in tile.pixels().zip(sums.pixels.iter_mut()) {
+            for index in range.start..range.end {
+                sampler.start_pixel_sample(pixel, index);
+                let (ray, fw) = camera_ray(scene, ctx.camera, pixel, &mut sampler);
+                ctx.camera_subpath(ray, self.max_depth, &mut sampler, &mut stats, &mut cam);
+                ctx.light_subpath(self.max_depth, &mut sampler, &mut stats, &mut lig);
+                let mut l = Spectrum::ZERO;
+                for t in 1..=cam.len() {
+                    for s in 0..=lig.len() {
+                        let depth = s as i64 + t as i64 - 2;
+                        if (s == 1 && t == 1) || depth < 0 || depth > self.max_depth as i64 {
+                            continue;
+                        }
+                        let (c, raster) = ctx.connect(&lig, &cam, s, t, &mut sampler, &mut stats);
+                        match raster {
+                            Some(at) => splats.add(scene, at, c),
+                            None => l += c,
+                        }
+                    }
+                }
+                stats.samples += 1;
+                let l = l * ctx.camera.exposure;
+                if !l.is_finite() {
+                    stats.nonfinite += 1;
+                    continue;
+                }
+                acc.add(fw, l, None);
+            }
+        }
+        (sums, stats)
+    }
+}

@@ -1,0 +1,69 @@
+//! What the convergence tests share: scenes at the size of their 32×32 path-traced
+//! references, the error against them, and the check that it falls.
+
+use std::path::Path;
+
+use tessera_render::metrics::compare;
+use tessera_render::read_exr;
+
+/// The two threads CI has.
+pub fn pool() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("pool")
+}
+
+/// Scene `name` at the size of its 32×32 reference, and the reference.
+pub fn scene_and_reference(
+    name: &str,
+) -> (tessera_scene::SceneDesc, tessera_scene::image::RgbImage) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scenes")
+        .join(name);
+    let reference = read_exr(&root.join("reference-32.exr")).expect("reference");
+    let mut desc = tessera_scene::load(&root.join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
+    desc.film.width = reference.width;
+    desc.film.height = reference.height;
+    (desc, reference)
+}
+
+/// relMSE and mean ratio of `image` against `reference`, emitter pixels left out.
+pub fn error_against(
+    image: &tessera_render::Image,
+    reference: &tessera_scene::image::RgbImage,
+) -> (f64, f64) {
+    let rgb: Vec<glam::Vec3A> = image.pixels.iter().map(|p| p.rgb.into()).collect();
+    let refs: Vec<glam::Vec3A> = reference.pixels.iter().map(|&t| t.into()).collect();
+    // Pixels on or beside the visible emitter are left out: their error is the film's
+    // antialiasing of a light 60× brighter than the walls (whether a sample lands on it), the
+    // same for every integrator at this spp, and it would drown the effect measured here.
+    let (w, h) = (reference.width as i32, reference.height as i32);
+    let bright = |x: i32, y: i32| {
+        x >= 0 && y >= 0 && x < w && y < h && refs[(y * w + x) as usize].max_element() > 1.0
+    };
+    let keep: Vec<usize> = (0..w * h)
+        .filter(|&i| {
+            let (x, y) = (i % w, i / w);
+            !(-1..=1).any(|dy| (-1..=1).any(|dx| bright(x + dx, y + dy)))
+        })
+        .map(|i| i as usize)
+        .collect();
+    let pick = |v: &[glam::Vec3A]| keep.iter().map(|&i| v[i]).collect::<Vec<_>>();
+    let e = compare(&pick(&rgb), &pick(&refs));
+    (e.rel_mse, e.mean_ratio)
+}
+
+/// Prints `errors` (relMSE, mean ratio) of `what` at each of `budgets`, and asserts the
+/// relMSE falls from each budget to the next and the last mean is within `mean_tol` of 1.
+pub fn assert_falls(what: &str, budgets: &[String], errors: &[(f64, f64)], mean_tol: f64) {
+    for (b, (rel, mean)) in budgets.iter().zip(errors) {
+        eprintln!("{what}, {b}: relMSE {rel:.3e}, mean/ref {mean:.4}");
+    }
+    assert!(
+        errors.windows(2).all(|w| w[1].0 < w[0].0),
+        "{what}: relMSE must fall as the budget grows: {errors:?}"
+    );
+    let (_, mean) = errors[errors.len() - 1];
+    assert!((mean - 1.0).abs() < mean_tol, "{what}: mean/ref {mean}");
+}
