@@ -1,9 +1,10 @@
 //! Bidirectional path tracing is unbiased: on the Cornell box and cornell-glass its image
 //! converges to the path-traced references (`reference-32.exr` in the scene folders, made by
 //! `tessera reference`; see `tests/photon.rs`). Measured here (emitter pixels left out as
-//! there), relMSE at 4 / 32 / 256 spp: box 2.4e-2 / 2.5e-3 / 3.2e-4, glass 2.8e-2 / 1.8e-2 /
-//! 4.5e-3. All pixels, path tracing at 4 / 256 spp: box 9.3e-2 / 9.1e-4, glass 1.4 / 6.5e-3;
-//! BDPT: box 3.1e-2 / 3.5e-4, glass 3.3e-2 / 4.7e-3.
+//! there), relMSE at 4 / 32 / 256 spp: box 2.4e-2 / 2.8e-3 / 3.4e-4, glass 3.3e-2 / 1.9e-2 /
+//! 7.3e-3 (2.7 s for all six on 2 threads; 6.9 s, and box 3.2e-4, glass 4.5e-3 at 256 spp,
+//! before the subpaths had Russian roulette). The path tracer at 4 / 256 spp, all pixels:
+//! box 9.3e-2 / 9.1e-4, glass 1.4 / 6.5e-3.
 
 mod common;
 
@@ -20,6 +21,7 @@ fn bdpt_error(name: &str, spp: u32) -> (f64, f64) {
     let camera = Camera::new(&desc.camera, &desc.film);
     let bdpt = Bdpt {
         max_depth: desc.integrator.max_depth,
+        rr_depth: desc.integrator.rr_depth,
     };
     let (image, _) = pool()
         .install(|| bdpt.render(&scene, &camera, SampleRange { start: 0, end: spp }, &|_| {}))

@@ -164,6 +164,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
             use tessera_render::integrator::bdpt::Bdpt;
             let b = Bdpt {
                 max_depth: desc.integrator.max_depth,
+                rr_depth: desc.integrator.rr_depth,
             };
             let range = tessera_render::SampleRange { start: 0, end: spp };
             let (image, stats) = pool

@@ -104,6 +104,11 @@ impl Vertex {
 pub struct Bdpt {
     /// Most scattering vertices on a path (the path tracer's `max_depth`).
     pub max_depth: u32,
+    /// Russian roulette ends subpaths after this many scattering events, with survival
+    /// probability the throughput relative to the subpath's start. The densities MIS weighs
+    /// by leave it out: the weights still sum to one over the strategies of a path, so the
+    /// estimate stays unbiased (only the weights are less than optimal).
+    pub rr_depth: u32,
 }
 
 /// Longest subpaths: the camera's has the lens and `max_depth` + 1 more vertices.
@@ -112,6 +117,7 @@ const MAX_VERTICES: usize = 66;
 struct Ctx<'a> {
     scene: &'a Scene,
     camera: &'a Camera,
+    rr_depth: u32,
     /// The sphere the lights' bidirectional densities are defined over (infinite lights).
     bounds: Target,
 }
@@ -217,6 +223,8 @@ impl Ctx<'_> {
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
     ) {
+        let start = beta.max_element();
+        let first = path.len();
         while path.len() < max && !is_black(beta) {
             stats.rays += 1;
             let Some(si) = self.scene.intersect(&ray) else {
@@ -239,7 +247,7 @@ impl Ctx<'_> {
             }
             let frame = material.frame(&si, wo);
             let wo_l = frame.to_local(wo);
-            let u = sampler.get_3d();
+            let u = sampler.get_4d();
             let Some(bs) = material.bsdf.sample(wo_l, u.x, Vec2::new(u.y, u.z), mode) else {
                 break;
             };
@@ -259,6 +267,15 @@ impl Ctx<'_> {
             let rev = path[cur].convert_density(pdf_rev, &path[prev]);
             path[prev].pdf_rev = rev;
             ray = si.spawn(wi);
+            if path.len() - first >= self.rr_depth as usize && start > 0.0 {
+                let survive = beta.max_element() / start;
+                if survive < 1.0 {
+                    if u.w >= survive {
+                        break;
+                    }
+                    beta /= survive;
+                }
+            }
         }
     }
 
@@ -663,6 +680,7 @@ impl Bdpt {
         let ctx = Ctx {
             scene,
             camera,
+            rr_depth: self.rr_depth,
             bounds: Target {
                 center: scene.center,
                 radius: scene.radius,
