@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use tessera_render::analysis::Analysis;
 use tessera_render::camera::Camera;
 use tessera_render::film::{MAX_SPP, TileSums, tiles};
+use tessera_render::integrator::sppm::SppmSettings;
 use tessera_render::output::{ExrMetadata, write_exr, write_png};
 use tessera_render::photon::PhotonSettings;
 use tessera_render::{Image, Integrator, RayStats, SampleRange, Scene, Tile, integrator, render};
@@ -457,6 +458,8 @@ pub struct Prepared {
     pub analysis: Analysis,
     /// Photon-mapping settings, when the integrator maps photons.
     pub photon: Option<PhotonSettings>,
+    /// SPPM's settings (and the photon settings its shooter uses), for an SPPM scene.
+    pub sppm: Option<(PhotonSettings, SppmSettings)>,
     /// The integrator; `None` for photon mapping on a worker, whose passes come as
     /// artifacts (`passes::integrator`).
     integrator: Option<Box<dyn Integrator>>,
@@ -489,6 +492,8 @@ impl Prepared {
         let analysis = tessera_render::analysis::analyze(&desc);
         let photon = (analysis.integrator == IntegratorKind::Photon)
             .then(|| PhotonSettings::resolve(&desc, &analysis).0);
+        let sppm = (analysis.integrator == IntegratorKind::Sppm)
+            .then(|| SppmSettings::resolve(&desc, &analysis));
         let integrator = (photon.is_none() && !analysis.integrator.whole_frame())
             .then(|| integrator::prepare(&desc, &scene, &analysis, 1..=1).0);
         Prepared {
@@ -496,6 +501,7 @@ impl Prepared {
             scene,
             analysis,
             photon,
+            sppm,
             integrator,
             passes: Vec::new(),
             build_seconds: start.elapsed().as_secs_f64(),

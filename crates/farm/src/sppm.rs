@@ -86,12 +86,20 @@ pub fn metadata(s: &SppmSettings) -> Vec<(String, String)> {
     vec![("sppm".to_string(), s.describe())]
 }
 
+/// The SPPM of a prepared scene (its settings were resolved when it was built).
+fn sppm_of(prepared: &Prepared) -> Result<Sppm<'_>, String> {
+    let (photon, s) = prepared
+        .sppm
+        .as_ref()
+        .ok_or("an sppm task for a job whose integrator is not sppm")?;
+    Ok(Sppm::new(&prepared.scene, photon, *s))
+}
+
 /// Every pixel's camera path of iteration `t` of `frame`, on this thread.
-pub fn visible_points(prepared: &Prepared, frame: u32, t: u32) -> VisiblePoints {
-    let (photon, s) = settings(&prepared.desc);
+pub fn visible_points(prepared: &Prepared, frame: u32, t: u32) -> Result<VisiblePoints, String> {
     let camera = prepared.camera(frame);
     let pixels = prepared.desc.film.width * prepared.desc.film.height;
-    Sppm::new(&prepared.scene, &photon, s).visible_points(&camera, t, 0..pixels)
+    Ok(sppm_of(prepared)?.visible_points(&camera, t, 0..pixels))
 }
 
 /// What an SPPM task returns.
@@ -114,7 +122,6 @@ pub fn execute(
     if task.kind != TaskKind::Sppm {
         return Err(format!("a {} task is not an sppm task", task.kind.as_str()));
     }
-    let (photon, s) = settings(&prepared.desc);
     let pixels = prepared.desc.film.width * prepared.desc.film.height;
     if r2.len() != pixels as usize || vps.camera.ld.len() != pixels as usize {
         return Err(format!(
@@ -123,7 +130,7 @@ pub fn execute(
             vps.camera.ld.len()
         ));
     }
-    let sppm = Sppm::new(&prepared.scene, &photon, s);
+    let sppm = sppm_of(prepared)?;
     let photons = sppm.shoot(task.sample_start, task.x0..task.x1, false);
     Ok(Output {
         sums: sppm.gather(vps, r2, &photons, 0..pixels),
@@ -309,9 +316,13 @@ pub fn decode_radii(bytes: &[u8], pixels: u32) -> Result<Vec<f32>, String> {
 }
 
 /// The squared radii of iteration 0 (every pixel at the initial radius): no download needed.
-pub fn initial_radii(desc: &SceneDesc) -> Vec<f32> {
-    let (_, s) = settings(desc);
-    FrameState::new(desc, &s).state.radii2()
+pub fn initial_radii(prepared: &Prepared) -> Result<Vec<f32>, String> {
+    let pixels = prepared.desc.film.width as usize * prepared.desc.film.height as usize;
+    let (_, s) = prepared
+        .sppm
+        .as_ref()
+        .ok_or("an sppm task for a job whose integrator is not sppm")?;
+    Ok(vec![sppm::radius2(s.initial_radius as f64); pixels])
 }
 
 /// The camera whose exposure scales frame `frame`'s estimate.
@@ -341,11 +352,11 @@ mod tests {
         let (photon, s) = settings(&desc);
         let pixels = desc.film.width * desc.film.height;
         let mut frame = FrameState::new(&desc, &s);
-        let mut r2 = initial_radii(&desc);
+        let mut r2 = initial_radii(&worker).expect("sppm");
         for t in 0..s.iterations {
             let tasks = iteration_tasks(&desc, 1, t);
             assert_eq!(tasks.len(), 3);
-            let vps = visible_points(&worker, 1, t);
+            let vps = visible_points(&worker, 1, t).expect("sppm");
             let outs: Vec<Output> = tasks
                 .iter()
                 .map(|task| {

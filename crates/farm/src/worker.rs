@@ -36,8 +36,6 @@ pub struct WorkerConfig {
 /// Scenes kept, by job: the most recent few.
 const CACHED_JOBS: usize = 4;
 
-type SceneCell = Arc<OnceCell<Arc<Prepared>>>;
-type IntegratorCell = Arc<OnceCell<Arc<PhotonIntegrator>>>;
 /// Cells by key, least recently used first.
 type Cells<K, T> = Mutex<Vec<(K, Arc<OnceCell<T>>)>>;
 
@@ -69,6 +67,25 @@ fn forget<K: PartialEq, T>(list: &Cells<K, T>, key: &K) {
         .retain(|(k, _)| k != key);
 }
 
+/// The value for `key` in a small LRU list of cells, made by `init` once (concurrent callers
+/// wait for the first); a failed `init` is forgotten, so the next caller tries again.
+async fn cached<K, T, F, Fut>(list: &Cells<K, T>, key: K, init: F) -> anyhow::Result<T>
+where
+    K: PartialEq + Clone,
+    T: Clone,
+    F: FnOnce() -> Fut,
+    Fut: std::future::Future<Output = anyhow::Result<T>>,
+{
+    let cell = cell_for(list, key.clone());
+    match cell.get_or_try_init(init).await {
+        Ok(v) => Ok(v.clone()),
+        Err(e) => {
+            forget(list, &key);
+            Err(e)
+        }
+    }
+}
+
 struct Worker {
     config: WorkerConfig,
     client: Client,
@@ -76,9 +93,9 @@ struct Worker {
     host: String,
     scene_builds: AtomicU64,
     /// Scenes by job id, least recently used first; each built once (the cell).
-    cache: Mutex<Vec<(i64, SceneCell)>>,
+    cache: Cells<i64, Arc<Prepared>>,
     /// Photon-mapping integrators by (job, artifact keys), built from downloaded artifacts.
-    integrators: Mutex<Vec<((i64, String), IntegratorCell)>>,
+    integrators: Cells<(i64, String), Arc<PhotonIntegrator>>,
     /// Decoded photon maps by artifact key.
     maps: Cells<String, Arc<PhotonMaps>>,
     /// SPPM iterations' camera paths and radii by (job, frame, iteration): traced once per
@@ -253,49 +270,40 @@ impl Worker {
 
     /// The scene of a job, loaded and built once per worker.
     async fn prepared(&self, grant: &LeaseGrant) -> anyhow::Result<Arc<Prepared>> {
-        let cell = cell_for(&self.cache, grant.job_id);
-        let prepared = cell
-            .get_or_try_init(|| async {
-                let bytes = retrying("bundle download", Duration::from_secs(600), || {
-                    self.client.download_bundle(&grant.bundle)
-                })
-                .await?;
-                // Pass tasks of photon maps have no frame: any of the job's frames will do
-                // to check the settings.
-                let (scene, settings, frame) = (
-                    grant.scene.clone(),
-                    grant.settings.clone(),
-                    grant.task.frame.max(1),
-                );
-                let prepared = tokio::task::spawn_blocking(move || -> anyhow::Result<Prepared> {
-                    let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
-                    let mut desc = bundle.load(&scene)?;
-                    job::apply(
-                        &mut desc,
-                        &settings,
-                        FrameRange::single(frame),
-                        &Limits::default(),
-                    )
-                    .map_err(anyhow::Error::msg)?;
-                    Ok(Prepared::scene_only(desc))
-                })
-                .await??;
-                self.scene_builds.fetch_add(1, Relaxed);
-                tracing::info!(
-                    job = grant.job_id,
-                    build_s = prepared.build_seconds,
-                    "scene loaded and built"
-                );
-                anyhow::Ok(Arc::new(prepared))
+        cached(&self.cache, grant.job_id, || async {
+            let bytes = retrying("bundle download", Duration::from_secs(600), || {
+                self.client.download_bundle(&grant.bundle)
             })
-            .await;
-        match prepared {
-            Ok(p) => Ok(p.clone()),
-            Err(e) => {
-                forget(&self.cache, &grant.job_id);
-                Err(e)
-            }
-        }
+            .await?;
+            // Pass tasks of photon maps have no frame: any of the job's frames will do
+            // to check the settings.
+            let (scene, settings, frame) = (
+                grant.scene.clone(),
+                grant.settings.clone(),
+                grant.task.frame.max(1),
+            );
+            let prepared = tokio::task::spawn_blocking(move || -> anyhow::Result<Prepared> {
+                let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
+                let mut desc = bundle.load(&scene)?;
+                job::apply(
+                    &mut desc,
+                    &settings,
+                    FrameRange::single(frame),
+                    &Limits::default(),
+                )
+                .map_err(anyhow::Error::msg)?;
+                Ok(Prepared::scene_only(desc))
+            })
+            .await??;
+            self.scene_builds.fetch_add(1, Relaxed);
+            tracing::info!(
+                job = grant.job_id,
+                build_s = prepared.build_seconds,
+                "scene loaded and built"
+            );
+            anyhow::Ok(Arc::new(prepared))
+        })
+        .await
     }
 
     async fn download(&self, key: &str) -> anyhow::Result<Vec<u8>> {
@@ -308,23 +316,14 @@ impl Worker {
     /// The photon maps with this key, downloaded and decoded once per worker (the record and
     /// the tile stage of a job both read them).
     async fn photon_maps(&self, key: &str) -> anyhow::Result<Arc<PhotonMaps>> {
-        let cell = cell_for(&self.maps, key.to_string());
-        let maps = cell
-            .get_or_try_init(|| async {
-                let bytes = self.download(key).await?;
-                let maps = tokio::task::spawn_blocking(move || passes::decode_maps(&bytes))
-                    .await?
-                    .map_err(anyhow::Error::msg)?;
-                anyhow::Ok(Arc::new(maps))
-            })
-            .await;
-        match maps {
-            Ok(m) => Ok(m.clone()),
-            Err(e) => {
-                forget(&self.maps, &key.to_string());
-                Err(e)
-            }
-        }
+        cached(&self.maps, key.to_string(), || async {
+            let bytes = self.download(key).await?;
+            let maps = tokio::task::spawn_blocking(move || passes::decode_maps(&bytes))
+                .await?
+                .map_err(anyhow::Error::msg)?;
+            anyhow::Ok(Arc::new(maps))
+        })
+        .await
     }
 
     /// The photon-mapping integrator of a task's artifacts (maps, and records for tiles),
@@ -336,37 +335,28 @@ impl Worker {
     ) -> anyhow::Result<Arc<PhotonIntegrator>> {
         let keys: Vec<&str> = grant.artifacts.iter().map(|a| a.key.as_str()).collect();
         let id = (grant.job_id, keys.join(","));
-        let cell = cell_for(&self.integrators, id.clone());
-        let integ = cell
-            .get_or_try_init(|| async {
-                let (mut maps, mut records) = (None, None);
-                for a in &grant.artifacts {
-                    match a.kind {
-                        PassKind::Photons => maps = Some(self.photon_maps(&a.key).await?),
-                        PassKind::Records => records = Some(self.download(&a.key).await?),
-                    }
+        cached(&self.integrators, id.clone(), || async {
+            let (mut maps, mut records) = (None, None);
+            for a in &grant.artifacts {
+                match a.kind {
+                    PassKind::Photons => maps = Some(self.photon_maps(&a.key).await?),
+                    PassKind::Records => records = Some(self.download(&a.key).await?),
                 }
-                let prepared = prepared.clone();
-                let integ = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
-                    let maps = maps.context("the task names no photon-map artifact")?;
-                    let records = records
-                        .map(|b| passes::decode_records(&b))
-                        .transpose()
-                        .map_err(anyhow::Error::msg)?;
-                    passes::integrator(&prepared, maps, records).map_err(anyhow::Error::msg)
-                })
-                .await??;
-                tracing::info!(job = grant.job_id, artifacts = %id.1, "pass artifacts loaded");
-                anyhow::Ok(Arc::new(integ))
-            })
-            .await;
-        match integ {
-            Ok(i) => Ok(i.clone()),
-            Err(e) => {
-                forget(&self.integrators, &id);
-                Err(e)
             }
-        }
+            let prepared = prepared.clone();
+            let integ = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
+                let maps = maps.context("the task names no photon-map artifact")?;
+                let records = records
+                    .map(|b| passes::decode_records(&b))
+                    .transpose()
+                    .map_err(anyhow::Error::msg)?;
+                passes::integrator(&prepared, maps, records).map_err(anyhow::Error::msg)
+            })
+            .await??;
+            tracing::info!(job = grant.job_id, artifacts = %id.1, "pass artifacts loaded");
+            anyhow::Ok(Arc::new(integ))
+        })
+        .await
     }
 
     /// An SPPM iteration's radii (downloaded; the initial ones for iteration 0) and camera
@@ -378,46 +368,39 @@ impl Worker {
     ) -> anyhow::Result<Arc<SppmInputs>> {
         let (frame, t) = (grant.task.frame, grant.task.sample_start);
         let id = (grant.job_id, frame, t);
-        let cell = cell_for(&self.sppm, id);
-        let inputs = cell
-            .get_or_try_init(|| async {
-                let pixels = prepared.desc.film.width * prepared.desc.film.height;
-                let radii = if t == 0 {
-                    None
-                } else {
-                    Some(
-                        retrying("sppm radii download", Duration::from_secs(600), || {
-                            self.client.download_sppm_radii(grant.job_id, frame, t)
-                        })
-                        .await?,
-                    )
-                };
-                let prepared = prepared.clone();
-                let inputs = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
-                    let r2 = match radii {
-                        Some(b) => sppm::decode_radii(&b, pixels).map_err(anyhow::Error::msg)?,
-                        None => sppm::initial_radii(&prepared.desc),
-                    };
-                    let points = sppm::visible_points(&prepared, frame, t);
-                    Ok(SppmInputs { points, r2 })
-                })
-                .await??;
-                tracing::debug!(
-                    job = grant.job_id,
-                    frame,
-                    iteration = t,
-                    "sppm camera paths traced"
-                );
-                anyhow::Ok(Arc::new(inputs))
+        cached(&self.sppm, id, || async {
+            let pixels = prepared.desc.film.width * prepared.desc.film.height;
+            let radii = if t == 0 {
+                None
+            } else {
+                Some(
+                    retrying("sppm radii download", Duration::from_secs(600), || {
+                        self.client.download_sppm_radii(grant.job_id, frame, t)
+                    })
+                    .await?,
+                )
+            };
+            let prepared = prepared.clone();
+            let inputs = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
+                let r2 = match radii {
+                    Some(b) => sppm::decode_radii(&b, pixels),
+                    None => sppm::initial_radii(&prepared),
+                }
+                .map_err(anyhow::Error::msg)?;
+                let points =
+                    sppm::visible_points(&prepared, frame, t).map_err(anyhow::Error::msg)?;
+                Ok(SppmInputs { points, r2 })
             })
-            .await;
-        match inputs {
-            Ok(i) => Ok(i.clone()),
-            Err(e) => {
-                forget(&self.sppm, &id);
-                Err(e)
-            }
-        }
+            .await??;
+            tracing::debug!(
+                job = grant.job_id,
+                frame,
+                iteration = t,
+                "sppm camera paths traced"
+            );
+            anyhow::Ok(Arc::new(inputs))
+        })
+        .await
     }
 
     async fn run_task(&self, grant: LeaseGrant) {

@@ -49,55 +49,38 @@ fn main() {
     let imm: kiddo::ImmutableKdTree<f32, 3> = kiddo::ImmutableKdTree::new_from_slice(&pts);
     let build_imm = t.elapsed().as_secs_f64();
 
+    let nonzero_k = std::num::NonZero::new(k.max(1)).expect("k ≥ 1");
+    // µs per query and the neighbours found in all, for one way of answering each query.
+    let run = |f: &dyn Fn(Vec3A, Vec3A) -> usize| {
+        let t = Instant::now();
+        let found: usize = queries.iter().map(|&(p, n)| f(p, n)).sum();
+        (
+            t.elapsed().as_secs_f64() / queries.len() as f64 * 1e6,
+            found,
+        )
+    };
+    let tree = &ours;
+    let ours = |flatten: f32| {
+        move |p: Vec3A, n: Vec3A| {
+            let mut knn = Knn::<1024>::new(k, r2);
+            tree.nearest(p, n, flatten, &mut knn);
+            knn.found().len()
+        }
+    };
     for round in 0..2 {
-        let mut sum = 0usize;
-        let t = Instant::now();
-        for (p, n) in &queries {
-            let mut knn = Knn::<1024>::new(k, r2);
-            ours.nearest(*p, *n, 0.0, &mut knn);
-            sum += knn.found().len();
-        }
-        let ours_s = t.elapsed().as_secs_f64();
-        let mut sum_flat = 0usize;
-        let t = Instant::now();
-        for (p, n) in &queries {
-            let mut knn = Knn::<1024>::new(k, r2);
-            ours.nearest(*p, *n, 24.0, &mut knn);
-            sum_flat += knn.found().len();
-        }
-        let flat_s = t.elapsed().as_secs_f64();
-        let mut sum_k = 0usize;
-        let t = Instant::now();
-        for (p, _) in &queries {
-            let r = kd.nearest_n_within::<SquaredEuclidean>(
-                &p.to_array(),
-                r2,
-                std::num::NonZero::new(k.max(1)).expect("k ≥ 1"),
-                false,
-            );
-            sum_k += r.len();
-        }
-        let kiddo_s = t.elapsed().as_secs_f64();
-        let mut sum_i = 0usize;
-        let t = Instant::now();
-        for (p, _) in &queries {
-            let r = imm.nearest_n_within::<SquaredEuclidean>(
-                &p.to_array(),
-                r2,
-                std::num::NonZero::new(k.max(1)).expect("k ≥ 1"),
-                false,
-            );
-            sum_i += r.len();
-        }
-        let imm_s = t.elapsed().as_secs_f64();
-        let q = queries.len() as f64;
+        let (ours_s, sum) = run(&ours(0.0));
+        let (flat_s, sum_flat) = run(&ours(24.0));
+        let (kiddo_s, sum_k) = run(&|p, _| {
+            kd.nearest_n_within::<SquaredEuclidean>(&p.to_array(), r2, nonzero_k, false)
+                .len()
+        });
+        let (imm_s, sum_i) = run(&|p, _| {
+            imm.nearest_n_within::<SquaredEuclidean>(&p.to_array(), r2, nonzero_k, false)
+                .len()
+        });
         println!(
-            "round {round}: {} queries of k={k}: ours (Euclidean) {:.3} µs/query [{sum}], ours (disc-flattened) {:.3} µs [{sum_flat}], kiddo KdTree {:.3} µs [{sum_k}], kiddo ImmutableKdTree {:.3} µs [{sum_i}]",
+            "round {round}: {} queries of k={k}: ours (Euclidean) {ours_s:.3} µs/query [{sum}], ours (disc-flattened) {flat_s:.3} µs [{sum_flat}], kiddo KdTree {kiddo_s:.3} µs [{sum_k}], kiddo ImmutableKdTree {imm_s:.3} µs [{sum_i}]",
             queries.len(),
-            ours_s / q * 1e6,
-            flat_s / q * 1e6,
-            kiddo_s / q * 1e6,
-            imm_s / q * 1e6
         );
     }
     println!(

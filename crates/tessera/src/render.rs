@@ -137,15 +137,16 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         first_spp: job::ADAPTIVE_FIRST_SPP.min(spp),
         max_spp: spp,
     });
-    let sppm = analysis.integrator == tessera_scene::IntegratorKind::Sppm;
-    let bdpt = analysis.integrator == tessera_scene::IntegratorKind::Bdpt;
-    anyhow::ensure!(
-        !(sppm && adaptive.is_some()),
-        "--target-error/--time-limit: sppm refines every pixel each iteration; give --spp (its iterations) instead"
+    let kind = analysis.integrator;
+    let (sppm, bdpt) = (
+        kind == tessera_scene::IntegratorKind::Sppm,
+        kind == tessera_scene::IntegratorKind::Bdpt,
     );
+    // Adaptive sampling refines tiles; these refine every pixel at once.
     anyhow::ensure!(
-        !(bdpt && adaptive.is_some()),
-        "--target-error/--time-limit: bdpt renders whole frames (its splats reach every tile); give --spp instead"
+        !(kind.whole_frame() && adaptive.is_some()),
+        "--target-error/--time-limit: {} renders whole frames, not tiles; give --spp (samples, or sppm's iterations) instead",
+        format!("{kind:?}").to_lowercase()
     );
     let (image, stats, extra, spp_text) = match &adaptive {
         None if sppm => {

@@ -633,11 +633,11 @@ async fn upload_result(
     let checked = match spec.kind {
         TaskKind::Tile => codec::decode(&body, &spec).map(|_| ()),
         TaskKind::Sppm => {
-            let job = app
+            let (w, h) = app
                 .store
-                .job(job_id)?
+                .film_size(job_id)?
                 .ok_or_else(|| AppError::not_found(format!("no job {job_id}")))?;
-            crate::sppm::decode_output(&body, &spec, job.width * job.height).map(|_| ())
+            crate::sppm::decode_output(&body, &spec, w * h).map(|_| ())
         }
         _ => passes::decode_output(&body, &spec).map(|_| ()),
     };

@@ -651,6 +651,15 @@ impl Store {
         .collect()
     }
 
+    /// A job's film size (width, height).
+    pub fn film_size(&self, job: i64) -> Result<Option<(u32, u32)>> {
+        self.conn()
+            .query_row("SELECT width, height FROM jobs WHERE id = ?1", [job], |r| {
+                Ok((r.get(0)?, r.get(1)?))
+            })
+            .optional()
+    }
+
     /// Done tasks of iteration `t` of an SPPM frame in fold (chunk) order: (task id, lease,
     /// spec).
     pub fn sppm_results(&self, job: i64, frame: u32, t: u32) -> Result<Vec<(i64, i64, TaskSpec)>> {

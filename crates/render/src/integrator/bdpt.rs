@@ -153,7 +153,7 @@ impl Ctx<'_> {
     fn pdf(&self, v: &Vertex, prev: Option<&Vertex>, next: &Vertex) -> f32 {
         let wn = (next.p - v.p).normalize_or_zero();
         let pdf = match v.kind {
-            Kind::Light(_) => return self.pdf_light(v, next),
+            Kind::Light(_) => return self.pdf_le(v, next).1,
             Kind::Camera => self.camera.pdf_we(v.p, wn).1,
             Kind::Surface => {
                 let (Some(si), Some(prev)) = (&v.si, prev) else {
@@ -172,25 +172,18 @@ impl Ctx<'_> {
         v.convert_density(pdf, next)
     }
 
-    /// Density per unit area at `to` of a light emitting from `v` toward it.
-    fn pdf_light(&self, v: &Vertex, to: &Vertex) -> f32 {
-        let Some((_, light)) = self.light_of(v) else {
-            return 0.0;
-        };
-        let w = (to.p - v.p).normalize_or_zero();
-        let (_, pdf_dir) = light.pdf_le(v.ng, w, self.bounds);
-        v.convert_density(pdf_dir, to)
-    }
-
-    /// Density per unit area of choosing the light at `v` and the point `v` on it (toward
-    /// `to`, for lights whose position density depends on it).
-    fn pdf_light_origin(&self, v: &Vertex, to: &Vertex) -> f32 {
+    /// Densities of the light at `v` emitting from `v` toward `to`: of choosing the light
+    /// and the point `v` on it (per unit area), and of the direction, per unit area at `to`.
+    fn pdf_le(&self, v: &Vertex, to: &Vertex) -> (f32, f32) {
         let Some((i, light)) = self.light_of(v) else {
-            return 0.0;
+            return (0.0, 0.0);
         };
         let w = (to.p - v.p).normalize_or_zero();
-        let (pdf_pos, _) = light.pdf_le(v.ng, w, self.bounds);
-        self.scene.lights.pmf(i) * pdf_pos
+        let (pdf_pos, pdf_dir) = light.pdf_le(v.ng, w, self.bounds);
+        (
+            self.scene.lights.pmf(i) * pdf_pos,
+            v.convert_density(pdf_dir, to),
+        )
     }
 
     /// Radiance an emitter vertex sends toward `to`.
@@ -378,13 +371,18 @@ impl Ctx<'_> {
         };
         let qs_minus = (s >= 2).then(|| light[s - 2]);
         let pt_minus = (t >= 2).then(|| camera[t - 2]);
+        // s = 0: pt is an emitter the camera path hit; as a light subpath would have made it.
+        let emitted = match (&qs, &pt_minus) {
+            (None, Some(m)) => self.pdf_le(&pt, m),
+            _ => (0.0, 0.0),
+        };
         let pt_rev = match &qs {
             Some(q) => self.pdf(q, qs_minus.as_ref(), &pt),
-            None => pt_minus.map_or(0.0, |m| self.pdf_light_origin(&pt, &m)),
+            None => emitted.0,
         };
         let pt_minus_rev = pt_minus.map(|m| match &qs {
             Some(q) => self.pdf(&pt, Some(q), &m),
-            None => self.pdf_light(&pt, &m),
+            None => emitted.1,
         });
         let qs_rev = qs.map(|q| self.pdf(&pt, pt_minus.as_ref(), &q));
         let qs_minus_rev = match (&qs, &qs_minus) {
@@ -527,7 +525,7 @@ impl Ctx<'_> {
                 return (Spectrum::ZERO, None);
             }
             let mut v = Vertex::point(Kind::Light(li), p, p_error, n, ls.li / (ls.pdf * pmf), 0.0);
-            v.pdf_fwd = self.pdf_light_origin(&v, &pt);
+            v.pdf_fwd = self.pdf_le(&v, &pt).0;
             let mut l = pt.beta * self.f(&pt, &v, TransportMode::Radiance) * v.beta;
             if pt.on_surface() {
                 l *= ls.wi.dot(pt.ns).abs();
@@ -668,10 +666,7 @@ impl Bdpt {
         range: SampleRange,
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<(Image, RayStats), String> {
-        if scene.lights.environment().next().is_some()
-            || (0..scene.lights.len() as u32)
-                .any(|i| matches!(scene.lights.get(i), Light::Directional(_)))
-        {
+        if (0..scene.lights.len() as u32).any(|i| scene.lights.get(i).bounds().is_none()) {
             return Err(
                 "bdpt: lights at infinity (environment, directional) are not supported yet; use the path integrator".into(),
             );

@@ -108,7 +108,7 @@ impl SppmState {
 
     /// Squared gathering radius per pixel for the next iteration, as the gather uses it.
     pub fn radii2(&self) -> Vec<f32> {
-        self.r.iter().map(|r| (r * r) as f32).collect()
+        self.r.iter().map(|&r| radius2(r)).collect()
     }
 
     /// Folds one iteration in: each pixel's direct light and filter weight from `camera`,
@@ -183,6 +183,12 @@ pub struct SppmSettings {
     pub initial_radius: f32,
     /// Fraction of new photons kept per iteration (Hachisuka & Jensen's α).
     pub alpha: f32,
+}
+
+/// The squared radius a pixel at radius `r` gathers within.
+#[inline]
+pub fn radius2(r: f64) -> f32 {
+    (r * r) as f32
 }
 
 /// Hachisuka & Jensen's suggested α.
