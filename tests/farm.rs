@@ -10,6 +10,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use tessera_farm::client::Client;
+use tessera_farm::job::TaskKind;
 use tessera_farm::protocol::{JobState, JobStatus};
 
 const CLIENT_TOKEN: &str = "client-secret";
@@ -554,4 +555,69 @@ fn an_sppm_job_runs_its_iterations_as_tasks_survives_a_restart_and_equals_tesser
         local == farm,
         "the farm's SPPM frame differs from tessera render's"
     );
+}
+
+#[test]
+fn bdpt_and_vcm_jobs_are_split_by_sample_range_and_bit_identical_on_one_worker_and_on_two() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let rt = runtime();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-glass/scene.json");
+    // Two workers and one, each with its coordinator; then both integrators on each.
+    let farms: Vec<_> = [1, 2]
+        .into_iter()
+        .map(|workers| {
+            let data = dir.path().join(format!("data{workers}"));
+            let (serve, url) = serve(&data, "127.0.0.1:0", "30");
+            let procs: Vec<Proc> = (0..workers)
+                .map(|i| {
+                    let log = dir.path().join(format!("{workers}-{i}.log"));
+                    worker(&url, &format!("w{i}"), &log)
+                })
+                .collect();
+            (workers, serve, url, procs)
+        })
+        .collect();
+    for integrator in ["bdpt", "vcm"] {
+        // 10 samples (VCM: iterations) in tasks of 3: 0-3, 3-6, 6-9, 9-10 over the film.
+        let args = ["--integrator", integrator, "--size", "40x32", "--spp", "10"];
+        let mut frames = Vec::new();
+        for (workers, _, url, _) in &farms {
+            let client = Client::new(url, CLIENT_TOKEN).expect("client");
+            let mut submit_args = args.to_vec();
+            submit_args.extend(["--samples-per-task", "3"]);
+            // With two workers, a job counts only if both rendered some of it (a worker
+            // still starting may miss a short job: submit again).
+            for attempt in 0.. {
+                assert!(attempt < 10, "two workers never shared a job");
+                let id = submit_scene(url, &scene, &submit_args);
+                let job = wait_for(&rt, &client, id, Duration::from_secs(120));
+                assert_eq!(job.state, JobState::Done, "{:?}", job.error);
+                assert_eq!(job.tasks.total, 4, "4 sample ranges of the whole film");
+                let said = format!("{integrator}: light tracing splats anywhere");
+                assert!(
+                    job.decisions.iter().any(|d| d.starts_with(&said)),
+                    "{:?}",
+                    job.decisions
+                );
+                let tasks = rt.block_on(client.tasks(id)).expect("tasks");
+                assert!(tasks.iter().all(|t| t.spec.kind == TaskKind::Bdpt));
+                let used: std::collections::HashSet<_> =
+                    tasks.iter().filter_map(|t| t.worker.clone()).collect();
+                if used.len() == *workers {
+                    frames.push(rt.block_on(client.frame_exr(id, 1)).expect("frame"));
+                    break;
+                }
+            }
+        }
+        assert!(
+            frames[0] == frames[1],
+            "{integrator}: one worker and two gave different EXRs"
+        );
+        let out = dir.path().join(format!("{integrator}.exr"));
+        let local = render_locally(&scene, &args, &out);
+        assert!(
+            local == frames[0],
+            "{integrator}: the farm's frame differs from tessera render's"
+        );
+    }
 }

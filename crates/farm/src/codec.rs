@@ -22,7 +22,11 @@ pub fn encoded_len(pixels: usize) -> usize {
 }
 
 pub fn encode(out: &TaskOutput) -> Vec<u8> {
-    let s = &out.sums;
+    encode_sums(&out.sums, &out.stats)
+}
+
+/// Encodes a tile's sums and counters (what [`encode`] does with a [`TaskOutput`]'s).
+pub fn encode_sums(s: &TileSums, stats: &RayStats) -> Vec<u8> {
     let mut b = Vec::with_capacity(encoded_len(s.pixels.len()));
     b.extend_from_slice(MAGIC);
     for v in [
@@ -36,7 +40,7 @@ pub fn encode(out: &TaskOutput) -> Vec<u8> {
     ] {
         b.extend_from_slice(&v.to_le_bytes());
     }
-    for v in [out.stats.rays, out.stats.samples, out.stats.nonfinite] {
+    for v in [stats.rays, stats.samples, stats.nonfinite] {
         b.extend_from_slice(&v.to_le_bytes());
     }
     for p in &s.pixels {

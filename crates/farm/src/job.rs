@@ -62,16 +62,20 @@ pub enum IntegratorName {
     Photon,
     Sppm,
     Bdpt,
+    Pssmlt,
+    Vcm,
 }
 
 impl IntegratorName {
-    pub const ALL: [IntegratorName; 6] = [
+    pub const ALL: [IntegratorName; 8] = [
         IntegratorName::Path,
         IntegratorName::Direct,
         IntegratorName::Auto,
         IntegratorName::Photon,
         IntegratorName::Sppm,
         IntegratorName::Bdpt,
+        IntegratorName::Pssmlt,
+        IntegratorName::Vcm,
     ];
 
     pub fn kind(self) -> IntegratorKind {
@@ -82,6 +86,8 @@ impl IntegratorName {
             IntegratorName::Photon => IntegratorKind::Photon,
             IntegratorName::Sppm => IntegratorKind::Sppm,
             IntegratorName::Bdpt => IntegratorKind::Bdpt,
+            IntegratorName::Pssmlt => IntegratorKind::Pssmlt,
+            IntegratorName::Vcm => IntegratorKind::Vcm,
         }
     }
 
@@ -93,6 +99,8 @@ impl IntegratorName {
             IntegratorName::Photon => "photon",
             IntegratorName::Sppm => "sppm",
             IntegratorName::Bdpt => "bdpt",
+            IntegratorName::Pssmlt => "pssmlt",
+            IntegratorName::Vcm => "vcm",
         }
     }
 }
@@ -270,6 +278,9 @@ pub fn apply(
     if desc.integrator.kind == IntegratorKind::Sppm {
         crate::sppm::check(desc, settings)?;
     }
+    if crate::bdpt::sample_ranges(desc.integrator.kind) {
+        crate::bdpt::check(desc, settings)?;
+    }
     let available = desc.frame_count();
     if frames.first == 0 || frames.last < frames.first || frames.last > available {
         return Err(format!(
@@ -310,6 +321,9 @@ pub enum TaskKind {
     /// SPPM iteration `sample_start` of frame `frame`: photons `x0..x1` of the iteration
     /// (chunk `tile_index`) gathered at every pixel's visible point (see [`crate::sppm`]).
     Sppm,
+    /// Samples `sample_start..sample_end` of every pixel of frame `frame` by BDPT (chunk
+    /// `tile_index`; the tile spans the film: see [`crate::bdpt`]).
+    Bdpt,
 }
 
 impl TaskKind {
@@ -320,6 +334,7 @@ impl TaskKind {
             TaskKind::CausticPhotons => "caustic_photons",
             TaskKind::Records => "records",
             TaskKind::Sppm => "sppm",
+            TaskKind::Bdpt => "bdpt",
         }
     }
 
@@ -329,6 +344,7 @@ impl TaskKind {
             "caustic_photons" => TaskKind::CausticPhotons,
             "records" => TaskKind::Records,
             "sppm" => TaskKind::Sppm,
+            "bdpt" => TaskKind::Bdpt,
             _ => TaskKind::Tile,
         }
     }
@@ -336,7 +352,7 @@ impl TaskKind {
     /// The pass this task belongs to (`None` for a frame's tasks: tiles, SPPM iterations).
     pub fn pass(self) -> Option<PassKind> {
         match self {
-            TaskKind::Tile | TaskKind::Sppm => None,
+            TaskKind::Tile | TaskKind::Sppm | TaskKind::Bdpt => None,
             TaskKind::GlobalPhotons | TaskKind::CausticPhotons => Some(PassKind::Photons),
             TaskKind::Records => Some(PassKind::Records),
         }
@@ -411,6 +427,9 @@ pub fn plan_frame(desc: &SceneDesc, settings: &RenderSettings, frame: u32) -> Ve
     // SPPM starts with its first iteration; each later one follows the one before.
     if desc.integrator.kind == IntegratorKind::Sppm {
         return crate::sppm::iteration_tasks(desc, frame, 0);
+    }
+    if crate::bdpt::sample_ranges(desc.integrator.kind) {
+        return crate::bdpt::tasks(desc, settings, frame);
     }
     // An adaptive frame starts with one round of every tile; later rounds follow its noise.
     let (spp, chunk) = match adaptive_rule(desc, settings) {
@@ -515,7 +534,7 @@ impl Prepared {
 
     /// The camera of `frame`.
     pub fn camera(&self, frame: u32) -> Camera {
-        Camera::new(&self.desc.camera_at(frame), &self.desc.film)
+        camera(&self.desc, frame)
     }
 
     /// Renders one tile task (with this process's integrator: see [`Self::new`]).
@@ -544,6 +563,11 @@ impl Prepared {
             render::render_tile(&self.scene, camera, integrator, task.tile(), task.samples());
         TaskOutput { sums, stats }
     }
+}
+
+/// The camera of `frame` of a (settings-applied) scene.
+pub fn camera(desc: &SceneDesc, frame: u32) -> Camera {
+    Camera::new(&desc.camera_at(frame), &desc.film)
 }
 
 /// What a task produces: the tile's fixed-point sums and its counters.

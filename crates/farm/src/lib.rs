@@ -2,6 +2,7 @@
 //! codecs shared by coordinator, workers and clients, the coordinator (HTTP API, SQLite job
 //! store, scheduler, stitcher), the worker loop and the client.
 
+pub mod bdpt;
 pub mod bundle;
 pub mod client;
 pub mod codec;

@@ -275,7 +275,7 @@ pub fn execute(
                 &mut RayStats::default(),
             )))
         }
-        TaskKind::Tile | TaskKind::Sppm => {
+        TaskKind::Tile | TaskKind::Sppm | TaskKind::Bdpt => {
             Err(format!("a {} task is not a pass", task.kind.as_str()))
         }
     }
@@ -492,7 +492,7 @@ pub fn decode_output(bytes: &[u8], task: &TaskSpec) -> Result<PassOutput, String
             r.end()?;
             Ok(PassOutput::Records(rec))
         }
-        TaskKind::Tile | TaskKind::Sppm => {
+        TaskKind::Tile | TaskKind::Sppm | TaskKind::Bdpt => {
             Err(format!("a {} task has no pass output", task.kind.as_str()))
         }
     }

@@ -19,7 +19,6 @@
 //! farm's frame is byte for byte `tessera render --integrator sppm`'s.
 
 use tessera_render::RayStats;
-use tessera_render::camera::Camera;
 use tessera_render::integrator::sppm::{
     self, CameraPass, PixelSum, Sppm, SppmSettings, SppmState, VisiblePoints,
 };
@@ -325,11 +324,6 @@ pub fn initial_radii(prepared: &Prepared) -> Result<Vec<f32>, String> {
     Ok(vec![sppm::radius2(s.initial_radius as f64); pixels])
 }
 
-/// The camera whose exposure scales frame `frame`'s estimate.
-pub fn camera(desc: &SceneDesc, frame: u32) -> Camera {
-    Camera::new(&desc.camera_at(frame), &desc.film)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -372,7 +366,7 @@ mod tests {
             frame.fold(&outs, s.alpha).expect("folds");
             r2 = decode_radii(&encode_radii(&frame.state.radii2()), pixels).expect("radii");
         }
-        let camera = camera(&desc, 1);
+        let camera = crate::job::camera(&desc, 1);
         let (alone, stats) = sppm::render(&worker.scene, &camera, &photon, &s, &|_| {});
         assert_eq!(frame.state.image(camera.exposure).pixels, alone.pixels);
         assert_eq!(frame.stats, stats);

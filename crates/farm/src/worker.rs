@@ -195,6 +195,10 @@ fn run_spec(prepared: &Prepared, inputs: &Inputs, spec: &job::TaskSpec) -> Resul
                 prepared, &i.points, &i.r2, spec,
             )?))
         }
+        TaskKind::Bdpt => {
+            let (sums, stats) = crate::bdpt::execute(prepared, spec)?;
+            Ok(crate::bdpt::encode_output(&sums, &stats))
+        }
         TaskKind::Tile => {
             let integrator: &dyn tessera_render::Integrator = match photon {
                 Some(p) => p,

@@ -267,12 +267,13 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
     };
     api.expect(api.submit(&hash, sppm), bad, &["target_error", "sppm"])
         .await;
-    // BDPT's splats need whole-image tasks, which the farm does not have yet: it says so.
+    // BDPT refines every pixel at once (its splats land anywhere): no adaptive sampling.
     let bdpt = RenderSettings {
         integrator: Some(tessera_farm::job::IntegratorName::Bdpt),
+        target_error: Some(0.01),
         ..Default::default()
     };
-    api.expect(api.submit(&hash, bdpt), bad, &["bdpt", "tessera render"])
+    api.expect(api.submit(&hash, bdpt), bad, &["target_error", "bdpt"])
         .await;
 
     // An upload over the size limit.

@@ -97,13 +97,26 @@ pub enum IntegratorKind {
     /// Bidirectional path tracing: every connection of a camera and a light subpath, weighted
     /// by multiple importance sampling.
     Bdpt,
+    /// Primary-sample-space Metropolis light transport over BDPT's strategies (multiplexed);
+    /// `spp` is mutations per pixel.
+    Pssmlt,
+    /// Vertex connection and merging: BDPT plus photon merging at camera vertices under one
+    /// MIS; `spp` iterations.
+    Vcm,
 }
 
 impl IntegratorKind {
     /// Whether the integrator renders whole frames rather than independent tiles (its samples
-    /// reach pixels other than their own: light-tracing splats, SPPM's shared photons).
+    /// reach pixels other than their own: light-tracing splats, SPPM's shared photons, Markov
+    /// chains wandering over the film).
     pub fn whole_frame(self) -> bool {
-        matches!(self, IntegratorKind::Sppm | IntegratorKind::Bdpt)
+        matches!(
+            self,
+            IntegratorKind::Sppm
+                | IntegratorKind::Bdpt
+                | IntegratorKind::Pssmlt
+                | IntegratorKind::Vcm
+        )
     }
 }
 

@@ -239,6 +239,10 @@ pub enum IntegratorType {
     Sppm,
     /// Bidirectional path tracing (Veach 1997): unbiased.
     Bdpt,
+    /// Primary-sample-space MLT (Kelemen et al. 2002), multiplexed (Hachisuka et al. 2014).
+    Pssmlt,
+    /// Vertex connection and merging (Georgiev et al. 2012): consistent.
+    Vcm,
 }
 
 /// How caustic photons are weighted by distance in a radiance estimate (Jensen 2001, §7.2).

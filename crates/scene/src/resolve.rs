@@ -541,6 +541,8 @@ impl Ctx<'_> {
                 IntegratorType::Photon => IntegratorKind::Photon,
                 IntegratorType::Sppm => IntegratorKind::Sppm,
                 IntegratorType::Bdpt => IntegratorKind::Bdpt,
+                IntegratorType::Pssmlt => IntegratorKind::Pssmlt,
+                IntegratorType::Vcm => IntegratorKind::Vcm,
             },
             spp: i.spp,
             max_depth: i.max_depth,

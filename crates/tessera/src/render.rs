@@ -138,9 +138,10 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         max_spp: spp,
     });
     let kind = analysis.integrator;
-    let (sppm, bdpt) = (
+    let (sppm, bdpt, pssmlt) = (
         kind == tessera_scene::IntegratorKind::Sppm,
-        kind == tessera_scene::IntegratorKind::Bdpt,
+        tessera_farm::bdpt::sample_ranges(kind),
+        kind == tessera_scene::IntegratorKind::Pssmlt,
     );
     // Adaptive sampling refines tiles; these refine every pixel at once.
     anyhow::ensure!(
@@ -162,16 +163,35 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
             (image, stats, tessera_farm::sppm::metadata(&s), text)
         }
         None if bdpt => {
-            use tessera_render::integrator::bdpt::Bdpt;
-            let b = Bdpt {
-                max_depth: desc.integrator.max_depth,
-                rr_depth: desc.integrator.rr_depth,
-            };
             let range = tessera_render::SampleRange { start: 0, end: spp };
-            let (image, stats) = pool
-                .install(|| b.render(&prepared.scene, &camera, range, &|n| progress.inc(n)))
+            let (sums, stats) = pool
+                .install(|| {
+                    tessera_farm::bdpt::render_range(&prepared, &camera, range, &|n| {
+                        progress.inc(n)
+                    })
+                })
                 .map_err(anyhow::Error::msg)?;
-            (image, stats, Vec::new(), format!("{spp} spp, bdpt"))
+            let name = format!("{kind:?}").to_lowercase();
+            let image = sums.image(camera.exposure);
+            (image, stats, Vec::new(), format!("{spp} spp, {name}"))
+        }
+        None if pssmlt => {
+            use tessera_render::integrator::pssmlt::Pssmlt;
+            let m = Pssmlt::new(desc);
+            progress.set_length(spp as u64 * w as u64 * h as u64);
+            let (image, stats) = pool
+                .install(|| m.render(&prepared.scene, &camera, spp, &|n| progress.inc(n)))
+                .map_err(anyhow::Error::msg)?;
+            let text = format!(
+                "{spp} mutations per pixel, pssmlt ({} chains, {} bootstrap paths, σ {}, large steps {})",
+                m.chains, m.bootstrap, m.sigma, m.large_step
+            );
+            (
+                image,
+                stats,
+                vec![("pssmlt".to_string(), text.clone())],
+                text,
+            )
         }
         None => {
             let outputs: Vec<TaskOutput> = pool.install(|| {

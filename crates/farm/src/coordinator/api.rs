@@ -289,16 +289,19 @@ async fn submit_job(
         job::apply(&mut desc, &req.settings, frames, &app2.config.limits)
             .map_err(AppError::bad_request)?;
         let analysis = tessera_render::analysis::analyze(&desc);
-        if analysis.integrator == tessera_scene::IntegratorKind::Bdpt {
-            return Err(AppError::bad_request(
-                "integrator: bdpt runs in tessera render only for now (its light-tracing splats land anywhere on the film; farm tasks over sample ranges of the whole image are not built yet); use path, photon or sppm on the farm",
-            ));
-        }
         let tasks: Vec<Vec<TaskSpec>> = frames
             .iter()
             .map(|f| job::plan_frame(&desc, &req.settings, f))
             .collect();
+        if analysis.integrator == tessera_scene::IntegratorKind::Pssmlt {
+            return Err(AppError::bad_request(
+                "integrator: pssmlt runs in tessera render only for now (its chains are not farm tasks yet); use bdpt, path, photon or sppm on the farm",
+            ));
+        }
         let mut decisions = job::decisions(&desc);
+        if crate::bdpt::sample_ranges(analysis.integrator) {
+            decisions.push(crate::bdpt::decision(&desc, &req.settings));
+        }
         if analysis.integrator == tessera_scene::IntegratorKind::Sppm {
             let s = crate::sppm::settings(&desc).1;
             decisions.push(format!(
@@ -515,6 +518,11 @@ async fn frame_preview(
                 // SPPM: the estimate after the iterations folded so far.
                 app.sppm_preview(id, frame, &scene.desc)
                     .map_err(|e| AppError::internal(format!("{e:#}")))?
+            } else if scene.bdpt {
+                // BDPT: the sample ranges done so far.
+                app.bdpt_frame(id, frame, &scene.desc)
+                    .map_err(|e| AppError::internal(format!("{e:#}")))?
+                    .0
             } else {
                 let outputs = app
                     .frame_outputs(id, frame)
@@ -639,6 +647,7 @@ async fn upload_result(
                 .ok_or_else(|| AppError::not_found(format!("no job {job_id}")))?;
             crate::sppm::decode_output(&body, &spec, w * h).map(|_| ())
         }
+        TaskKind::Bdpt => crate::bdpt::decode_output(&body, &spec).map(|_| ()),
         _ => passes::decode_output(&body, &spec).map(|_| ()),
     };
     checked.map_err(|e| AppError::bad_request(format!("result of task {id}: {e}")))?;

@@ -25,9 +25,12 @@ use tokio::sync::Notify;
 
 pub use error::{AppError, AppResult};
 
+use crate::bdpt;
 use crate::bundle::Bundle;
 use crate::codec;
-use crate::job::{self, FrameRange, Limits, PassKind, RenderSettings, TaskOutput, TaskSpec};
+use crate::job::{
+    self, FrameRange, Limits, PassKind, RenderSettings, TaskKind, TaskOutput, TaskSpec,
+};
 use crate::passes::{self, PassOutput, PassPlan};
 use crate::progressive::{self, Adaptive, Round, next_round};
 use crate::sppm;
@@ -96,6 +99,8 @@ struct JobScene {
     plan: Option<PassPlan>,
     /// SPPM's settings, for an SPPM job.
     sppm: Option<SppmSettings>,
+    /// A BDPT job: frames are sample ranges over the whole film (see `crate::bdpt`).
+    bdpt: bool,
 }
 
 /// Writes `path` whole or not at all (a temporary file renamed over it), creating its
@@ -176,6 +181,7 @@ impl App {
             plan: passes::plan(&desc, &analysis, frames),
             sppm: (analysis.integrator == tessera_scene::IntegratorKind::Sppm)
                 .then(|| sppm::settings(&desc).1),
+            bdpt: bdpt::sample_ranges(analysis.integrator),
             desc,
             settings,
             frames,
@@ -189,15 +195,40 @@ impl App {
 
     /// Decodes the accepted results of a frame so far, in stitch order.
     fn frame_outputs(&self, job: i64, frame: u32) -> anyhow::Result<Vec<TaskOutput>> {
-        let results = self.store.frame_results(job, frame)?;
+        self.decode_results(job, frame, TaskKind::Tile, codec::decode)
+    }
+
+    /// Decodes the accepted results of a frame's tasks of `kind` so far, in stitch order.
+    fn decode_results<T>(
+        &self,
+        job: i64,
+        frame: u32,
+        kind: TaskKind,
+        decode: impl Fn(&[u8], &TaskSpec) -> Result<T, String>,
+    ) -> anyhow::Result<Vec<T>> {
+        let results = self.store.frame_results(job, frame, kind)?;
         results
             .iter()
             .map(|(task, lease, spec)| {
                 let path = self.tile_path(job, *task, *lease);
                 let bytes = std::fs::read(&path).with_context(|| path.display().to_string())?;
-                codec::decode(&bytes, spec).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
+                decode(&bytes, spec).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))
             })
             .collect()
+    }
+
+    /// A BDPT frame from the sample ranges accepted so far: the image and its counters, and
+    /// how many of the frame's tasks they are.
+    fn bdpt_frame(
+        &self,
+        job: i64,
+        frame: u32,
+        desc: &SceneDesc,
+    ) -> anyhow::Result<(tessera_render::Image, tessera_render::RayStats, usize)> {
+        let outputs = self.decode_results(job, frame, TaskKind::Bdpt, bdpt::decode_output)?;
+        let (sums, stats) = bdpt::merge(&outputs, desc);
+        let image = sums.image(job::camera(desc, frame).exposure);
+        Ok((image, stats, outputs.len()))
     }
 
     /// A frame's tasks are all done (blocking): an adaptive frame may need another round of
@@ -207,6 +238,15 @@ impl App {
         let scene = self.job_scene(job)?;
         if let Some(s) = &scene.sppm {
             return self.finish_sppm_iteration(job, frame, &scene.desc, s);
+        }
+        if scene.bdpt {
+            let (image, stats, done) = self.bdpt_frame(job, frame, &scene.desc)?;
+            let planned = bdpt::tasks(&scene.desc, &scene.settings, frame).len();
+            anyhow::ensure!(
+                done == planned,
+                "bdpt frame {frame}: {done} of its {planned} tasks done"
+            );
+            return self.write_frame(job, frame, &scene.desc, &image, &stats, &[], None);
         }
         let desc = &scene.desc;
         let outputs = self.frame_outputs(job, frame)?;
@@ -306,7 +346,7 @@ impl App {
             self.work.notify_waiters();
             return Ok(false);
         }
-        let exposure = sppm::camera(desc, frame).exposure;
+        let exposure = job::camera(desc, frame).exposure;
         let image = state.state.image(exposure);
         let done = self.write_frame(
             job,
@@ -333,7 +373,7 @@ impl App {
             Ok(bytes) => sppm::decode_state(&bytes)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
                 .state
-                .image(sppm::camera(desc, frame).exposure),
+                .image(job::camera(desc, frame).exposure),
             Err(_) => tessera_render::Image::new(desc.film.width, desc.film.height),
         })
     }

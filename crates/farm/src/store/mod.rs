@@ -638,14 +638,19 @@ impl Store {
     }
 
     /// Done tasks of a frame in stitch order: (task id, lease, spec).
-    pub fn frame_results(&self, job: i64, frame: u32) -> Result<Vec<(i64, i64, TaskSpec)>> {
+    pub fn frame_results(
+        &self,
+        job: i64,
+        frame: u32,
+        kind: TaskKind,
+    ) -> Result<Vec<(i64, i64, TaskSpec)>> {
         let conn = self.conn();
         let mut stmt = conn.prepare(&format!(
             "SELECT id, lease, {SPEC_COLUMNS} FROM tasks
-             WHERE job_id = ?1 AND frame = ?2 AND state = 'done' AND kind = 'tile'
+             WHERE job_id = ?1 AND frame = ?2 AND state = 'done' AND kind = ?3
              ORDER BY tile_index, sample_start"
         ))?;
-        stmt.query_map(params![job, frame], |r| {
+        stmt.query_map(params![job, frame, kind.as_str()], |r| {
             Ok((r.get(0)?, r.get(1)?, task_spec(r, 2)?))
         })?
         .collect()
@@ -1086,7 +1091,12 @@ mod tests {
         );
         let job = s.job(jobs[0]).expect("q").expect("job");
         assert_eq!((job.tasks.done, job.attempts), (1, 2));
-        assert_eq!(s.frame_results(jobs[0], 1).expect("q").len(), 1);
+        assert_eq!(
+            s.frame_results(jobs[0], 1, TaskKind::Tile)
+                .expect("q")
+                .len(),
+            1
+        );
         // A later round (adaptive sampling) reopens the frame until its tasks are done too.
         s.add_tasks(
             jobs[0],
@@ -1110,7 +1120,12 @@ mod tests {
                 pass_complete: None,
             }
         );
-        assert_eq!(s.frame_results(jobs[0], 1).expect("q").len(), 2);
+        assert_eq!(
+            s.frame_results(jobs[0], 1, TaskKind::Tile)
+                .expect("q")
+                .len(),
+            2
+        );
     }
 
     #[test]

@@ -85,7 +85,10 @@ impl Store {
         kind: TaskKind,
     ) -> Result<Vec<ArtifactRef>> {
         let wanted: &[PassKind] = match kind {
-            TaskKind::GlobalPhotons | TaskKind::CausticPhotons | TaskKind::Sppm => &[],
+            TaskKind::GlobalPhotons
+            | TaskKind::CausticPhotons
+            | TaskKind::Sppm
+            | TaskKind::Bdpt => &[],
             TaskKind::Records => &[PassKind::Photons],
             TaskKind::Tile => &[PassKind::Photons, PassKind::Records],
         };

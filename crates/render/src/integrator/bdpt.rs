@@ -30,7 +30,7 @@ use crate::spectrum::{Spectrum, is_black};
 use crate::{SampleRange, Tile};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Kind {
+pub(super) enum Kind {
     Camera,
     /// A point on a light (the first vertex of a light subpath, or one sampled for s = 1).
     Light(u32),
@@ -39,20 +39,20 @@ enum Kind {
 
 /// A subpath vertex.
 #[derive(Debug, Clone, Copy)]
-struct Vertex {
+pub(super) struct Vertex {
     kind: Kind,
-    p: Vec3A,
+    pub(super) p: Vec3A,
     p_error: Vec3A,
     /// Geometric normal; zero for a point in space (a pinhole, a point light).
-    ng: Vec3A,
+    pub(super) ng: Vec3A,
     /// Shading normal (the geometric one where there is no surface to shade).
     ns: Vec3A,
     /// For surfaces: the hit, and the direction toward the previous vertex of the subpath.
     si: Option<SurfaceInteraction>,
-    wo: Vec3A,
-    beta: Spectrum,
+    pub(super) wo: Vec3A,
+    pub(super) beta: Spectrum,
     /// Sampled by a specular lobe: no other strategy can make it.
-    delta: bool,
+    pub(super) delta: bool,
     /// Density of this vertex sampled from the previous one of its subpath, per unit area.
     pdf_fwd: f32,
     /// Density of this vertex sampled from the next one (the other direction), per unit area.
@@ -60,7 +60,14 @@ struct Vertex {
 }
 
 impl Vertex {
-    fn point(kind: Kind, p: Vec3A, p_error: Vec3A, n: Vec3A, beta: Spectrum, pdf: f32) -> Self {
+    pub(super) fn point(
+        kind: Kind,
+        p: Vec3A,
+        p_error: Vec3A,
+        n: Vec3A,
+        beta: Spectrum,
+        pdf: f32,
+    ) -> Self {
         Vertex {
             kind,
             p,
@@ -104,6 +111,8 @@ impl Vertex {
 pub struct Bdpt {
     /// Most scattering vertices on a path (the path tracer's `max_depth`).
     pub max_depth: u32,
+    /// Fewest scattering vertices on a path: shorter ones are left out (0 for the image).
+    pub min_depth: u32,
     /// Russian roulette ends subpaths after this many scattering events, with survival
     /// probability the throughput relative to the subpath's start. The densities MIS weighs
     /// by leave it out: the weights still sum to one over the strategies of a path, so the
@@ -114,15 +123,39 @@ pub struct Bdpt {
 /// Longest subpaths: the camera's has the lens and `max_depth` + 1 more vertices.
 const MAX_VERTICES: usize = 66;
 
-struct Ctx<'a> {
-    scene: &'a Scene,
-    camera: &'a Camera,
-    rr_depth: u32,
+pub(super) struct Ctx<'a> {
+    pub(super) scene: &'a Scene,
+    pub(super) camera: &'a Camera,
+    pub(super) rr_depth: u32,
     /// The sphere the lights' bidirectional densities are defined over (infinite lights).
-    bounds: Target,
+    pub(super) bounds: Target,
 }
 
-impl Ctx<'_> {
+impl<'a> Ctx<'a> {
+    /// The context of `integrator` (named in the error) over `scene` seen by `camera`;
+    /// refuses lights at infinity, whose bidirectional densities are not implemented.
+    pub(super) fn new(
+        integrator: &str,
+        scene: &'a Scene,
+        camera: &'a Camera,
+        rr_depth: u32,
+    ) -> Result<Self, String> {
+        if (0..scene.lights.len() as u32).any(|i| scene.lights.get(i).bounds().is_none()) {
+            return Err(format!(
+                "{integrator}: lights at infinity (environment, directional) are not supported yet; use the path integrator"
+            ));
+        }
+        Ok(Ctx {
+            scene,
+            camera,
+            rr_depth,
+            bounds: Target {
+                center: scene.center,
+                radius: scene.radius,
+            },
+        })
+    }
+
     fn light_of(&self, v: &Vertex) -> Option<(u32, &Light)> {
         let i = match v.kind {
             Kind::Light(i) => i,
@@ -135,10 +168,14 @@ impl Ctx<'_> {
     /// f at a surface vertex for light leaving toward `wo` (the vertex's own) and arriving
     /// from `next`, with the shading-normal correction of importance transport (Veach §5.3).
     fn f(&self, v: &Vertex, next: &Vertex, mode: TransportMode) -> Spectrum {
+        self.f_dir(v, (next.p - v.p).normalize_or_zero(), mode)
+    }
+
+    /// f at a surface vertex for light leaving toward its `wo` and arriving from `wi`.
+    pub(super) fn f_dir(&self, v: &Vertex, wi: Vec3A, mode: TransportMode) -> Spectrum {
         let Some(si) = &v.si else {
             return Spectrum::ZERO;
         };
-        let wi = (next.p - v.p).normalize_or_zero();
         let material = self.scene.material(si.material);
         let frame = material.frame(si, v.wo);
         let (wo_l, wi_l) = (frame.to_local(v.wo), frame.to_local(wi));
@@ -213,7 +250,7 @@ impl Ctx<'_> {
         mut pdf_fwd: f32,
         max: usize,
         mode: TransportMode,
-        sampler: &mut PixelSampler,
+        sampler: &mut impl Sampler,
         stats: &mut RayStats,
     ) {
         let start = beta.max_element();
@@ -272,12 +309,12 @@ impl Ctx<'_> {
         }
     }
 
-    /// The camera subpath of a sample: the lens vertex, then the walk.
-    fn camera_subpath(
+    /// The camera subpath of a sample, at most `max` vertices: the lens vertex, then the walk.
+    pub(super) fn camera_subpath(
         &self,
         ray: crate::ray::Ray,
-        max_depth: u32,
-        sampler: &mut PixelSampler,
+        max: usize,
+        sampler: &mut impl Sampler,
         stats: &mut RayStats,
         path: &mut Vec<Vertex>,
     ) {
@@ -291,7 +328,7 @@ impl Ctx<'_> {
             Spectrum::ONE,
             0.0,
         ));
-        let max = (max_depth as usize + 2).min(MAX_VERTICES);
+        let max = max.min(MAX_VERTICES);
         self.random_walk(
             path,
             ray,
@@ -304,11 +341,12 @@ impl Ctx<'_> {
         );
     }
 
-    /// The light subpath of a sample: a light chosen by power, an emission from it, the walk.
-    fn light_subpath(
+    /// The light subpath of a sample, at most `max` vertices: a light chosen by power, an
+    /// emission from it, the walk.
+    pub(super) fn light_subpath(
         &self,
-        max_depth: u32,
-        sampler: &mut PixelSampler,
+        max: usize,
+        sampler: &mut impl Sampler,
         stats: &mut RayStats,
         path: &mut Vec<Vertex>,
     ) {
@@ -332,7 +370,7 @@ impl Ctx<'_> {
         );
         v.delta = false;
         path.push(v);
-        let max = (max_depth as usize + 1).min(MAX_VERTICES);
+        let max = max.min(MAX_VERTICES);
         self.random_walk(
             path,
             e.ray,
@@ -346,7 +384,8 @@ impl Ctx<'_> {
     }
 
     /// The power-heuristic weight of the strategy (s, t), with the connection's endpoints
-    /// replaced by `sampled` where it made them (s = 1: a light point; t = 1: the lens).
+    /// replaced by `sampled` where it made them (s = 1: a light point; t = 1: the lens), and
+    /// vertex merging among the strategies when `merge` > 0 (see [`Self::mis_sums`]).
     fn mis_weight(
         &self,
         light: &[Vertex],
@@ -354,10 +393,29 @@ impl Ctx<'_> {
         sampled: Option<&Vertex>,
         s: usize,
         t: usize,
+        merge: f32,
     ) -> f32 {
         if s + t == 2 {
             return 1.0;
         }
+        1.0 / (1.0 + self.mis_sums(light, camera, sampled, s, t, merge).0)
+    }
+
+    /// Σ over the other strategies j of the path made by (s, t) of (p_j / p_{s,t})²: the
+    /// connections, and with `merge` = η π r² > 0 (light paths per iteration × the merging
+    /// disc) also vertex merging at each interior non-specular vertex (Georgiev et al. 2012;
+    /// p_merge at z = p of the connection that samples z from one side × the density of z from
+    /// the other × η π r²; of the two, the side whose density is not a specular delta).
+    /// Also returns the term of merging at the light end `light[s - 1]` (0 if none).
+    pub(super) fn mis_sums(
+        &self,
+        light: &[Vertex],
+        camera: &[Vertex],
+        sampled: Option<&Vertex>,
+        s: usize,
+        t: usize,
+        merge: f32,
+    ) -> (f32, f32) {
         // The four vertices whose reverse densities the connection changes, and the two
         // endpoints, which a connection never treats as specular.
         let qs = match (s, sampled) {
@@ -390,7 +448,19 @@ impl Ctx<'_> {
             _ => None,
         };
         let remap = |p: f32| if p != 0.0 { p * p } else { 1.0 };
+        // Merging at a vertex whose density from the other side is `rev` (ratio `before`
+        // while the vertex is still its own side's) or from its own side `fwd` (`after`).
+        let merged = |before: f32, after: f32, rev: f32, fwd: f32| {
+            if rev != 0.0 {
+                before * remap(rev * merge)
+            } else if fwd != 0.0 {
+                after * remap(fwd * merge)
+            } else {
+                after
+            }
+        };
         let mut sum = 0.0f32;
+        let mut at_qs = 0.0f32;
 
         // Camera side: strategies with fewer camera vertices.
         let cam = |i: usize| -> (f32, f32, bool) {
@@ -408,9 +478,14 @@ impl Ctx<'_> {
         let mut ri = 1.0f32;
         for i in (1..t).rev() {
             let (rev, fwd, delta) = cam(i);
+            let before = ri;
             ri *= remap(rev) / remap(fwd);
             if !delta && !cam(i - 1).2 {
                 sum += ri;
+            }
+            // Not at the emitter a camera path hit (s = 0: the path's first vertex).
+            if merge > 0.0 && !delta && !(s == 0 && i == t - 1) {
+                sum += merged(before, ri, rev, fwd);
             }
         }
 
@@ -433,7 +508,15 @@ impl Ctx<'_> {
         let mut ri = 1.0f32;
         for i in (0..s).rev() {
             let (rev, fwd, delta) = lig(i);
+            let before = ri;
             ri *= remap(rev) / remap(fwd);
+            if merge > 0.0 && i >= 1 && !delta {
+                let m = merged(before, ri, rev, fwd);
+                sum += m;
+                if i + 1 == s {
+                    at_qs = m;
+                }
+            }
             let delta_light = if i > 0 {
                 lig(i - 1).2
             } else {
@@ -447,18 +530,19 @@ impl Ctx<'_> {
                 sum += ri;
             }
         }
-        1.0 / (1.0 + sum)
+        (sum, at_qs)
     }
 
     /// The contribution of strategy (s, t), MIS-weighted; for t = 1 also where it lands.
     #[allow(clippy::too_many_arguments)]
-    fn connect(
+    pub(super) fn connect(
         &self,
         light: &[Vertex],
         camera: &[Vertex],
         s: usize,
         t: usize,
-        sampler: &mut PixelSampler,
+        merge: f32,
+        sampler: &mut impl Sampler,
         stats: &mut RayStats,
     ) -> (Spectrum, Option<Vec2>) {
         let pt = camera[t - 1];
@@ -568,13 +652,13 @@ impl Ctx<'_> {
         if is_black(l) {
             return (Spectrum::ZERO, None);
         }
-        let w = self.mis_weight(light, camera, sampled.as_ref(), s, t);
+        let w = self.mis_weight(light, camera, sampled.as_ref(), s, t, merge);
         (l * w, raster)
     }
 
     /// Whether a vertex can be joined to another: a surface with a smooth lobe, any light
     /// (area or point), the lens.
-    fn connectible(&self, v: &Vertex) -> bool {
+    pub(super) fn connectible(&self, v: &Vertex) -> bool {
         match v.kind {
             Kind::Surface => {
                 v.si.is_some_and(|si| self.scene.material(si.material).flags.smooth)
@@ -598,8 +682,8 @@ fn shading_correction(si: &SurfaceInteraction, wo: Vec3A, wi: Vec3A, mode: Trans
 }
 
 /// Splats in fixed point, 2⁻³² units (integer sums: the same whatever order they arrive in).
-struct Splats {
-    rgb: Vec<[AtomicI64; 3]>,
+pub(super) struct Splats {
+    pub(super) rgb: Vec<[AtomicI64; 3]>,
     width: u32,
     height: u32,
 }
@@ -607,7 +691,7 @@ struct Splats {
 const SPLAT_SCALE: f64 = 4_294_967_296.0;
 
 impl Splats {
-    fn new(width: u32, height: u32) -> Self {
+    pub(super) fn new(width: u32, height: u32) -> Self {
         Splats {
             rgb: (0..width as usize * height as usize)
                 .map(|_| [AtomicI64::new(0), AtomicI64::new(0), AtomicI64::new(0)])
@@ -618,7 +702,15 @@ impl Splats {
     }
 
     /// Adds `l` arriving at raster position `at`, shared among the pixels under the filter.
-    fn add(&self, scene: &Scene, at: Vec2, l: Spectrum) {
+    /// Each pixel's sums, in 2⁻³² units.
+    pub(super) fn totals(&self) -> Vec<[i64; 3]> {
+        self.rgb
+            .iter()
+            .map(|s| s.each_ref().map(|a| a.load(Relaxed)))
+            .collect()
+    }
+
+    pub(super) fn add(&self, scene: &Scene, at: Vec2, l: Spectrum) {
         if !l.is_finite() {
             return;
         }
@@ -647,40 +739,97 @@ impl Splats {
             }
         }
     }
+}
 
-    fn get(&self, i: usize) -> Spectrum {
-        let [r, g, b] = &self.rgb[i];
-        let f = |a: &AtomicI64| (a.load(Relaxed) as f64 / SPLAT_SCALE) as f32;
-        Spectrum::new(f(r), f(g), f(b))
+/// Adds fixed-point splat sums times `scale` to an image's pixels.
+pub(super) fn add_splats(image: &mut Image, splats: &[[i64; 3]], scale: f64) {
+    let scale = scale / SPLAT_SCALE;
+    for (px, s) in image.pixels.iter_mut().zip(splats) {
+        for (v, &t) in px.rgb.iter_mut().zip(s) {
+            *v += (t as f64 * scale) as f32;
+        }
+    }
+}
+
+/// A frame's BDPT sums over sample ranges: the camera-side estimates in the film's fixed-point
+/// sums (the whole frame as one tile) and the light-tracing splats in fixed point (2⁻³²
+/// units). Both are integer sums, so any split of the samples into ranges, merged in any
+/// order, gives the same bits as rendering them at once.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BdptSums {
+    pub sums: TileSums,
+    /// Σ of the splatted radiance per pixel, row-major, in units of 2⁻³².
+    pub splats: Vec<[i64; 3]>,
+    /// Samples per pixel summed so far (the merged ranges' total).
+    pub samples: u32,
+}
+
+impl BdptSums {
+    /// No samples yet, for a `width` × `height` film.
+    pub fn new(width: u32, height: u32) -> Self {
+        let tile = Tile {
+            x0: 0,
+            y0: 0,
+            x1: width,
+            y1: height,
+        };
+        BdptSums {
+            sums: TileSums::new(tile, SampleRange { start: 0, end: 0 }),
+            splats: vec![[0; 3]; tile.pixel_count()],
+            samples: 0,
+        }
+    }
+
+    /// Adds the sums of another sample range of the same film.
+    pub fn merge(&mut self, other: &BdptSums) {
+        if self.samples == 0 {
+            self.sums.samples = other.sums.samples;
+        }
+        self.sums.merge(&other.sums);
+        for (a, b) in self.splats.iter_mut().zip(&other.splats) {
+            for c in 0..3 {
+                a[c] = a[c].wrapping_add(b[c]);
+            }
+        }
+        self.samples += other.samples;
+    }
+
+    /// The frame: each pixel's filtered camera-side estimate plus its splats, which estimate
+    /// the film's measurement per sample, divided by the samples per pixel.
+    pub fn image(&self, exposure: f32) -> Image {
+        let t = self.sums.tile;
+        let mut image = Image::from_tiles(t.x1, t.y1, std::slice::from_ref(&self.sums));
+        add_splats(
+            &mut image,
+            &self.splats,
+            exposure as f64 / self.samples.max(1) as f64,
+        );
+        image
     }
 }
 
 impl Bdpt {
+    /// The settings of a scene's integrator block.
+    pub fn new(desc: &tessera_scene::SceneDesc) -> Self {
+        Bdpt {
+            max_depth: desc.integrator.max_depth,
+            min_depth: 0,
+            rr_depth: desc.integrator.rr_depth,
+        }
+    }
+
     /// Renders samples `range` of every pixel of the frame seen by `camera` on the rayon
-    /// pool: the camera-side estimates in the film's sums, plus the light-tracing splats
-    /// divided by the samples per pixel. Refuses lights at infinity (not implemented).
-    pub fn render(
+    /// pool: the camera-side estimates in the film's sums plus the light-tracing splats.
+    /// Refuses lights at infinity (not implemented).
+    pub fn render_range(
         &self,
         scene: &Scene,
         camera: &Camera,
         range: SampleRange,
         progress: &(dyn Fn(u64) + Sync),
-    ) -> Result<(Image, RayStats), String> {
-        if (0..scene.lights.len() as u32).any(|i| scene.lights.get(i).bounds().is_none()) {
-            return Err(
-                "bdpt: lights at infinity (environment, directional) are not supported yet; use the path integrator".into(),
-            );
-        }
+    ) -> Result<(BdptSums, RayStats), String> {
+        let ctx = Ctx::new("bdpt", scene, camera, self.rr_depth)?;
         let (w, h) = (scene.film.width, scene.film.height);
-        let ctx = Ctx {
-            scene,
-            camera,
-            rr_depth: self.rr_depth,
-            bounds: Target {
-                center: scene.center,
-                radius: scene.radius,
-            },
-        };
         let splats = Splats::new(w, h);
         let results: Vec<(TileSums, RayStats)> = tiles(w, h, 16)
             .into_par_iter()
@@ -690,23 +839,30 @@ impl Bdpt {
                 r
             })
             .collect();
+        let mut out = BdptSums::new(w, h);
+        out.sums.samples = range;
+        out.samples = range.end.saturating_sub(range.start);
         let mut stats = RayStats::default();
-        let sums: Vec<TileSums> = results
-            .into_iter()
-            .map(|(s, st)| {
-                stats.add(&st);
-                s
-            })
-            .collect();
-        let mut image = Image::from_tiles(w, h, &sums);
-        let spp = range.end.saturating_sub(range.start).max(1) as f32;
-        for (i, px) in image.pixels.iter_mut().enumerate() {
-            let l = splats.get(i) * (camera.exposure / spp);
-            for c in 0..3 {
-                px.rgb[c] += l[c];
+        for (tile, st) in &results {
+            stats.add(st);
+            for (p, s) in tile.tile.pixels().zip(&tile.pixels) {
+                out.sums.pixels[(p.y * w + p.x) as usize] = *s;
             }
         }
-        Ok((image, stats))
+        out.splats = splats.totals();
+        Ok((out, stats))
+    }
+
+    /// Renders samples `range` of the frame: [`Self::render_range`]'s sums as an image.
+    pub fn render(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        range: SampleRange,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<(Image, RayStats), String> {
+        let (sums, stats) = self.render_range(scene, camera, range, progress)?;
+        Ok((sums.image(camera.exposure), stats))
     }
 
     fn render_tile(
@@ -725,16 +881,21 @@ impl Bdpt {
             for index in range.start..range.end {
                 sampler.start_pixel_sample(pixel, index);
                 let (ray, fw) = camera_ray(scene, ctx.camera, pixel, &mut sampler);
-                ctx.camera_subpath(ray, self.max_depth, &mut sampler, &mut stats, &mut cam);
-                ctx.light_subpath(self.max_depth, &mut sampler, &mut stats, &mut lig);
+                let d = self.max_depth as usize;
+                ctx.camera_subpath(ray, d + 2, &mut sampler, &mut stats, &mut cam);
+                ctx.light_subpath(d + 1, &mut sampler, &mut stats, &mut lig);
                 let mut l = Spectrum::ZERO;
                 for t in 1..=cam.len() {
                     for s in 0..=lig.len() {
                         let depth = s as i64 + t as i64 - 2;
-                        if (s == 1 && t == 1) || depth < 0 || depth > self.max_depth as i64 {
+                        if (s == 1 && t == 1)
+                            || depth < self.min_depth as i64
+                            || depth > self.max_depth as i64
+                        {
                             continue;
                         }
-                        let (c, raster) = ctx.connect(&lig, &cam, s, t, &mut sampler, &mut stats);
+                        let (c, raster) =
+                            ctx.connect(&lig, &cam, s, t, 0.0, &mut sampler, &mut stats);
                         match raster {
                             Some(at) => splats.add(scene, at, c),
                             None => l += c,

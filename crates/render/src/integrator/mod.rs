@@ -9,7 +9,9 @@
 pub mod bdpt;
 mod path;
 mod photon;
+pub mod pssmlt;
 pub mod sppm;
+pub mod vcm;
 
 use glam::{Vec2, Vec3A};
 use tessera_scene::{IntegratorDesc, IntegratorKind, SceneDesc};
@@ -175,9 +177,12 @@ pub fn prepare(
             let (p, why) = PhotonIntegrator::prepare(desc, scene, analysis, frames);
             (Box::new(p), why)
         }
-        // SPPM and BDPT render whole frames (`sppm::render`, `Bdpt::render`); asked for
-        // tiles, a path tracer renders the same image, and says so.
-        kind @ (IntegratorKind::Sppm | IntegratorKind::Bdpt) => (
+        // SPPM, BDPT and PSSMLT render whole frames; asked for tiles, a path tracer renders
+        // the same image, and says so.
+        kind @ (IntegratorKind::Sppm
+        | IntegratorKind::Bdpt
+        | IntegratorKind::Pssmlt
+        | IntegratorKind::Vcm) => (
             Box::new(path_family(&IntegratorDesc {
                 kind: IntegratorKind::Path,
                 ..desc.integrator

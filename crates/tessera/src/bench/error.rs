@@ -11,7 +11,10 @@ use anyhow::{Context, ensure};
 use serde::Serialize;
 use tessera_farm::job::{self, FrameRange, Limits, Prepared, RenderSettings};
 use tessera_farm::progressive::Accumulator;
+use tessera_render::SampleRange;
 use tessera_render::camera::Camera;
+use tessera_render::integrator::bdpt::BdptSums;
+use tessera_render::integrator::pssmlt::Pssmlt;
 use tessera_render::integrator::sppm::{Sppm, SppmSettings, SppmState};
 use tessera_render::metrics;
 use tessera_scene::IntegratorKind;
@@ -25,7 +28,7 @@ pub struct ErrorArgs {
     #[arg(long)]
     pub reference: Option<PathBuf>,
     /// Integrators to compare, comma-separated: path, direct, auto, photon, sppm (whose
-    /// sample budgets are iterations).
+    /// sample budgets are iterations), bdpt.
     #[arg(long, value_delimiter = ',', default_value = "path,direct")]
     pub integrators: Vec<String>,
     /// Budgets, comma-separated and increasing: samples per pixel (`64`) or seconds of wall
@@ -70,10 +73,6 @@ fn integrator_kind(name: &str) -> anyhow::Result<IntegratorKind> {
         .parse::<tessera_farm::job::IntegratorName>()
         .map(|n| n.kind())
         .map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
-    anyhow::ensure!(
-        kind != IntegratorKind::Bdpt,
-        "--integrators: bdpt is not in the bench yet; compare tessera render --integrator bdpt --spp N with tessera compare"
-    );
     Ok(kind)
 }
 
@@ -171,28 +170,53 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
             ))?;
         }
         let camera = prepared.camera(1);
+        let setup = (start.elapsed().as_secs_f64(), crate::render::cpu_seconds());
         let mut acc = if *kind == IntegratorKind::Sppm {
             let (photon, s) = SppmSettings::resolve(&desc, &prepared.analysis);
             Progressive::Sppm(
                 Box::new(Sppm::new(&prepared.scene, &photon, s)),
                 SppmState::new(desc.film.width, desc.film.height, s.initial_radius),
             )
+        } else if tessera_farm::bdpt::sample_ranges(*kind) {
+            Progressive::Bdpt(BdptSums::new(desc.film.width, desc.film.height))
+        } else if *kind == IntegratorKind::Pssmlt {
+            Progressive::Fresh(Pssmlt::new(&desc), None)
         } else {
             Progressive::Tiles(Accumulator::new(&desc, job::DEFAULT_TILE))
         };
+        // A continued render's clock runs from the start; a fresh one's is the setup plus
+        // its last render.
+        let mut last = (0.0, None);
+        let clock = |last: (f64, Option<f64>)| match &acc_kind(*kind) {
+            Continued::Yes => (
+                start.elapsed().as_secs_f64(),
+                crate::render::cpu_seconds().zip(cpu0).map(|(b, a)| b - a),
+            ),
+            Continued::No => (
+                setup.0 + last.0,
+                setup.1.zip(cpu0).zip(last.1).map(|((s, a), l)| s - a + l),
+            ),
+        };
         for budget in &budgets {
+            let render = |acc: &mut Progressive, n: u32| -> anyhow::Result<(f64, Option<f64>)> {
+                let (t0, c0) = (Instant::now(), crate::render::cpu_seconds());
+                pool.install(|| acc.render_to(&prepared, &camera, n))?;
+                Ok((
+                    t0.elapsed().as_secs_f64(),
+                    crate::render::cpu_seconds().zip(c0).map(|(b, a)| b - a),
+                ))
+            };
             match *budget {
-                Budget::Samples(n) => pool.install(|| acc.render_to(&prepared, &camera, n)),
+                Budget::Samples(n) => last = render(&mut acc, n)?,
                 Budget::Seconds(limit) => {
                     // Double the samples until the wall time reaches the budget.
-                    while start.elapsed().as_secs_f64() < limit {
+                    while clock(last).0 < limit {
                         let next = (acc.samples() * 2).max(acc.samples() + 1);
-                        pool.install(|| acc.render_to(&prepared, &camera, next));
+                        last = render(&mut acc, next)?;
                     }
                 }
             }
-            let wall_s = start.elapsed().as_secs_f64();
-            let cpu_s = crate::render::cpu_seconds().zip(cpu0).map(|(b, a)| b - a);
+            let (wall_s, cpu_s) = clock(last);
             let image = acc.image(&camera);
             let rgb: Vec<glam::Vec3A> = image.pixels.iter().map(|p| p.rgb.into()).collect();
             let e = metrics::compare(&rgb, &reference);
@@ -208,7 +232,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                 rel_mse: e.rel_mse,
                 rmse: e.rmse,
                 mean_ratio: e.mean_ratio,
-                estimated_rel_mse: (*kind != IntegratorKind::Sppm)
+                estimated_rel_mse: (!kind.whole_frame())
                     .then(|| metrics::estimated_rel_mse(&image)),
             };
             crate::print(&format!(
@@ -242,11 +266,29 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
     ))
 }
 
-/// A render that can be continued: tiles' sample sums, or SPPM's per-pixel state (whose
-/// samples are iterations). Either way the image after N is that of a fresh N render.
+/// A render that can be continued: tiles' sample sums, SPPM's per-pixel state (whose samples
+/// are iterations), or BDPT's whole-film sums. Each way the image after N is that of a fresh
+/// N render.
 enum Progressive<'a> {
     Tiles(Accumulator),
     Sppm(Box<Sppm<'a>>, SppmState),
+    /// BDPT's or VCM's whole-film sums.
+    Bdpt(BdptSums),
+    /// Rendered anew for each budget (Markov chains are not continued): PSSMLT.
+    Fresh(Pssmlt, Option<(tessera_render::Image, u32)>),
+}
+
+enum Continued {
+    Yes,
+    No,
+}
+
+fn acc_kind(kind: IntegratorKind) -> Continued {
+    if kind == IntegratorKind::Pssmlt {
+        Continued::No
+    } else {
+        Continued::Yes
+    }
 }
 
 impl Progressive<'_> {
@@ -254,10 +296,12 @@ impl Progressive<'_> {
         match self {
             Progressive::Tiles(acc) => acc.samples,
             Progressive::Sppm(_, state) => state.iterations,
+            Progressive::Bdpt(sums) => sums.samples,
+            Progressive::Fresh(_, done) => done.as_ref().map_or(0, |d| d.1),
         }
     }
 
-    fn render_to(&mut self, prepared: &Prepared, camera: &Camera, n: u32) {
+    fn render_to(&mut self, prepared: &Prepared, camera: &Camera, n: u32) -> anyhow::Result<()> {
         match self {
             Progressive::Tiles(acc) => acc.render_to(prepared, camera, n),
             Progressive::Sppm(sppm, state) => {
@@ -265,13 +309,36 @@ impl Progressive<'_> {
                     sppm.iterate(camera, state);
                 }
             }
+            Progressive::Bdpt(sums) => {
+                if n > sums.samples {
+                    let range = SampleRange {
+                        start: sums.samples,
+                        end: n,
+                    };
+                    let (more, _) =
+                        tessera_farm::bdpt::render_range(prepared, camera, range, &|_| {})
+                            .map_err(anyhow::Error::msg)?;
+                    sums.merge(&more);
+                }
+            }
+            Progressive::Fresh(m, done) => {
+                let (image, _) = m
+                    .render(&prepared.scene, camera, n, &|_| {})
+                    .map_err(anyhow::Error::msg)?;
+                *done = Some((image, n));
+            }
         }
+        Ok(())
     }
 
     fn image(&self, camera: &Camera) -> tessera_render::Image {
         match self {
             Progressive::Tiles(acc) => acc.image().0,
             Progressive::Sppm(_, state) => state.image(camera.exposure),
+            Progressive::Bdpt(sums) => sums.image(camera.exposure),
+            Progressive::Fresh(_, done) => done
+                .as_ref()
+                .map_or_else(|| tessera_render::Image::new(0, 0), |d| d.0.clone()),
         }
     }
 }

@@ -1,0 +1,482 @@
+//! Primary-sample-space Metropolis light transport (Kelemen, Szirmay-Kalos, Antal & Csonka
+//! 2002), multiplexed over BDPT's strategies (Hachisuka, Kaplanyan & Dachsbacher 2014; pbrt-v3
+//! §16.4).
+//!
+//! A path is a deterministic function of a vector of uniform numbers (its *primary sample*):
+//! the film position, the camera subpath, the light subpath, the connection, each from its own
+//! stream of the vector. The chain state is (depth, primary sample); its first number picks
+//! which BDPT strategy (s, t) makes a path of that depth, and the contribution is that
+//! strategy's MIS-weighted estimate times the number of strategies (and of depths), so the
+//! chain also explores strategies (multiplexing). Mutations: a *large step* redraws every
+//! number and the depth (with probability `large_step`); a *small step* moves each number by a
+//! normal offset of `sigma` (wrapped to [0, 1)) and keeps the depth. Both proposals are
+//! symmetric; Metropolis–Hastings accepts with min(1, y'/y) for y the luminance. The proposal
+//! and the current state are both splatted with their expected weights (Veach's "expected
+//! values").
+//!
+//! As Veach & Guibas propose, emitted and directly reflected light (depths 0 and 1) are
+//! rendered apart, by BDPT; the chains carry depths ≥ 2. Their image is the splats times
+//! b / (mutations per unit of film), b = E[y] over the state space, which sets the image's
+//! brightness: it is estimated by BDPT samples (every strategy of every depth ≥ 2, through
+//! uniform film points) — an estimate with one strategy per sample (pbrt's bootstrap) left a
+//! small light seen through glass to a handful of lucky samples and missed the mean by
+//! 5–15 %. The chains start from bootstrap paths drawn in proportion to y, so no burn-in is
+//! needed. Film positions cover the film extended by the filter's reach (pbrt's sample
+//! bounds), so edge pixels get their share.
+//!
+//! Determinism: chains are seeded from (seed, chain), run in parallel, and splat into
+//! fixed-point sums, so the image does not depend on thread count or scheduling.
+
+use glam::{UVec2, Vec2, Vec3A, Vec4};
+use rayon::prelude::*;
+
+use super::RayStats;
+use super::bdpt::{Bdpt, Ctx, Splats, Vertex, add_splats};
+use crate::SampleRange;
+use crate::camera::Camera;
+use crate::film::Image;
+use crate::sampler::Sampler;
+use crate::sampler::hash::{hash, mix64, u32_to_unit};
+use crate::scene::Scene;
+use crate::spectrum::{Spectrum, luminance};
+
+/// The settings PSSMLT runs with.
+#[derive(Debug, Clone, Copy)]
+pub struct Pssmlt {
+    /// Most scattering vertices on a path.
+    pub max_depth: u32,
+    /// Independent paths (spread evenly over the depths) for the brightness estimate and the
+    /// chains' starts.
+    pub bootstrap: u32,
+    /// Independent Markov chains (each a task's worth of work on the farm).
+    pub chains: u32,
+    /// Standard deviation of a small step in primary sample space.
+    pub sigma: f32,
+    /// Probability of a large step (every number drawn anew).
+    pub large_step: f32,
+    pub seed: u64,
+}
+
+impl Pssmlt {
+    /// pbrt-v3's defaults (1000 chains, σ = 0.01, large steps 30 %), with 100 000 bootstrap
+    /// paths in all (pbrt has that many per depth, for depths to 5).
+    pub fn new(desc: &tessera_scene::SceneDesc) -> Self {
+        Pssmlt {
+            max_depth: desc.integrator.max_depth,
+            bootstrap: 100_000,
+            chains: 1000,
+            sigma: 0.01,
+            large_step: 0.3,
+            seed: desc.integrator.seed,
+        }
+    }
+}
+
+/// The chains' shortest paths: shorter ones (emission and direct light) are BDPT's.
+const MIN_DEPTH: u32 = 2;
+
+const CAMERA_STREAM: u32 = 0;
+const LIGHT_STREAM: u32 = 1;
+const CONNECT_STREAM: u32 = 2;
+const STREAMS: u32 = 3;
+
+/// A 64-bit counter-based generator (splitmix64 over `mix64`).
+struct Rng(u64);
+
+impl Rng {
+    fn uniform(&mut self) -> f32 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        u32_to_unit((mix64(self.0) >> 32) as u32)
+    }
+
+    /// A standard normal number (Box–Muller).
+    fn normal(&mut self) -> f32 {
+        let (a, b) = (self.uniform(), self.uniform());
+        (-2.0 * (1.0 - a).ln()).sqrt() * (std::f32::consts::TAU * b).cos()
+    }
+}
+
+/// One number of the primary sample, changed lazily: it catches up on the mutations it missed
+/// when it is next read (a large step since its last change redraws it; n missed small steps
+/// are one step of σ√n).
+#[derive(Debug, Clone, Copy, Default)]
+struct PrimarySample {
+    value: f32,
+    modified: i64,
+    backup: f32,
+    backup_modified: i64,
+}
+
+/// A sampler over a mutating primary sample (pbrt-v3's `MLTSampler`).
+struct MltSampler {
+    rng: Rng,
+    sigma: f32,
+    p_large: f32,
+    x: Vec<PrimarySample>,
+    iteration: i64,
+    large_step: bool,
+    last_large: i64,
+    stream: u32,
+    index: u32,
+}
+
+impl MltSampler {
+    fn new(seed: u64, sigma: f32, p_large: f32) -> Self {
+        MltSampler {
+            rng: Rng(seed),
+            sigma,
+            p_large,
+            x: Vec::with_capacity(64),
+            iteration: 0,
+            large_step: true,
+            last_large: 0,
+            stream: 0,
+            index: 0,
+        }
+    }
+
+    fn start_iteration(&mut self) {
+        self.iteration += 1;
+        self.large_step = self.rng.uniform() < self.p_large;
+    }
+
+    fn accept(&mut self) {
+        if self.large_step {
+            self.last_large = self.iteration;
+        }
+    }
+
+    fn reject(&mut self) {
+        for x in &mut self.x {
+            if x.modified == self.iteration {
+                x.value = x.backup;
+                x.modified = x.backup_modified;
+            }
+        }
+        self.iteration -= 1;
+    }
+
+    fn start_stream(&mut self, stream: u32) {
+        self.stream = stream;
+        self.index = 0;
+    }
+
+    fn next(&mut self) -> f32 {
+        let i = (self.stream + STREAMS * self.index) as usize;
+        self.index += 1;
+        if i >= self.x.len() {
+            self.x.resize(i + 1, PrimarySample::default());
+        }
+        let x = &mut self.x[i];
+        if x.modified < self.last_large {
+            x.value = self.rng.uniform();
+            x.modified = self.last_large;
+        }
+        x.backup = x.value;
+        x.backup_modified = x.modified;
+        if self.large_step {
+            x.value = self.rng.uniform();
+        } else {
+            let missed = (self.iteration - x.modified) as f32;
+            x.value += self.rng.normal() * self.sigma * missed.sqrt();
+            x.value -= x.value.floor();
+            if x.value >= 1.0 {
+                x.value = 0.0;
+            }
+        }
+        x.modified = self.iteration;
+        x.value
+    }
+}
+
+impl Sampler for MltSampler {
+    fn start_pixel_sample(&mut self, _pixel: UVec2, _index: u32) {}
+    fn get_1d(&mut self) -> f32 {
+        self.next()
+    }
+    fn get_2d(&mut self) -> Vec2 {
+        Vec2::new(self.next(), self.next())
+    }
+    fn get_3d(&mut self) -> Vec3A {
+        Vec3A::new(self.next(), self.next(), self.next())
+    }
+    fn get_4d(&mut self) -> Vec4 {
+        Vec4::new(self.next(), self.next(), self.next(), self.next())
+    }
+}
+
+/// Scratch space for one thread's subpaths.
+#[derive(Default)]
+struct Paths {
+    camera: Vec<Vertex>,
+    light: Vec<Vertex>,
+}
+
+impl Pssmlt {
+    /// The contribution of a path of `depth` scattering events made from the sampler's primary
+    /// sample, and where on the film it lands.
+    fn l(
+        &self,
+        ctx: &Ctx,
+        sampler: &mut MltSampler,
+        depth: usize,
+        paths: &mut Paths,
+        stats: &mut RayStats,
+    ) -> (Spectrum, Vec2) {
+        sampler.start_stream(CAMERA_STREAM);
+        let (s, t, strategies) = if depth == 0 {
+            (0, 2, 1)
+        } else {
+            let n = depth + 2;
+            let s = ((sampler.get_1d() * n as f32) as usize).min(n - 1);
+            (s, n - s, n)
+        };
+        let (ray, p_raster) = film_ray(ctx, sampler);
+        ctx.camera_subpath(ray, t, sampler, stats, &mut paths.camera);
+        if paths.camera.len() != t {
+            return (Spectrum::ZERO, p_raster);
+        }
+        sampler.start_stream(LIGHT_STREAM);
+        paths.light.clear();
+        if s > 0 {
+            ctx.light_subpath(s, sampler, stats, &mut paths.light);
+        }
+        if paths.light.len() != s {
+            return (Spectrum::ZERO, p_raster);
+        }
+        sampler.start_stream(CONNECT_STREAM);
+        let (l, raster) = ctx.connect(&paths.light, &paths.camera, s, t, 0.0, sampler, stats);
+        stats.samples += 1;
+        let l = l * strategies as f32 * light_tracing_scale(ctx, t);
+        if !l.is_finite() {
+            stats.nonfinite += 1;
+            return (Spectrum::ZERO, p_raster);
+        }
+        (l, raster.unwrap_or(p_raster))
+    }
+
+    /// The luminance of every strategy of every depth ≥ 2 of one BDPT sample through a
+    /// uniform point of the (filter-extended) film: an unbiased sample of the chains' b.
+    fn brightness(
+        &self,
+        ctx: &Ctx,
+        sampler: &mut MltSampler,
+        paths: &mut Paths,
+        stats: &mut RayStats,
+    ) -> f64 {
+        let (ray, _) = film_ray(ctx, sampler);
+        let d = self.max_depth as usize;
+        ctx.camera_subpath(ray, d + 2, sampler, stats, &mut paths.camera);
+        ctx.light_subpath(d + 1, sampler, stats, &mut paths.light);
+        let mut y = 0.0f64;
+        for t in 1..=paths.camera.len() {
+            for s in 0..=paths.light.len() {
+                let depth = s + t;
+                if depth < MIN_DEPTH as usize + 2 || depth > d + 2 {
+                    continue;
+                }
+                let (l, _) = ctx.connect(&paths.light, &paths.camera, s, t, 0.0, sampler, stats);
+                if l.is_finite() {
+                    y += (luminance(l) * light_tracing_scale(ctx, t)) as f64;
+                }
+            }
+        }
+        stats.samples += 1;
+        y
+    }
+
+    fn seed_of(&self, bootstrap_index: u64) -> u64 {
+        hash(&[self.seed, 0x6d6c74, bootstrap_index])
+    }
+
+    /// Renders with `mutations` per pixel on the rayon pool; `progress` counts mutations.
+    /// Refuses lights at infinity, as BDPT does.
+    pub fn render(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        mutations: u32,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<(Image, RayStats), String> {
+        // Chains fix the path length; roulette would only add rejections.
+        let ctx = Ctx::new("pssmlt", scene, camera, u32::MAX)?;
+        // Emitted and directly reflected light (depths 0 and 1) by BDPT, as Veach & Guibas do:
+        // it is what sampling independently does best, and the chains are left the indirect
+        // light.
+        let direct = Bdpt {
+            max_depth: self.max_depth.min(MIN_DEPTH - 1),
+            min_depth: 0,
+            rr_depth: u32::MAX,
+        };
+        let range = |end: u32| SampleRange { start: 0, end };
+        let (direct, mut stats) =
+            direct.render_range(scene, camera, range(mutations.max(1)), &|_| {})?;
+        let mut image = direct.image(camera.exposure);
+        if self.max_depth < MIN_DEPTH {
+            return Ok((image, stats));
+        }
+        let (w, h) = (scene.film.width, scene.film.height);
+        let depths = (self.max_depth - MIN_DEPTH + 1) as u64;
+        let area = ctx_area(&ctx);
+        let all = (mutations as f64 * area) as u64;
+        // b = E[y] of the chains' contributions, by BDPT samples at a sixteenth of the
+        // mutations: every strategy of every depth ≥ 2 per sample, so rare bright paths (a
+        // small light seen in glass) count as often as the film shows them, not as rarely as
+        // one strategy finds them. Its error scales the chains' image; it falls as the budget
+        // grows.
+        let n_b = (all / 16).max(self.bootstrap as u64);
+        // Roulette is fine here (no chain to reject it).
+        let rr = Ctx { rr_depth: 3, ..ctx };
+        let bright: Vec<(f64, RayStats)> = (0..n_b)
+            .into_par_iter()
+            .map_init(Paths::default, |paths, i| {
+                let mut stats = RayStats::default();
+                let mut sampler = MltSampler::new(
+                    hash(&[self.seed, 0x627269676874, i]),
+                    self.sigma,
+                    self.large_step,
+                );
+                let y = self.brightness(&rr, &mut sampler, paths, &mut stats);
+                (y, stats)
+            })
+            .collect();
+        let mut b = 0.0;
+        for (y, st) in &bright {
+            b += y;
+            stats.add(st);
+        }
+        let b = b / n_b as f64;
+        let n_boot = (self.bootstrap as u64).div_ceil(depths) * depths;
+        let boot: Vec<(f32, RayStats)> = (0..n_boot)
+            .into_par_iter()
+            .map_init(Paths::default, |paths, i| {
+                let mut stats = RayStats::default();
+                let mut sampler = MltSampler::new(self.seed_of(i), self.sigma, self.large_step);
+                let depth = MIN_DEPTH as usize + (i % depths) as usize;
+                let (l, _) = self.l(&ctx, &mut sampler, depth, paths, &mut stats);
+                (luminance(l).max(0.0), stats)
+            })
+            .collect();
+        let mut cdf = Vec::with_capacity(boot.len());
+        let mut total = 0.0f64;
+        for (y, st) in &boot {
+            stats.add(st);
+            total += *y as f64;
+            cdf.push(total);
+        }
+        if b <= 0.0 || total <= 0.0 {
+            return Ok((image, stats));
+        }
+        let chains = (self.chains as u64).clamp(1, all.max(1));
+        let splats = Splats::new(w, h);
+        let chain_stats: Vec<RayStats> = (0..chains)
+            .into_par_iter()
+            .map_init(Paths::default, |paths, c| {
+                let steps = all / chains + u64::from(c < all % chains);
+                let st = self.chain(&ctx, c, steps, &cdf, depths, paths, &splats);
+                progress(steps);
+                st
+            })
+            .collect();
+        for st in &chain_stats {
+            stats.add(st);
+        }
+        // Splats are L / y per mutation; b / (mutations per unit of film) makes them radiance.
+        let scale = b * camera.exposure as f64 / mutations.max(1) as f64;
+        add_splats(&mut image, &splats.totals(), scale);
+        Ok((image, stats))
+    }
+
+    /// Runs chain `c` for `steps` mutations from a start drawn from the bootstrap paths. The
+    /// path's depth is part of the state, changed only by large steps (a symmetric proposal:
+    /// drawn anew or kept).
+    #[allow(clippy::too_many_arguments)]
+    fn chain(
+        &self,
+        ctx: &Ctx,
+        c: u64,
+        steps: u64,
+        cdf: &[f64],
+        depths: u64,
+        paths: &mut Paths,
+        splats: &Splats,
+    ) -> RayStats {
+        let mut stats = RayStats::default();
+        let mut rng = Rng(hash(&[self.seed, 0x636861696e, c]));
+        let total = cdf.last().copied().unwrap_or(0.0);
+        let pick = rng.uniform() as f64 * total;
+        let i = cdf.partition_point(|&v| v <= pick).min(cdf.len() - 1) as u64;
+        let mut depth = MIN_DEPTH as usize + (i % depths) as usize;
+        let mut sampler = MltSampler::new(self.seed_of(i), self.sigma, self.large_step);
+        let (mut l_cur, mut p_cur) = self.l(ctx, &mut sampler, depth, paths, &mut stats);
+        let scene = ctx.scene;
+        for _ in 0..steps {
+            sampler.start_iteration();
+            let new_depth = if sampler.large_step {
+                MIN_DEPTH as usize
+                    + ((rng.uniform() * depths as f32) as usize).min(depths as usize - 1)
+            } else {
+                depth
+            };
+            let (l_new, p_new) = self.l(ctx, &mut sampler, new_depth, paths, &mut stats);
+            let (y_cur, y_new) = (luminance(l_cur), luminance(l_new));
+            let accept = if y_cur > 0.0 {
+                (y_new / y_cur).min(1.0)
+            } else {
+                1.0
+            };
+            if accept > 0.0 && y_new > 0.0 {
+                splats.add(scene, p_new, l_new * (accept / y_new));
+            }
+            if accept < 1.0 && y_cur > 0.0 {
+                splats.add(scene, p_cur, l_cur * ((1.0 - accept) / y_cur));
+            }
+            if rng.uniform() < accept {
+                (l_cur, p_cur, depth) = (l_new, p_new, new_depth);
+                sampler.accept();
+            } else {
+                sampler.reject();
+            }
+        }
+        stats
+    }
+}
+
+/// The film extended by the filter's reach beyond the outer pixels' centres (pbrt's sample
+/// bounds): paths landing there still reach the edge pixels.
+fn film_extent(ctx: &Ctx) -> (Vec2, Vec2) {
+    let film = &ctx.scene.film;
+    let e = (ctx.scene.filter.radius() - 0.5).max(0.0);
+    (
+        Vec2::splat(-e),
+        Vec2::new(film.width as f32 + 2.0 * e, film.height as f32 + 2.0 * e),
+    )
+}
+
+/// A camera ray through a uniform point of the extended film, and the point.
+fn film_ray(ctx: &Ctx, sampler: &mut MltSampler) -> (crate::ray::Ray, Vec2) {
+    let (origin, size) = film_extent(ctx);
+    let p = origin + sampler.get_2d() * size;
+    let u_lens = if ctx.camera.has_aperture() {
+        sampler.get_2d()
+    } else {
+        Vec2::ZERO
+    };
+    (ctx.camera.generate_ray(p, u_lens), p)
+}
+
+/// The extended film's area, in pixels.
+fn ctx_area(ctx: &Ctx) -> f64 {
+    let (_, size) = film_extent(ctx);
+    size.x as f64 * size.y as f64
+}
+
+/// BDPT's light-tracing (t = 1) estimates are per pixel sample of a W × H film; the chains
+/// sample the extended film, of larger area: this rescales them to it (1 for other t).
+fn light_tracing_scale(ctx: &Ctx, t: usize) -> f32 {
+    if t != 1 {
+        return 1.0;
+    }
+    let film = &ctx.scene.film;
+    (film.width as f64 * film.height as f64 / ctx_area(ctx)) as f32
+}
