@@ -77,3 +77,77 @@ fn sample_ranges_merged_in_any_order_on_any_threads_equal_one_render() {
     let (a, b) = (whole.image(camera.exposure), merged.image(camera.exposure));
     assert!(a.pixels.iter().zip(&b.pixels).all(|(p, q)| p.rgb == q.rgb));
 }
+
+#[test]
+fn each_strategy_alone_estimates_the_same_light_and_so_do_the_weighted_ones_together() {
+    // Unweighted, every strategy of a depth is its own estimator of all light of that depth
+    // (on the Cornell box each can make every such path): their image means must agree within
+    // their noise, estimated from 8 independent batches of samples. Direct light (depth 1):
+    // s = 0 (a camera path hits the light), s = 1 (light sampling), s = 2 (light tracing).
+    let (desc, _) = scene_and_reference("cornell-box");
+    let scene = Scene::build(&desc);
+    let camera = Camera::new(&desc.camera, &desc.film);
+    let bdpt = Bdpt::new(&desc);
+    let batches: Vec<Vec<tessera_render::integrator::bdpt::StrategyImage>> = (0..8)
+        .map(|b| {
+            let range = SampleRange {
+                start: 32 * b,
+                end: 32 * (b + 1),
+            };
+            pool()
+                .install(|| bdpt.render_strategies(&scene, &camera, range, 1))
+                .expect("renders")
+        })
+        .collect();
+    let mean = |img: &tessera_render::Image| {
+        img.pixels
+            .iter()
+            .map(|p| p.rgb.iter().sum::<f32>() as f64)
+            .sum::<f64>()
+            / (3 * img.pixels.len()) as f64
+    };
+    // Per depth-1 strategy: mean over batches and its standard error.
+    let stats: Vec<(u32, f64, f64)> = (0..batches[0].len())
+        .filter(|&i| batches[0][i].s + batches[0][i].t == 3)
+        .map(|i| {
+            let m: Vec<f64> = batches.iter().map(|b| mean(&b[i].unweighted)).collect();
+            let avg = m.iter().sum::<f64>() / m.len() as f64;
+            let var = m.iter().map(|x| (x - avg).powi(2)).sum::<f64>() / (m.len() - 1) as f64;
+            (batches[0][i].s, avg, (var / m.len() as f64).sqrt())
+        })
+        .collect();
+    eprintln!("depth 1, unweighted (s, mean, standard error): {stats:?}");
+    assert_eq!(stats.len(), 3);
+    for a in &stats {
+        for b in &stats {
+            let tol = 4.0 * (a.2 * a.2 + b.2 * b.2).sqrt();
+            assert!(
+                (a.1 - b.1).abs() <= tol,
+                "strategies s = {} and s = {} disagree: {stats:?}",
+                a.0,
+                b.0
+            );
+        }
+    }
+    // MIS weights sum to one over a path's strategies, so the weighted depth-1 images add up
+    // to one more estimate of the same light.
+    let sums: Vec<f64> = batches
+        .iter()
+        .map(|b| {
+            b.iter()
+                .filter(|s| s.s + s.t == 3)
+                .map(|s| mean(&s.weighted))
+                .sum()
+        })
+        .collect();
+    let avg = sums.iter().sum::<f64>() / sums.len() as f64;
+    let var = sums.iter().map(|x| (x - avg).powi(2)).sum::<f64>() / (sums.len() - 1) as f64;
+    let se = (var / sums.len() as f64).sqrt();
+    let nee = &stats[1];
+    assert!(
+        (avg - nee.1).abs() <= 4.0 * (se * se + nee.2 * nee.2).sqrt(),
+        "weighted sum {avg} ± {se} vs light sampling {} ± {}",
+        nee.1,
+        nee.2
+    );
+}

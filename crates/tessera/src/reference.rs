@@ -61,5 +61,6 @@ pub fn run(args: ReferenceArgs) -> anyhow::Result<()> {
         target_error: Some(args.target_error),
         time_limit: args.time_limit,
         quiet: args.quiet,
+        strategies: None,
     })
 }

@@ -47,6 +47,10 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+    /// BDPT only: also write each strategy (s, t) of depth ≤ 5 into this folder, MIS-weighted
+    /// (`d1_s2_t1.exr`) and unweighted (`d1_s2_t1_unweighted.exr`), for debugging.
+    #[arg(long)]
+    pub strategies: Option<PathBuf>,
 }
 
 /// Renders one frame in this process, through the same plan → tasks → stitch path as the
@@ -149,6 +153,10 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         "--target-error/--time-limit: {} renders whole frames, not tiles; give --spp (samples, or sppm's iterations) instead",
         format!("{kind:?}").to_lowercase()
     );
+    anyhow::ensure!(
+        args.strategies.is_none() || kind == tessera_scene::IntegratorKind::Bdpt,
+        "--strategies: per-strategy images are BDPT's; give --integrator bdpt"
+    );
     let (image, stats, extra, spp_text) = match &adaptive {
         None if sppm => {
             use tessera_render::integrator::sppm::{self, SppmSettings};
@@ -173,6 +181,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
                 .map_err(anyhow::Error::msg)?;
             let name = format!("{kind:?}").to_lowercase();
             let image = sums.image(camera.exposure);
+            if let Some(dir) = &args.strategies {
+                pool.install(|| write_strategies(dir, &prepared, &camera, range))?;
+            }
             (image, stats, Vec::new(), format!("{spp} spp, {name}"))
         }
         None if pssmlt => {
@@ -251,6 +262,32 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     }
     report += &format!("wrote {} and {}\n", output.display(), preview.display());
     crate::print(&report)
+}
+
+/// `--strategies DIR`: BDPT's per-strategy images of depth ≤ 5.
+fn write_strategies(
+    dir: &Path,
+    prepared: &Prepared,
+    camera: &tessera_render::camera::Camera,
+    range: tessera_render::SampleRange,
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
+    let bdpt = tessera_render::integrator::bdpt::Bdpt::new(&prepared.desc);
+    let images = bdpt
+        .render_strategies(&prepared.scene, camera, range, 5)
+        .map_err(anyhow::Error::msg)?;
+    let meta = tessera_render::output::ExrMetadata::default();
+    for i in &images {
+        let name = format!("d{}_s{}_t{}", i.s + i.t - 2, i.s, i.t);
+        tessera_render::output::write_exr(&dir.join(format!("{name}.exr")), &i.weighted, &meta)?;
+        let unweighted = dir.join(format!("{name}_unweighted.exr"));
+        tessera_render::output::write_exr(&unweighted, &i.unweighted, &meta)?;
+    }
+    crate::print(&format!(
+        "wrote {} strategy images into {}\n",
+        2 * images.len(),
+        dir.display()
+    ))
 }
 
 fn default_output(scene: &Path) -> PathBuf {

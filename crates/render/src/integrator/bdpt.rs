@@ -545,27 +545,43 @@ impl<'a> Ctx<'a> {
         sampler: &mut impl Sampler,
         stats: &mut RayStats,
     ) -> (Spectrum, Option<Vec2>) {
+        let (l, w, raster) = self.connect_unweighted(light, camera, s, t, merge, sampler, stats);
+        (l * w, raster)
+    }
+
+    /// [`Self::connect`] with the contribution and its MIS weight apart.
+    #[allow(clippy::too_many_arguments)]
+    fn connect_unweighted(
+        &self,
+        light: &[Vertex],
+        camera: &[Vertex],
+        s: usize,
+        t: usize,
+        merge: f32,
+        sampler: &mut impl Sampler,
+        stats: &mut RayStats,
+    ) -> (Spectrum, f32, Option<Vec2>) {
         let pt = camera[t - 1];
         let mut raster = None;
         let mut sampled = None;
         let l = if s == 0 {
             // The camera subpath hit an emitter.
             if t < 2 || self.light_of(&pt).is_none() {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             pt.beta * self.le(&pt, &camera[t - 2])
         } else if t == 1 {
             // Light tracing: the light subpath's vertex seen through the lens.
             let qs = light[s - 1];
             if !self.connectible(&qs) {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             let u = sampler.get_2d();
             let Some(is) = self.camera.sample_wi(qs.p, u) else {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             };
             if is.pdf <= 0.0 || is.we <= 0.0 {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             let cam = Vertex::point(
                 Kind::Camera,
@@ -580,11 +596,11 @@ impl<'a> Ctx<'a> {
                 l *= is.wi.dot(qs.ns).abs();
             }
             if is_black(l) {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             stats.rays += 1;
             if !self.scene.unoccluded_between(qs.end(), cam.end()) {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             raster = Some(is.raster);
             sampled = Some(cam);
@@ -592,21 +608,21 @@ impl<'a> Ctx<'a> {
         } else if s == 1 {
             // Next-event estimation: a fresh point on a light for the camera path's end.
             if !self.connectible(&pt) {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             let u = sampler.get_3d();
             let Some((li, pmf)) = self.scene.lights.choose(u.x) else {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             };
             let light = self.scene.lights.get(li);
             let Some(ls) = light.sample_li(pt.p, Vec2::new(u.y, u.z)) else {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             };
             let ShadowTarget::Point { p, p_error, n } = ls.target else {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             };
             if ls.pdf <= 0.0 {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             let mut v = Vertex::point(Kind::Light(li), p, p_error, n, ls.li / (ls.pdf * pmf), 0.0);
             v.pdf_fwd = self.pdf_le(&v, &pt).0;
@@ -615,11 +631,11 @@ impl<'a> Ctx<'a> {
                 l *= ls.wi.dot(pt.ns).abs();
             }
             if is_black(l) {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             stats.rays += 1;
             if !self.scene.unoccluded_between(pt.end(), v.end()) {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             sampled = Some(v);
             l
@@ -627,33 +643,33 @@ impl<'a> Ctx<'a> {
             // Both subpaths joined by a shadow ray.
             let qs = light[s - 1];
             if !self.connectible(&qs) || !self.connectible(&pt) {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             let l = qs.beta
                 * self.f(&qs, &pt, TransportMode::Importance)
                 * self.f(&pt, &qs, TransportMode::Radiance)
                 * pt.beta;
             if is_black(l) {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             let w = pt.p - qs.p;
             let d2 = w.length_squared();
             if d2 == 0.0 {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             let wn = w / d2.sqrt();
             let g = qs.ns.dot(wn).abs() * pt.ns.dot(wn).abs() / d2;
             stats.rays += 1;
             if !self.scene.unoccluded_between(qs.end(), pt.end()) {
-                return (Spectrum::ZERO, None);
+                return (Spectrum::ZERO, 0.0, None);
             }
             l * g
         };
         if is_black(l) {
-            return (Spectrum::ZERO, None);
+            return (Spectrum::ZERO, 0.0, None);
         }
         let w = self.mis_weight(light, camera, sampled.as_ref(), s, t, merge);
-        (l * w, raster)
+        (l, w, raster)
     }
 
     /// Whether a vertex can be joined to another: a surface with a smooth lobe, any light
@@ -710,6 +726,17 @@ impl Splats {
             .collect()
     }
 
+    /// Adds `l` to one pixel, unfiltered.
+    fn add_pixel(&self, pixel: glam::UVec2, l: Spectrum) {
+        if !l.is_finite() {
+            return;
+        }
+        let px = &self.rgb[(pixel.y * self.width + pixel.x) as usize];
+        for (a, v) in px.iter().zip(l.to_array()) {
+            a.fetch_add(fixed_splat(v as f64), Relaxed);
+        }
+    }
+
     pub(super) fn add(&self, scene: &Scene, at: Vec2, l: Spectrum) {
         if !l.is_finite() {
             return;
@@ -732,13 +759,16 @@ impl Splats {
                 }
                 let px = &self.rgb[(y * self.width as i64 + x) as usize];
                 for c in 0..3 {
-                    let v = (l[c] as f64 * w as f64 * SPLAT_SCALE)
-                        .clamp(-(i64::MAX as f64) / 4.0, i64::MAX as f64 / 4.0);
-                    px[c].fetch_add(v as i64, Relaxed);
+                    px[c].fetch_add(fixed_splat(l[c] as f64 * w as f64), Relaxed);
                 }
             }
         }
     }
+}
+
+/// `v` in the splats' fixed point (clamped far from overflow).
+fn fixed_splat(v: f64) -> i64 {
+    (v * SPLAT_SCALE).clamp(-(i64::MAX as f64) / 4.0, i64::MAX as f64 / 4.0) as i64
 }
 
 /// Adds fixed-point splat sums times `scale` to an image's pixels.
@@ -747,6 +777,47 @@ pub(super) fn add_splats(image: &mut Image, splats: &[[i64; 3]], scale: f64) {
     for (px, s) in image.pixels.iter_mut().zip(splats) {
         for (v, &t) in px.rgb.iter_mut().zip(s) {
             *v += (t as f64 * scale) as f32;
+        }
+    }
+}
+
+/// One strategy's images (see [`Bdpt::render_strategies`]).
+pub struct StrategyImage {
+    pub s: u32,
+    pub t: u32,
+    pub weighted: Image,
+    pub unweighted: Image,
+}
+
+/// Where [`Bdpt::render_strategies`] collects each strategy's contributions.
+struct Recorder<'a> {
+    strategies: &'a [(usize, usize)],
+    /// (weighted, unweighted) per strategy.
+    films: &'a [(Splats, Splats)],
+}
+
+impl Recorder<'_> {
+    #[allow(clippy::too_many_arguments)]
+    fn record(
+        &self,
+        scene: &Scene,
+        s: usize,
+        t: usize,
+        pixel: glam::UVec2,
+        raster: Option<Vec2>,
+        weighted: Spectrum,
+        unweighted: Spectrum,
+    ) {
+        let Some(i) = self.strategies.iter().position(|&x| x == (s, t)) else {
+            return;
+        };
+        let (a, b) = &self.films[i];
+        let at = raster.unwrap_or(pixel.as_vec2() + Vec2::splat(0.5));
+        for (film, l) in [(a, weighted), (b, unweighted)] {
+            match raster {
+                Some(_) => film.add(scene, at, l),
+                None => film.add_pixel(pixel, l),
+            }
         }
     }
 }
@@ -834,7 +905,7 @@ impl Bdpt {
         let results: Vec<(TileSums, RayStats)> = tiles(w, h, 16)
             .into_par_iter()
             .map(|tile| {
-                let r = self.render_tile(&ctx, tile, range, &splats);
+                let r = self.render_tile(&ctx, tile, range, &splats, None);
                 progress(tile.pixel_count() as u64);
                 r
             })
@@ -865,12 +936,62 @@ impl Bdpt {
         Ok((sums.image(camera.exposure), stats))
     }
 
+    /// Per-strategy images for debugging (Veach's figure 10.3; pbrt's `visualizeStrategies`):
+    /// for every (s, t) of depth s + t − 2 ≤ `depth`, what the strategy contributes to the
+    /// image with its MIS weight, and without (the strategy's own estimate of all light of
+    /// that depth, wherever it can sample it). Camera-side contributions land on their pixel,
+    /// light tracing through the film filter; each is exposed and divided by the samples.
+    pub fn render_strategies(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        range: SampleRange,
+        depth: u32,
+    ) -> Result<Vec<StrategyImage>, String> {
+        let ctx = Ctx::new("bdpt", scene, camera, self.rr_depth)?;
+        let (w, h) = (scene.film.width, scene.film.height);
+        let depth = depth.min(self.max_depth) as usize;
+        let strategies: Vec<(usize, usize)> = (0..=depth)
+            .flat_map(|d| (0..=d + 1).map(move |s| (s, d + 2 - s)))
+            .filter(|&st| st != (1, 1))
+            .collect();
+        let films: Vec<(Splats, Splats)> = strategies
+            .iter()
+            .map(|_| (Splats::new(w, h), Splats::new(w, h)))
+            .collect();
+        let recorder = Recorder {
+            strategies: &strategies,
+            films: &films,
+        };
+        let splats = Splats::new(w, h);
+        tiles(w, h, 16).into_par_iter().for_each(|tile| {
+            self.render_tile(&ctx, tile, range, &splats, Some(&recorder));
+        });
+        let scale = camera.exposure as f64 / range.end.saturating_sub(range.start).max(1) as f64;
+        let image = |f: &Splats| {
+            let mut image = Image::new(w, h);
+            add_splats(&mut image, &f.totals(), scale);
+            image
+        };
+        Ok(strategies
+            .iter()
+            .zip(&films)
+            .map(|(&(s, t), (weighted, unweighted))| StrategyImage {
+                s: s as u32,
+                t: t as u32,
+                weighted: image(weighted),
+                unweighted: image(unweighted),
+            })
+            .collect())
+    }
+
     fn render_tile(
         &self,
         ctx: &Ctx,
         tile: Tile,
         range: SampleRange,
         splats: &Splats,
+        recorder: Option<&Recorder>,
     ) -> (TileSums, RayStats) {
         let scene = ctx.scene;
         let mut sums = TileSums::new(tile, range);
@@ -894,8 +1015,12 @@ impl Bdpt {
                         {
                             continue;
                         }
-                        let (c, raster) =
-                            ctx.connect(&lig, &cam, s, t, 0.0, &mut sampler, &mut stats);
+                        let (u, w, raster) =
+                            ctx.connect_unweighted(&lig, &cam, s, t, 0.0, &mut sampler, &mut stats);
+                        let c = u * w;
+                        if let Some(r) = recorder {
+                            r.record(scene, s, t, pixel, raster, c, u);
+                        }
                         match raster {
                             Some(at) => splats.add(scene, at, c),
                             None => l += c,
