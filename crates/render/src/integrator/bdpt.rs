@@ -851,6 +851,26 @@ impl BdptSums {
         }
     }
 
+    /// Samples `range` of a `width` × `height` film from its tiles' sums and the splats.
+    pub(super) fn gather<'t>(
+        width: u32,
+        height: u32,
+        range: SampleRange,
+        tiles: impl IntoIterator<Item = &'t TileSums>,
+        splats: &Splats,
+    ) -> Self {
+        let mut out = BdptSums::new(width, height);
+        out.sums.samples = range;
+        out.samples = range.end.saturating_sub(range.start);
+        for tile in tiles {
+            for (p, s) in tile.tile.pixels().zip(&tile.pixels) {
+                out.sums.pixels[(p.y * width + p.x) as usize] = *s;
+            }
+        }
+        out.splats = splats.totals();
+        out
+    }
+
     /// Adds the sums of another sample range of the same film.
     pub fn merge(&mut self, other: &BdptSums) {
         if self.samples == 0 {
@@ -910,18 +930,12 @@ impl Bdpt {
                 r
             })
             .collect();
-        let mut out = BdptSums::new(w, h);
-        out.sums.samples = range;
-        out.samples = range.end.saturating_sub(range.start);
         let mut stats = RayStats::default();
-        for (tile, st) in &results {
+        for (_, st) in &results {
             stats.add(st);
-            for (p, s) in tile.tile.pixels().zip(&tile.pixels) {
-                out.sums.pixels[(p.y * w + p.x) as usize] = *s;
-            }
         }
-        out.splats = splats.totals();
-        Ok((out, stats))
+        let tiles = results.iter().map(|(t, _)| t);
+        Ok((BdptSums::gather(w, h, range, tiles, &splats), stats))
     }
 
     /// Renders samples `range` of the frame: [`Self::render_range`]'s sums as an image.

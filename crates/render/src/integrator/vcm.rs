@@ -84,16 +84,7 @@ impl Vcm {
             stats.add(&self.iteration(&ctx, k, &mut film, &splats));
             progress(w as u64 * h as u64);
         }
-        let mut out = BdptSums::new(w, h);
-        out.sums.samples = range;
-        out.samples = range.end.saturating_sub(range.start);
-        for tile in &film {
-            for (p, s) in tile.tile.pixels().zip(&tile.pixels) {
-                out.sums.pixels[(p.y * w + p.x) as usize] = *s;
-            }
-        }
-        out.splats = splats.totals();
-        Ok((out, stats))
+        Ok((BdptSums::gather(w, h, range, &film, &splats), stats))
     }
 
     /// Iteration `k`: the light pass (subpaths, light tracing, the merge tree), then the

@@ -187,15 +187,19 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         // A continued render's clock runs from the start; a fresh one's is the setup plus
         // its last render.
         let mut last = (0.0, None);
-        let clock = |last: (f64, Option<f64>)| match &acc_kind(*kind) {
-            Continued::Yes => (
-                start.elapsed().as_secs_f64(),
-                crate::render::cpu_seconds().zip(cpu0).map(|(b, a)| b - a),
-            ),
-            Continued::No => (
-                setup.0 + last.0,
-                setup.1.zip(cpu0).zip(last.1).map(|((s, a), l)| s - a + l),
-            ),
+        let fresh = matches!(acc, Progressive::Fresh(..));
+        let clock = |last: (f64, Option<f64>)| {
+            if fresh {
+                (
+                    setup.0 + last.0,
+                    setup.1.zip(cpu0).zip(last.1).map(|((s, a), l)| s - a + l),
+                )
+            } else {
+                (
+                    start.elapsed().as_secs_f64(),
+                    crate::render::cpu_seconds().zip(cpu0).map(|(b, a)| b - a),
+                )
+            }
         };
         for budget in &budgets {
             let render = |acc: &mut Progressive, n: u32| -> anyhow::Result<(f64, Option<f64>)> {
@@ -276,19 +280,6 @@ enum Progressive<'a> {
     Bdpt(BdptSums),
     /// Rendered anew for each budget (Markov chains are not continued): PSSMLT.
     Fresh(Pssmlt, Option<(tessera_render::Image, u32)>),
-}
-
-enum Continued {
-    Yes,
-    No,
-}
-
-fn acc_kind(kind: IntegratorKind) -> Continued {
-    if kind == IntegratorKind::Pssmlt {
-        Continued::No
-    } else {
-        Continued::Yes
-    }
 }
 
 impl Progressive<'_> {
