@@ -558,7 +558,7 @@ fn an_sppm_job_runs_its_iterations_as_tasks_survives_a_restart_and_equals_tesser
 }
 
 #[test]
-fn bdpt_and_vcm_jobs_are_split_by_sample_range_and_bit_identical_on_one_worker_and_on_two() {
+fn whole_film_jobs_are_split_into_tasks_and_bit_identical_on_one_worker_and_on_two() {
     let dir = tempfile::tempdir().expect("temp dir");
     let rt = runtime();
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-glass/scene.json");
@@ -577,8 +577,14 @@ fn bdpt_and_vcm_jobs_are_split_by_sample_range_and_bit_identical_on_one_worker_a
             (workers, serve, url, procs)
         })
         .collect();
-    for integrator in ["bdpt", "vcm"] {
-        // 10 samples (VCM: iterations) in tasks of 3: 0-3, 3-6, 6-9, 9-10 over the film.
+    // BDPT and VCM: 10 samples (VCM: iterations) in tasks of 3: 0-3, 3-6, 6-9, 9-10 over the
+    // film. PSSMLT and MLT: 10 mutations per pixel, a task per group of chains.
+    for (integrator, total, said) in [
+        ("bdpt", 4, "light tracing splats anywhere"),
+        ("vcm", 4, "light tracing splats anywhere"),
+        ("pssmlt", 8, "Markov chains wander over the whole film"),
+        ("mlt", 8, "Markov chains wander over the whole film"),
+    ] {
         let args = ["--integrator", integrator, "--size", "40x32", "--spp", "10"];
         let mut frames = Vec::new();
         for (workers, _, url, _) in &farms {
@@ -592,8 +598,11 @@ fn bdpt_and_vcm_jobs_are_split_by_sample_range_and_bit_identical_on_one_worker_a
                 let id = submit_scene(url, &scene, &submit_args);
                 let job = wait_for(&rt, &client, id, Duration::from_secs(120));
                 assert_eq!(job.state, JobState::Done, "{:?}", job.error);
-                assert_eq!(job.tasks.total, 4, "4 sample ranges of the whole film");
-                let said = format!("{integrator}: light tracing splats anywhere");
+                assert_eq!(
+                    job.tasks.total, total,
+                    "{integrator}: tasks over the whole film"
+                );
+                let said = format!("{integrator}: {said}");
                 assert!(
                     job.decisions.iter().any(|d| d.starts_with(&said)),
                     "{:?}",

@@ -12,10 +12,17 @@
 //!
 //! A task's result is the whole film's sums: 272 bytes per pixel (17.8 MB at 256²), which is
 //! why a frame has few of them (`samples_per_task`, default an eighth of the samples).
+//!
+//! The Metropolis renderers (PSSMLT, MLT) go the same way: their chains wander over the whole
+//! film, and a frame is [`GROUPS`] tasks, one per group of chains (`tile_index` = the group,
+//! the sample range its share of the direct-light samples; see
+//! [`tessera_render::integrator::metropolis`]). Their results add the chains' fixed-point
+//! splats and the group's brightness samples (296 bytes per pixel).
 
 use tessera_render::camera::Camera;
 use tessera_render::film::Tile;
 use tessera_render::integrator::bdpt::{Bdpt, BdptSums};
+use tessera_render::integrator::metropolis::{GROUPS, Metropolis, share};
 use tessera_render::integrator::vcm::Vcm;
 use tessera_render::{RayStats, SampleRange};
 use tessera_scene::{IntegratorKind, SceneDesc};
@@ -29,6 +36,12 @@ pub const DEFAULT_TASKS: u32 = 8;
 /// Whether an integrator's frames are sample ranges over the whole film (BDPT and VCM).
 pub fn sample_ranges(kind: IntegratorKind) -> bool {
     matches!(kind, IntegratorKind::Bdpt | IntegratorKind::Vcm)
+}
+
+/// Whether an integrator's frames are farm tasks over the whole film, merged as [`BdptSums`]:
+/// BDPT's and VCM's sample ranges, the Metropolis renderers' chain groups.
+pub fn film_tasks(kind: IntegratorKind) -> bool {
+    sample_ranges(kind) || matches!(kind, IntegratorKind::Pssmlt | IntegratorKind::Mlt)
 }
 
 /// Samples (VCM: iterations) `range` of a frame by the scene's BDPT or VCM, on this process's
@@ -53,13 +66,24 @@ pub fn render_range(
     }
 }
 
-/// Checks that a job's BDPT or VCM settings can run on the farm.
+/// Checks that a job's BDPT, VCM or Metropolis settings can run on the farm.
 pub fn check(desc: &SceneDesc, settings: &RenderSettings) -> Result<(), String> {
+    let name = format!("{:?}", desc.integrator.kind).to_lowercase();
     if settings.target_error.is_some() {
-        return Err(
-            "target_error: bdpt and vcm refine every pixel at once (their splats land anywhere); give spp instead"
-                .into(),
-        );
+        return Err(format!(
+            "target_error: {name} refines every pixel at once (its splats land anywhere); give spp instead"
+        ));
+    }
+    if desc.integrator.kind == IntegratorKind::Mlt {
+        // Lights in the scene's light list are points, spots and lights at infinity; area
+        // lights are emissive shapes.
+        if !desc.lights.is_empty() {
+            return Err("integrator: mlt supports area lights (emissive meshes and spheres) only; use pssmlt or bdpt".into());
+        }
+        if matches!(desc.camera.lens, tessera_scene::Lens::Thin { aperture_radius, .. } if aperture_radius > 0.0)
+        {
+            return Err("integrator: mlt supports pinhole cameras only; use pssmlt or bdpt".into());
+        }
     }
     use tessera_scene::LightDesc;
     if desc.lights.iter().any(|l| {
@@ -68,16 +92,36 @@ pub fn check(desc: &SceneDesc, settings: &RenderSettings) -> Result<(), String> 
             LightDesc::Directional { .. } | LightDesc::Environment { .. }
         )
     }) {
-        return Err(
-            "integrator: bdpt and vcm do not support lights at infinity (environment, directional) yet; use path".into(),
-        );
+        return Err(format!(
+            "integrator: {name} does not support lights at infinity (environment, directional) yet; use path"
+        ));
     }
     Ok(())
 }
 
-/// The tasks of `frame`: sample ranges of the whole film, in merge order.
+/// The tasks of `frame`: sample ranges of the whole film (Metropolis: chain groups), in
+/// merge order.
 pub fn tasks(desc: &SceneDesc, settings: &RenderSettings, frame: u32) -> Vec<TaskSpec> {
     let spp = desc.integrator.spp.max(1);
+    let whole = |tile_index: u32, sample_start: u32, sample_end: u32| TaskSpec {
+        kind: TaskKind::Bdpt,
+        frame,
+        tile_index,
+        x0: 0,
+        y0: 0,
+        x1: desc.film.width,
+        y1: desc.film.height,
+        sample_start,
+        sample_end,
+    };
+    if !sample_ranges(desc.integrator.kind) {
+        return (0..GROUPS)
+            .map(|g| {
+                let s = share(spp as u64, g);
+                whole(g, s.start as u32, s.end as u32)
+            })
+            .collect();
+    }
     let chunk = settings
         .samples_per_task
         .unwrap_or(spp.div_ceil(DEFAULT_TASKS))
@@ -85,23 +129,18 @@ pub fn tasks(desc: &SceneDesc, settings: &RenderSettings, frame: u32) -> Vec<Tas
     (0..spp)
         .step_by(chunk as usize)
         .enumerate()
-        .map(|(i, start)| TaskSpec {
-            kind: TaskKind::Bdpt,
-            frame,
-            tile_index: i as u32,
-            x0: 0,
-            y0: 0,
-            x1: desc.film.width,
-            y1: desc.film.height,
-            sample_start: start,
-            sample_end: (start + chunk).min(spp),
-        })
+        .map(|(i, start)| whole(i as u32, start, (start + chunk).min(spp)))
         .collect()
 }
 
-/// What the job status says about a BDPT or VCM job's tasks.
+/// What the job status says about a BDPT, VCM or Metropolis job's tasks.
 pub fn decision(desc: &SceneDesc, settings: &RenderSettings) -> String {
     let name = format!("{:?}", desc.integrator.kind).to_lowercase();
+    if !sample_ranges(desc.integrator.kind) {
+        return format!(
+            "{name}: Markov chains wander over the whole film, so each frame is {GROUPS} tasks, each a group of chains (with its share of the direct light, brightness samples and bootstrap paths), merged as fixed-point sums"
+        );
+    }
     format!(
         "{name}: light tracing splats anywhere on the film, so each frame is {} tasks of sample ranges over the whole film (not tiles), merged in order as fixed-point sums",
         tasks(desc, settings, 1).len()
@@ -117,12 +156,28 @@ pub fn execute(prepared: &Prepared, spec: &TaskSpec) -> Result<(BdptSums, RaySta
             spec.tile()
         ));
     }
-    render_range(
-        prepared,
-        &prepared.camera(spec.frame),
-        spec.samples(),
-        &|_| {},
-    )
+    let camera = prepared.camera(spec.frame);
+    match Metropolis::new(prepared.analysis.integrator, &prepared.desc) {
+        Some(m) => {
+            let g = spec.tile_index;
+            let (sums, stats) = m.render_groups(
+                &prepared.scene,
+                &camera,
+                prepared.desc.integrator.spp.max(1),
+                g..g + 1,
+                &|_| {},
+            )?;
+            if sums.sums.samples != spec.samples() {
+                return Err(format!(
+                    "group {g}'s direct-light samples are {:?}, the task says {:?}",
+                    sums.sums.samples,
+                    spec.samples()
+                ));
+            }
+            Ok((sums, stats))
+        }
+        None => render_range(prepared, &camera, spec.samples(), &|_| {}),
+    }
 }
 
 fn film(desc: &SceneDesc) -> Tile {
@@ -135,14 +190,24 @@ fn film(desc: &SceneDesc) -> Tile {
 }
 
 /// A task's result: the film's sums as a tile's ([`codec`]), then each pixel's splats as
-/// three little-endian i64.
+/// three little-endian i64; for the Metropolis renderers then each pixel's chain splats the
+/// same way and the brightness sum (i128) and count (u64).
 pub fn encode_output(sums: &BdptSums, stats: &RayStats) -> Vec<u8> {
     let mut b = codec::encode_sums(&sums.sums, stats);
-    b.reserve(sums.splats.len() * 24);
-    for px in &sums.splats {
-        for v in px {
-            b.extend_from_slice(&v.to_le_bytes());
+    let chains = !sums.chain.is_empty();
+    b.reserve(sums.splats.len() * if chains { 48 } else { 24 } + 24);
+    let mut put = |splats: &[[i64; 3]]| {
+        for px in splats {
+            for v in px {
+                b.extend_from_slice(&v.to_le_bytes());
+            }
         }
+    };
+    put(&sums.splats);
+    if chains {
+        put(&sums.chain);
+        b.extend_from_slice(&sums.brightness.0.to_le_bytes());
+        b.extend_from_slice(&sums.brightness.1.to_le_bytes());
     }
     b
 }
@@ -151,33 +216,41 @@ pub fn encode_output(sums: &BdptSums, stats: &RayStats) -> Vec<u8> {
 pub fn decode_output(bytes: &[u8], task: &TaskSpec) -> Result<(BdptSums, RayStats), String> {
     let pixels = task.tile().pixel_count();
     let head = codec::encoded_len(pixels);
-    if bytes.len() != head + pixels * 24 {
+    let (plain, chains) = (head + pixels * 24, head + pixels * 48 + 24);
+    if bytes.len() != plain && bytes.len() != chains {
         return Err(format!(
-            "expected {} bytes of bdpt sums for a {}×{} film, got {}",
-            head + pixels * 24,
+            "expected {plain} bytes of bdpt sums for a {}×{} film ({chains} with Metropolis chains), got {}",
             task.tile().width(),
             task.tile().height(),
             bytes.len()
         ));
     }
     let out = codec::decode(&bytes[..head], task)?;
-    let splats = bytes[head..]
-        .chunks_exact(24)
-        .map(|px| {
-            let v =
-                |i: usize| i64::from_le_bytes(px[i * 8..i * 8 + 8].try_into().unwrap_or([0; 8]));
-            [v(0), v(1), v(2)]
-        })
-        .collect();
-    let samples = task.sample_end.saturating_sub(task.sample_start);
-    Ok((
-        BdptSums {
-            sums: out.sums,
-            splats,
-            samples,
-        },
-        out.stats,
-    ))
+    let splats = |bytes: &[u8]| -> Vec<[i64; 3]> {
+        bytes
+            .chunks_exact(24)
+            .map(|px| {
+                let v = |i: usize| {
+                    i64::from_le_bytes(px[i * 8..i * 8 + 8].try_into().unwrap_or([0; 8]))
+                };
+                [v(0), v(1), v(2)]
+            })
+            .collect()
+    };
+    let mut sums = BdptSums::new(task.tile().width(), task.tile().height());
+    sums.sums = out.sums;
+    sums.samples = task.sample_end.saturating_sub(task.sample_start);
+    sums.splats = splats(&bytes[head..head + pixels * 24]);
+    if bytes.len() == chains {
+        let rest = &bytes[head + pixels * 24..];
+        sums.chain = splats(&rest[..pixels * 24]);
+        let tail = &rest[pixels * 24..];
+        sums.brightness = (
+            i128::from_le_bytes(tail[..16].try_into().unwrap_or([0; 16])),
+            u64::from_le_bytes(tail[16..24].try_into().unwrap_or([0; 8])),
+        );
+    }
+    Ok((sums, out.stats))
 }
 
 /// Merges a frame's task results (in chunk order; any order gives the same bits).
@@ -242,5 +315,40 @@ mod tests {
                 .unwrap_err()
                 .contains("span the film")
         );
+    }
+
+    #[test]
+    fn metropolis_frames_as_group_tasks_round_trip_and_equal_one_render() {
+        for kind in [IntegratorKind::Pssmlt, IntegratorKind::Mlt] {
+            let mut desc = scene("cornell-glass", 3);
+            desc.integrator.kind = kind;
+            desc.film.width = 12;
+            desc.film.height = 10;
+            let specs = tasks(&desc, &RenderSettings::default(), 1);
+            assert_eq!(specs.len(), GROUPS as usize);
+            // 3 direct-light samples over 8 groups: most have none.
+            let direct: u32 = specs.iter().map(|t| t.sample_end - t.sample_start).sum();
+            assert_eq!(direct, 3);
+            let prepared = Prepared::new(desc.clone(), FrameRange::single(1));
+            let outputs: Vec<_> = specs
+                .iter()
+                .map(|t| {
+                    let (s, st) = execute(&prepared, t).expect("renders");
+                    assert_eq!(s.chain.len(), 120, "{kind:?}: chain splats");
+                    let bytes = encode_output(&s, &st);
+                    let back = decode_output(&bytes, t).expect("decodes");
+                    assert_eq!(back, (s, st));
+                    back
+                })
+                .collect();
+            let (merged, _) = merge(&outputs, &desc);
+            let m = Metropolis::new(kind, &desc).expect("metropolis");
+            let whole = m
+                .render_groups(&prepared.scene, &prepared.camera(1), 3, 0..GROUPS, &|_| {})
+                .expect("renders")
+                .0;
+            assert_eq!(merged, whole, "{kind:?}");
+            assert!(merged.b() > 0.0);
+        }
     }
 }

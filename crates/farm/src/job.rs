@@ -63,11 +63,12 @@ pub enum IntegratorName {
     Sppm,
     Bdpt,
     Pssmlt,
+    Mlt,
     Vcm,
 }
 
 impl IntegratorName {
-    pub const ALL: [IntegratorName; 8] = [
+    pub const ALL: [IntegratorName; 9] = [
         IntegratorName::Path,
         IntegratorName::Direct,
         IntegratorName::Auto,
@@ -75,6 +76,7 @@ impl IntegratorName {
         IntegratorName::Sppm,
         IntegratorName::Bdpt,
         IntegratorName::Pssmlt,
+        IntegratorName::Mlt,
         IntegratorName::Vcm,
     ];
 
@@ -87,6 +89,7 @@ impl IntegratorName {
             IntegratorName::Sppm => IntegratorKind::Sppm,
             IntegratorName::Bdpt => IntegratorKind::Bdpt,
             IntegratorName::Pssmlt => IntegratorKind::Pssmlt,
+            IntegratorName::Mlt => IntegratorKind::Mlt,
             IntegratorName::Vcm => IntegratorKind::Vcm,
         }
     }
@@ -100,6 +103,7 @@ impl IntegratorName {
             IntegratorName::Sppm => "sppm",
             IntegratorName::Bdpt => "bdpt",
             IntegratorName::Pssmlt => "pssmlt",
+            IntegratorName::Mlt => "mlt",
             IntegratorName::Vcm => "vcm",
         }
     }
@@ -278,7 +282,7 @@ pub fn apply(
     if desc.integrator.kind == IntegratorKind::Sppm {
         crate::sppm::check(desc, settings)?;
     }
-    if crate::bdpt::sample_ranges(desc.integrator.kind) {
+    if crate::bdpt::film_tasks(desc.integrator.kind) {
         crate::bdpt::check(desc, settings)?;
     }
     let available = desc.frame_count();
@@ -428,7 +432,7 @@ pub fn plan_frame(desc: &SceneDesc, settings: &RenderSettings, frame: u32) -> Ve
     if desc.integrator.kind == IntegratorKind::Sppm {
         return crate::sppm::iteration_tasks(desc, frame, 0);
     }
-    if crate::bdpt::sample_ranges(desc.integrator.kind) {
+    if crate::bdpt::film_tasks(desc.integrator.kind) {
         return crate::bdpt::tasks(desc, settings, frame);
     }
     // An adaptive frame starts with one round of every tile; later rounds follow its noise.

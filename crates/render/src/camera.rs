@@ -160,6 +160,24 @@ impl Camera {
         )
     }
 
+    /// For a pinhole: W_e, the direction density of [`Self::pdf_we`] and cos θ of the ray
+    /// leaving along unit `d`, and its raster position, on the film or off it (for integrators
+    /// whose film extends past the edge pixels); `None` behind the camera.
+    pub fn pinhole_importance(&self, d: Vec3A) -> Option<(f32, f32, f32, Vec2)> {
+        let cos = d.dot(self.forward);
+        if cos <= 0.0 {
+            return None;
+        }
+        let raster = self.project(self.position + d)?;
+        let a = self.film_area();
+        Some((
+            1.0 / (a * cos.powi(4)),
+            1.0 / (a * cos * cos * cos),
+            cos,
+            raster,
+        ))
+    }
+
     /// Raster position of the ray from lens point `o` along `d`: where it crosses the plane
     /// in focus, seen through the lens centre; `None` off the film.
     fn raster(&self, o: Vec3A, d: Vec3A) -> Option<Vec2> {

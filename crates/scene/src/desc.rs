@@ -100,6 +100,9 @@ pub enum IntegratorKind {
     /// Primary-sample-space Metropolis light transport over BDPT's strategies (multiplexed);
     /// `spp` is mutations per pixel.
     Pssmlt,
+    /// Metropolis light transport in path space (Veach & Guibas 1997): bidirectional
+    /// mutations, lens and caustic perturbations; `spp` is mutations per pixel.
+    Mlt,
     /// Vertex connection and merging: BDPT plus photon merging at camera vertices under one
     /// MIS; `spp` iterations.
     Vcm,
@@ -115,6 +118,7 @@ impl IntegratorKind {
             IntegratorKind::Sppm
                 | IntegratorKind::Bdpt
                 | IntegratorKind::Pssmlt
+                | IntegratorKind::Mlt
                 | IntegratorKind::Vcm
         )
     }

@@ -241,6 +241,8 @@ pub enum IntegratorType {
     Bdpt,
     /// Primary-sample-space MLT (Kelemen et al. 2002), multiplexed (Hachisuka et al. 2014).
     Pssmlt,
+    /// Path-space MLT (Veach & Guibas 1997).
+    Mlt,
     /// Vertex connection and merging (Georgiev et al. 2012): consistent.
     Vcm,
 }

@@ -542,6 +542,7 @@ impl Ctx<'_> {
                 IntegratorType::Sppm => IntegratorKind::Sppm,
                 IntegratorType::Bdpt => IntegratorKind::Bdpt,
                 IntegratorType::Pssmlt => IntegratorKind::Pssmlt,
+                IntegratorType::Mlt => IntegratorKind::Mlt,
                 IntegratorType::Vcm => IntegratorKind::Vcm,
             },
             spp: i.spp,

@@ -142,11 +142,11 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         max_spp: spp,
     });
     let kind = analysis.integrator;
-    let (sppm, bdpt, pssmlt) = (
+    let (sppm, bdpt) = (
         kind == tessera_scene::IntegratorKind::Sppm,
         tessera_farm::bdpt::sample_ranges(kind),
-        kind == tessera_scene::IntegratorKind::Pssmlt,
     );
+    let metropolis = tessera_render::integrator::metropolis::Metropolis::new(kind, desc);
     // Adaptive sampling refines tiles; these refine every pixel at once.
     anyhow::ensure!(
         !(kind.whole_frame() && adaptive.is_some()),
@@ -186,23 +186,14 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
             }
             (image, stats, Vec::new(), format!("{spp} spp, {name}"))
         }
-        None if pssmlt => {
-            use tessera_render::integrator::pssmlt::Pssmlt;
-            let m = Pssmlt::new(desc);
+        None if metropolis.is_some() => {
+            let m = metropolis.expect("checked");
             progress.set_length(spp as u64 * w as u64 * h as u64);
             let (image, stats) = pool
                 .install(|| m.render(&prepared.scene, &camera, spp, &|n| progress.inc(n)))
                 .map_err(anyhow::Error::msg)?;
-            let text = format!(
-                "{spp} mutations per pixel, pssmlt ({} chains, {} bootstrap paths, σ {}, large steps {})",
-                m.chains, m.bootstrap, m.sigma, m.large_step
-            );
-            (
-                image,
-                stats,
-                vec![("pssmlt".to_string(), text.clone())],
-                text,
-            )
+            // No settings in the EXR: the farm's frame of the same job is the same file.
+            (image, stats, Vec::new(), m.describe(spp))
         }
         None => {
             let outputs: Vec<TaskOutput> = pool.install(|| {

@@ -293,13 +293,8 @@ async fn submit_job(
             .iter()
             .map(|f| job::plan_frame(&desc, &req.settings, f))
             .collect();
-        if analysis.integrator == tessera_scene::IntegratorKind::Pssmlt {
-            return Err(AppError::bad_request(
-                "integrator: pssmlt runs in tessera render only for now (its chains are not farm tasks yet); use bdpt, path, photon or sppm on the farm",
-            ));
-        }
         let mut decisions = job::decisions(&desc);
-        if crate::bdpt::sample_ranges(analysis.integrator) {
+        if crate::bdpt::film_tasks(analysis.integrator) {
             decisions.push(crate::bdpt::decision(&desc, &req.settings));
         }
         if analysis.integrator == tessera_scene::IntegratorKind::Sppm {

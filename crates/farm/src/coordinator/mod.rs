@@ -181,7 +181,7 @@ impl App {
             plan: passes::plan(&desc, &analysis, frames),
             sppm: (analysis.integrator == tessera_scene::IntegratorKind::Sppm)
                 .then(|| sppm::settings(&desc).1),
-            bdpt: bdpt::sample_ranges(analysis.integrator),
+            bdpt: bdpt::film_tasks(analysis.integrator),
             desc,
             settings,
             frames,

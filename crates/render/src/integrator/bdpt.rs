@@ -40,15 +40,15 @@ pub(super) enum Kind {
 /// A subpath vertex.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Vertex {
-    kind: Kind,
+    pub(super) kind: Kind,
     pub(super) p: Vec3A,
-    p_error: Vec3A,
+    pub(super) p_error: Vec3A,
     /// Geometric normal; zero for a point in space (a pinhole, a point light).
     pub(super) ng: Vec3A,
     /// Shading normal (the geometric one where there is no surface to shade).
-    ns: Vec3A,
+    pub(super) ns: Vec3A,
     /// For surfaces: the hit, and the direction toward the previous vertex of the subpath.
-    si: Option<SurfaceInteraction>,
+    pub(super) si: Option<SurfaceInteraction>,
     pub(super) wo: Vec3A,
     pub(super) beta: Spectrum,
     /// Sampled by a specular lobe: no other strategy can make it.
@@ -83,11 +83,20 @@ impl Vertex {
         }
     }
 
-    fn on_surface(&self) -> bool {
+    /// The vertex of a ray's hit, arrived at from direction `wo`.
+    pub(super) fn surface(si: SurfaceInteraction, wo: Vec3A) -> Self {
+        let mut v = Vertex::point(Kind::Surface, si.p, si.p_error, si.ng, Spectrum::ONE, 0.0);
+        v.ns = si.ns;
+        v.si = Some(si);
+        v.wo = wo;
+        v
+    }
+
+    pub(super) fn on_surface(&self) -> bool {
         self.ng != Vec3A::ZERO
     }
 
-    fn end(&self) -> (Vec3A, Vec3A, Vec3A) {
+    pub(super) fn end(&self) -> (Vec3A, Vec3A, Vec3A) {
         (self.p, self.p_error, self.ng)
     }
 
@@ -156,7 +165,7 @@ impl<'a> Ctx<'a> {
         })
     }
 
-    fn light_of(&self, v: &Vertex) -> Option<(u32, &Light)> {
+    pub(super) fn light_of(&self, v: &Vertex) -> Option<(u32, &Light)> {
         let i = match v.kind {
             Kind::Light(i) => i,
             Kind::Surface => v.si.map_or(NO_LIGHT, |si| si.light),
@@ -262,10 +271,8 @@ impl<'a> Ctx<'a> {
             };
             let wo = -ray.d;
             let prev = path.len() - 1;
-            let mut v = Vertex::point(Kind::Surface, si.p, si.p_error, si.ng, beta, 0.0);
-            v.ns = si.ns;
-            v.si = Some(si);
-            v.wo = wo;
+            let mut v = Vertex::surface(si, wo);
+            v.beta = beta;
             v.pdf_fwd = path[prev].convert_density(pdf_fwd, &v);
             path.push(v);
             if path.len() >= max {
@@ -551,7 +558,7 @@ impl<'a> Ctx<'a> {
 
     /// [`Self::connect`] with the contribution and its MIS weight apart.
     #[allow(clippy::too_many_arguments)]
-    fn connect_unweighted(
+    pub(super) fn connect_unweighted(
         &self,
         light: &[Vertex],
         camera: &[Vertex],
@@ -686,7 +693,12 @@ impl<'a> Ctx<'a> {
 
 /// Veach's correction for shading normals in importance transport (thesis §5.3, eq. 5.19):
 /// |ωo·ns| |ωi·ng| / (|ωo·ng| |ωi·ns|); 1 for radiance.
-fn shading_correction(si: &SurfaceInteraction, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> f32 {
+pub(super) fn shading_correction(
+    si: &SurfaceInteraction,
+    wo: Vec3A,
+    wi: Vec3A,
+    mode: TransportMode,
+) -> f32 {
     if mode == TransportMode::Radiance {
         return 1.0;
     }
@@ -717,7 +729,6 @@ impl Splats {
         }
     }
 
-    /// Adds `l` arriving at raster position `at`, shared among the pixels under the filter.
     /// Each pixel's sums, in 2⁻³² units.
     pub(super) fn totals(&self) -> Vec<[i64; 3]> {
         self.rgb
@@ -737,6 +748,7 @@ impl Splats {
         }
     }
 
+    /// Adds `l` arriving at raster position `at`, shared among the pixels under the filter.
     pub(super) fn add(&self, scene: &Scene, at: Vec2, l: Spectrum) {
         if !l.is_finite() {
             return;
@@ -764,6 +776,20 @@ impl Splats {
             }
         }
     }
+}
+
+/// Adds fixed-point sums pixel by pixel.
+fn add_fixed(to: &mut [[i64; 3]], from: &[[i64; 3]]) {
+    for (a, b) in to.iter_mut().zip(from) {
+        for c in 0..3 {
+            a[c] = a[c].wrapping_add(b[c]);
+        }
+    }
+}
+
+/// A brightness sample in the sums' fixed point (i128: no overflow however many).
+pub(super) fn fixed_brightness(v: f64) -> i128 {
+    (v * SPLAT_SCALE) as i128
 }
 
 /// `v` in the splats' fixed point (clamped far from overflow).
@@ -833,6 +859,12 @@ pub struct BdptSums {
     pub splats: Vec<[i64; 3]>,
     /// Samples per pixel summed so far (the merged ranges' total).
     pub samples: u32,
+    /// The Metropolis renderers' chain splats (Σ f / f* × acceptance per pixel, 2⁻³² units),
+    /// scaled by b per sample in [`Self::image`]; empty for BDPT and VCM.
+    pub chain: Vec<[i64; 3]>,
+    /// The Metropolis renderers' brightness samples: their sum (2⁻³² units) and count, b
+    /// their mean.
+    pub brightness: (i128, u64),
 }
 
 impl BdptSums {
@@ -848,6 +880,8 @@ impl BdptSums {
             sums: TileSums::new(tile, SampleRange { start: 0, end: 0 }),
             splats: vec![[0; 3]; tile.pixel_count()],
             samples: 0,
+            chain: Vec::new(),
+            brightness: (0, 0),
         }
     }
 
@@ -877,12 +911,19 @@ impl BdptSums {
             self.sums.samples = other.sums.samples;
         }
         self.sums.merge(&other.sums);
-        for (a, b) in self.splats.iter_mut().zip(&other.splats) {
-            for c in 0..3 {
-                a[c] = a[c].wrapping_add(b[c]);
-            }
+        add_fixed(&mut self.splats, &other.splats);
+        if self.chain.len() < other.chain.len() {
+            self.chain.resize(other.chain.len(), [0; 3]);
         }
+        add_fixed(&mut self.chain, &other.chain);
+        self.brightness.0 += other.brightness.0;
+        self.brightness.1 += other.brightness.1;
         self.samples += other.samples;
+    }
+
+    /// b, the mean of the brightness samples (0 without any).
+    pub fn b(&self) -> f64 {
+        self.brightness.0 as f64 / SPLAT_SCALE / self.brightness.1.max(1) as f64
     }
 
     /// The frame: each pixel's filtered camera-side estimate plus its splats, which estimate
@@ -890,11 +931,11 @@ impl BdptSums {
     pub fn image(&self, exposure: f32) -> Image {
         let t = self.sums.tile;
         let mut image = Image::from_tiles(t.x1, t.y1, std::slice::from_ref(&self.sums));
-        add_splats(
-            &mut image,
-            &self.splats,
-            exposure as f64 / self.samples.max(1) as f64,
-        );
+        let per_sample = exposure as f64 / self.samples.max(1) as f64;
+        add_splats(&mut image, &self.splats, per_sample);
+        // A chain's splats are f / f* per mutation: b per mutation (of the film) makes them
+        // radiance.
+        add_splats(&mut image, &self.chain, self.b() * per_sample);
         image
     }
 }

@@ -7,6 +7,8 @@
 //!   chains before it are followed): emitted plus directly reflected light.
 
 pub mod bdpt;
+pub mod metropolis;
+pub mod mlt;
 mod path;
 mod photon;
 pub mod pssmlt;
@@ -177,11 +179,12 @@ pub fn prepare(
             let (p, why) = PhotonIntegrator::prepare(desc, scene, analysis, frames);
             (Box::new(p), why)
         }
-        // SPPM, BDPT and PSSMLT render whole frames; asked for tiles, a path tracer renders
+        // SPPM, BDPT, VCM and the Metropolis renderers render whole frames; asked for tiles, a path tracer renders
         // the same image, and says so.
         kind @ (IntegratorKind::Sppm
         | IntegratorKind::Bdpt
         | IntegratorKind::Pssmlt
+        | IntegratorKind::Mlt
         | IntegratorKind::Vcm) => (
             Box::new(path_family(&IntegratorDesc {
                 kind: IntegratorKind::Path,

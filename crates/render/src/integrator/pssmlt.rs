@@ -25,16 +25,19 @@
 //! bounds), so edge pixels get their share.
 //!
 //! Determinism: chains are seeded from (seed, chain), run in parallel, and splat into
-//! fixed-point sums, so the image does not depend on thread count or scheduling.
+//! fixed-point sums, so the image does not depend on thread count or scheduling; the frame is
+//! cut into groups of chains ([`super::metropolis`]) that the farm renders as separate tasks
+//! to the same bits.
 
 use glam::{UVec2, Vec2, Vec3A, Vec4};
 use rayon::prelude::*;
 
+use std::ops::Range;
+
 use super::RayStats;
-use super::bdpt::{Bdpt, Ctx, Splats, Vertex, add_splats};
-use crate::SampleRange;
+use super::bdpt::{BdptSums, Ctx, Splats, Vertex};
+use super::metropolis::{bootstrap_cdfs, chain_list, direct_and_brightness};
 use crate::camera::Camera;
-use crate::film::Image;
 use crate::sampler::Sampler;
 use crate::sampler::hash::{hash, mix64, u32_to_unit};
 use crate::scene::Scene;
@@ -73,7 +76,7 @@ impl Pssmlt {
 }
 
 /// The chains' shortest paths: shorter ones (emission and direct light) are BDPT's.
-const MIN_DEPTH: u32 = 2;
+pub(super) const MIN_DEPTH: u32 = 2;
 
 const CAMERA_STREAM: u32 = 0;
 const LIGHT_STREAM: u32 = 1;
@@ -81,12 +84,17 @@ const CONNECT_STREAM: u32 = 2;
 const STREAMS: u32 = 3;
 
 /// A 64-bit counter-based generator (splitmix64 over `mix64`).
-struct Rng(u64);
+pub(super) struct Rng(pub(super) u64);
 
 impl Rng {
-    fn uniform(&mut self) -> f32 {
+    pub(super) fn uniform(&mut self) -> f32 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
         u32_to_unit((mix64(self.0) >> 32) as u32)
+    }
+
+    /// An integer uniform in 0..n (n > 0).
+    pub(super) fn below(&mut self, n: usize) -> usize {
+        ((self.uniform() * n as f32) as usize).min(n - 1)
     }
 
     /// A standard normal number (Box–Muller).
@@ -108,7 +116,7 @@ struct PrimarySample {
 }
 
 /// A sampler over a mutating primary sample (pbrt-v3's `MLTSampler`).
-struct MltSampler {
+pub(super) struct MltSampler {
     rng: Rng,
     sigma: f32,
     p_large: f32,
@@ -133,6 +141,11 @@ impl MltSampler {
             stream: 0,
             index: 0,
         }
+    }
+
+    /// Independent uniform numbers (every read a large step) from `seed`.
+    pub(super) fn independent(seed: u64) -> Self {
+        MltSampler::new(seed, 0.0, 1.0)
     }
 
     fn start_iteration(&mut self) {
@@ -207,7 +220,7 @@ impl Sampler for MltSampler {
 
 /// Scratch space for one thread's subpaths.
 #[derive(Default)]
-struct Paths {
+pub(super) struct Paths {
     camera: Vec<Vertex>,
     light: Vec<Vertex>,
 }
@@ -255,125 +268,53 @@ impl Pssmlt {
         (l, raster.unwrap_or(p_raster))
     }
 
-    /// The luminance of every strategy of every depth ≥ 2 of one BDPT sample through a
-    /// uniform point of the (filter-extended) film: an unbiased sample of the chains' b.
-    fn brightness(
-        &self,
-        ctx: &Ctx,
-        sampler: &mut MltSampler,
-        paths: &mut Paths,
-        stats: &mut RayStats,
-    ) -> f64 {
-        let (ray, _) = film_ray(ctx, sampler);
-        let d = self.max_depth as usize;
-        ctx.camera_subpath(ray, d + 2, sampler, stats, &mut paths.camera);
-        ctx.light_subpath(d + 1, sampler, stats, &mut paths.light);
-        let mut y = 0.0f64;
-        for t in 1..=paths.camera.len() {
-            for s in 0..=paths.light.len() {
-                let depth = s + t;
-                if depth < MIN_DEPTH as usize + 2 || depth > d + 2 {
-                    continue;
-                }
-                let (l, _) = ctx.connect(&paths.light, &paths.camera, s, t, 0.0, sampler, stats);
-                if l.is_finite() {
-                    y += (luminance(l) * light_tracing_scale(ctx, t)) as f64;
-                }
-            }
-        }
-        stats.samples += 1;
-        y
-    }
-
     fn seed_of(&self, bootstrap_index: u64) -> u64 {
         hash(&[self.seed, 0x6d6c74, bootstrap_index])
     }
 
-    /// Renders with `mutations` per pixel on the rayon pool; `progress` counts mutations.
-    /// Refuses lights at infinity, as BDPT does.
-    pub fn render(
+    /// Groups `groups` of the frame's work (see [`super::metropolis::GROUPS`]): their direct light and
+    /// brightness samples, and their chains' splats from starts drawn from their bootstrap
+    /// paths.
+    pub fn render_groups(
         &self,
         scene: &Scene,
         camera: &Camera,
         mutations: u32,
+        groups: Range<u32>,
         progress: &(dyn Fn(u64) + Sync),
-    ) -> Result<(Image, RayStats), String> {
+    ) -> Result<(BdptSums, RayStats), String> {
         // Chains fix the path length; roulette would only add rejections.
         let ctx = Ctx::new("pssmlt", scene, camera, u32::MAX)?;
-        // Emitted and directly reflected light (depths 0 and 1) by BDPT, as Veach & Guibas do:
-        // it is what sampling independently does best, and the chains are left the indirect
-        // light.
-        let direct = Bdpt {
-            max_depth: self.max_depth.min(MIN_DEPTH - 1),
-            min_depth: 0,
-            rr_depth: u32::MAX,
-        };
-        let range = |end: u32| SampleRange { start: 0, end };
-        let (direct, mut stats) =
-            direct.render_range(scene, camera, range(mutations.max(1)), &|_| {})?;
-        let mut image = direct.image(camera.exposure);
+        let all = (mutations as f64 * ctx_area(&ctx)) as u64;
+        let (mut sums, mut stats) = direct_and_brightness(
+            &ctx,
+            self.max_depth,
+            mutations,
+            (all / 16).max(self.bootstrap as u64),
+            self.seed,
+            groups.clone(),
+        )?;
         if self.max_depth < MIN_DEPTH {
-            return Ok((image, stats));
+            return Ok((sums, stats));
         }
-        let (w, h) = (scene.film.width, scene.film.height);
         let depths = (self.max_depth - MIN_DEPTH + 1) as u64;
-        let area = ctx_area(&ctx);
-        let all = (mutations as f64 * area) as u64;
-        // b = E[y] of the chains' contributions, by BDPT samples at a sixteenth of the
-        // mutations: every strategy of every depth ≥ 2 per sample, so rare bright paths (a
-        // small light seen in glass) count as often as the film shows them, not as rarely as
-        // one strategy finds them. Its error scales the chains' image; it falls as the budget
-        // grows.
-        let n_b = (all / 16).max(self.bootstrap as u64);
-        // Roulette is fine here (no chain to reject it).
-        let rr = Ctx { rr_depth: 3, ..ctx };
-        let bright: Vec<(f64, RayStats)> = (0..n_b)
-            .into_par_iter()
-            .map_init(Paths::default, |paths, i| {
-                let mut stats = RayStats::default();
-                let mut sampler = MltSampler::new(
-                    hash(&[self.seed, 0x627269676874, i]),
-                    self.sigma,
-                    self.large_step,
-                );
-                let y = self.brightness(&rr, &mut sampler, paths, &mut stats);
-                (y, stats)
-            })
-            .collect();
-        let mut b = 0.0;
-        for (y, st) in &bright {
-            b += y;
-            stats.add(st);
-        }
-        let b = b / n_b as f64;
         let n_boot = (self.bootstrap as u64).div_ceil(depths) * depths;
-        let boot: Vec<(f32, RayStats)> = (0..n_boot)
+        let (cdfs, st) = bootstrap_cdfs(n_boot, groups.clone(), Paths::default, |paths, i| {
+            let mut stats = RayStats::default();
+            let mut sampler = MltSampler::new(self.seed_of(i), self.sigma, self.large_step);
+            let depth = MIN_DEPTH as usize + (i % depths) as usize;
+            let (l, _) = self.l(&ctx, &mut sampler, depth, paths, &mut stats);
+            (luminance(l).max(0.0) as f64, stats)
+        });
+        stats.add(&st);
+        let splats = Splats::new(scene.film.width, scene.film.height);
+        let chain_stats: Vec<RayStats> = chain_list(self.chains, all, groups.clone())
             .into_par_iter()
-            .map_init(Paths::default, |paths, i| {
-                let mut stats = RayStats::default();
-                let mut sampler = MltSampler::new(self.seed_of(i), self.sigma, self.large_step);
-                let depth = MIN_DEPTH as usize + (i % depths) as usize;
-                let (l, _) = self.l(&ctx, &mut sampler, depth, paths, &mut stats);
-                (luminance(l).max(0.0), stats)
-            })
-            .collect();
-        let mut cdf = Vec::with_capacity(boot.len());
-        let mut total = 0.0f64;
-        for (y, st) in &boot {
-            stats.add(st);
-            total += *y as f64;
-            cdf.push(total);
-        }
-        if b <= 0.0 || total <= 0.0 {
-            return Ok((image, stats));
-        }
-        let chains = (self.chains as u64).clamp(1, all.max(1));
-        let splats = Splats::new(w, h);
-        let chain_stats: Vec<RayStats> = (0..chains)
-            .into_par_iter()
-            .map_init(Paths::default, |paths, c| {
-                let steps = all / chains + u64::from(c < all % chains);
-                let st = self.chain(&ctx, c, steps, &cdf, depths, paths, &splats);
+            .map_init(Paths::default, |paths, (c, steps, g)| {
+                let Some(start) = cdfs[(g - groups.start) as usize].pick(c, self.seed) else {
+                    return RayStats::default();
+                };
+                let st = self.chain(&ctx, c, steps, start, depths, paths, &splats);
                 progress(steps);
                 st
             })
@@ -381,10 +322,8 @@ impl Pssmlt {
         for st in &chain_stats {
             stats.add(st);
         }
-        // Splats are L / y per mutation; b / (mutations per unit of film) makes them radiance.
-        let scale = b * camera.exposure as f64 / mutations.max(1) as f64;
-        add_splats(&mut image, &splats.totals(), scale);
-        Ok((image, stats))
+        sums.chain = splats.totals();
+        Ok((sums, stats))
     }
 
     /// Runs chain `c` for `steps` mutations from a start drawn from the bootstrap paths. The
@@ -396,16 +335,13 @@ impl Pssmlt {
         ctx: &Ctx,
         c: u64,
         steps: u64,
-        cdf: &[f64],
+        i: u64,
         depths: u64,
         paths: &mut Paths,
         splats: &Splats,
     ) -> RayStats {
         let mut stats = RayStats::default();
         let mut rng = Rng(hash(&[self.seed, 0x636861696e, c]));
-        let total = cdf.last().copied().unwrap_or(0.0);
-        let pick = rng.uniform() as f64 * total;
-        let i = cdf.partition_point(|&v| v <= pick).min(cdf.len() - 1) as u64;
         let mut depth = MIN_DEPTH as usize + (i % depths) as usize;
         let mut sampler = MltSampler::new(self.seed_of(i), self.sigma, self.large_step);
         let (mut l_cur, mut p_cur) = self.l(ctx, &mut sampler, depth, paths, &mut stats);
@@ -442,9 +378,39 @@ impl Pssmlt {
     }
 }
 
+/// The luminance of every strategy of every depth 2..=`max_depth` of one BDPT sample through
+/// a uniform point of the (filter-extended) film: an unbiased sample of the chains' b.
+pub(super) fn brightness(
+    ctx: &Ctx,
+    max_depth: u32,
+    sampler: &mut MltSampler,
+    paths: &mut Paths,
+    stats: &mut RayStats,
+) -> f64 {
+    let (ray, _) = film_ray(ctx, sampler);
+    let d = max_depth as usize;
+    ctx.camera_subpath(ray, d + 2, sampler, stats, &mut paths.camera);
+    ctx.light_subpath(d + 1, sampler, stats, &mut paths.light);
+    let mut y = 0.0f64;
+    for t in 1..=paths.camera.len() {
+        for s in 0..=paths.light.len() {
+            let depth = s + t;
+            if depth < MIN_DEPTH as usize + 2 || depth > d + 2 {
+                continue;
+            }
+            let (l, _) = ctx.connect(&paths.light, &paths.camera, s, t, 0.0, sampler, stats);
+            if l.is_finite() {
+                y += (luminance(l) * light_tracing_scale(ctx, t)) as f64;
+            }
+        }
+    }
+    stats.samples += 1;
+    y
+}
+
 /// The film extended by the filter's reach beyond the outer pixels' centres (pbrt's sample
 /// bounds): paths landing there still reach the edge pixels.
-fn film_extent(ctx: &Ctx) -> (Vec2, Vec2) {
+pub(super) fn film_extent(ctx: &Ctx) -> (Vec2, Vec2) {
     let film = &ctx.scene.film;
     let e = (ctx.scene.filter.radius() - 0.5).max(0.0);
     (
@@ -466,7 +432,7 @@ fn film_ray(ctx: &Ctx, sampler: &mut MltSampler) -> (crate::ray::Ray, Vec2) {
 }
 
 /// The extended film's area, in pixels.
-fn ctx_area(ctx: &Ctx) -> f64 {
+pub(super) fn ctx_area(ctx: &Ctx) -> f64 {
     let (_, size) = film_extent(ctx);
     size.x as f64 * size.y as f64
 }

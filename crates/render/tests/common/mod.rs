@@ -67,3 +67,54 @@ pub fn assert_falls(what: &str, budgets: &[String], errors: &[(f64, f64)], mean_
     let (_, mean) = errors[errors.len() - 1];
     assert!((mean - 1.0).abs() < mean_tol, "{what}: mean/ref {mean}");
 }
+
+/// A Metropolis renderer (`kind`: pssmlt or mlt) on scene `name` at its reference's size:
+/// relMSE and mean ratio at 4, 32 and 256 mutations per pixel fall and end within 1 % of the
+/// reference; and 8 mutations per pixel of cornell-glass are the same bits on one thread and
+/// on two.
+#[allow(dead_code, reason = "used by the Metropolis tests only")]
+pub fn assert_metropolis_converges_deterministically(kind: tessera_scene::IntegratorKind) {
+    use tessera_render::integrator::metropolis::Metropolis;
+    let setup = |name: &str| {
+        let (desc, reference) = scene_and_reference(name);
+        let m = Metropolis::new(kind, &desc).expect("a Metropolis renderer");
+        let camera = tessera_render::camera::Camera::new(&desc.camera, &desc.film);
+        (tessera_render::Scene::build(&desc), camera, m, reference)
+    };
+    let budgets = [4, 32, 256];
+    let labels: Vec<String> = budgets
+        .iter()
+        .map(|m| format!("{m} mutations/px"))
+        .collect();
+    for name in ["cornell-box", "cornell-glass"] {
+        let (scene, camera, m, reference) = setup(name);
+        let errors: Vec<(f64, f64)> = budgets
+            .iter()
+            .map(|&n| {
+                let (image, _) = pool()
+                    .install(|| m.render(&scene, &camera, n, &|_| {}))
+                    .expect("renders");
+                error_against(&image, &reference)
+            })
+            .collect();
+        assert_falls(&format!("{name}: {}", m.name()), &labels, &errors, 0.01);
+    }
+    let (scene, camera, m, _) = setup("cornell-glass");
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("a pool");
+    let a = one
+        .install(|| m.render(&scene, &camera, 8, &|_| {}))
+        .expect("renders")
+        .0;
+    let b = pool()
+        .install(|| m.render(&scene, &camera, 8, &|_| {}))
+        .expect("renders")
+        .0;
+    assert!(
+        a.pixels.iter().zip(&b.pixels).all(|(p, q)| p.rgb == q.rgb),
+        "{}: one thread and two differ",
+        m.name()
+    );
+}

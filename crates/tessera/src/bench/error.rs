@@ -14,7 +14,7 @@ use tessera_farm::progressive::Accumulator;
 use tessera_render::SampleRange;
 use tessera_render::camera::Camera;
 use tessera_render::integrator::bdpt::BdptSums;
-use tessera_render::integrator::pssmlt::Pssmlt;
+use tessera_render::integrator::metropolis::Metropolis;
 use tessera_render::integrator::sppm::{Sppm, SppmSettings, SppmState};
 use tessera_render::metrics;
 use tessera_scene::IntegratorKind;
@@ -179,8 +179,8 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
             )
         } else if tessera_farm::bdpt::sample_ranges(*kind) {
             Progressive::Bdpt(BdptSums::new(desc.film.width, desc.film.height))
-        } else if *kind == IntegratorKind::Pssmlt {
-            Progressive::Fresh(Pssmlt::new(&desc), None)
+        } else if let Some(m) = Metropolis::new(*kind, &desc) {
+            Progressive::Fresh(m, None)
         } else {
             Progressive::Tiles(Accumulator::new(&desc, job::DEFAULT_TILE))
         };
@@ -278,8 +278,8 @@ enum Progressive<'a> {
     Sppm(Box<Sppm<'a>>, SppmState),
     /// BDPT's or VCM's whole-film sums.
     Bdpt(BdptSums),
-    /// Rendered anew for each budget (Markov chains are not continued): PSSMLT.
-    Fresh(Pssmlt, Option<(tessera_render::Image, u32)>),
+    /// Rendered anew for each budget (Markov chains are not continued): PSSMLT, MLT.
+    Fresh(Metropolis, Option<(tessera_render::Image, u32)>),
 }
 
 impl Progressive<'_> {

@@ -1,0 +1,228 @@
+//! The two Metropolis renderers behind one face (for `tessera render`, the bench and the
+//! farm), and what they share: direct light and the brightness b by BDPT, bootstrap paths to
+//! start chains from, and the cutting of a frame's work into [`GROUPS`].
+//!
+//! A frame's work is cut into [`GROUPS`] groups, each with its share of the direct-light
+//! samples, of the brightness samples, of the bootstrap paths and of the chains (which start
+//! from their own group's bootstrap). A group's result is fixed-point sums
+//! ([`BdptSums`]: direct light, chain splats, brightness), so the frame is the same bits
+//! whether its groups are rendered together or as separate farm tasks merged in any order.
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+
+use super::RayStats;
+use super::bdpt::{Bdpt, BdptSums, Ctx, fixed_brightness};
+use super::mlt::Mlt;
+use super::pssmlt::{MIN_DEPTH, MltSampler, Paths, Pssmlt, Rng, brightness};
+use crate::SampleRange;
+use crate::camera::Camera;
+use crate::film::Image;
+use crate::sampler::hash::hash;
+use crate::scene::Scene;
+use tessera_scene::{IntegratorKind, SceneDesc};
+
+/// Groups a Metropolis frame's work is cut into (its farm tasks).
+pub const GROUPS: u32 = 8;
+
+/// The part of `n` items group `g` owns.
+pub fn share(n: u64, g: u32) -> Range<u64> {
+    let part = |g: u32| (n as u128 * g as u128 / GROUPS as u128) as u64;
+    part(g)..part(g + 1)
+}
+
+/// The parts of `n` items groups `groups` own, together.
+fn shares(n: u64, groups: &Range<u32>) -> Range<u64> {
+    share(n, groups.start).start..share(n, groups.end.max(groups.start + 1) - 1).end
+}
+
+/// What both Metropolis renderers add their chains to, for groups `groups`: emitted and
+/// directly reflected light (depths 0 and 1) by BDPT at `spp` samples per pixel in all, as
+/// Veach & Guibas do (it is what sampling independently does best; the chains are left the
+/// indirect light), and their share of `n` samples of the brightness b, the mean luminance
+/// of the indirect light (depths 2..=`max_depth`) over the extended film, each a BDPT sample
+/// with every strategy of every depth (so rare bright paths, a small light seen in glass,
+/// count as often as the film shows them, not as rarely as one strategy finds them). b's
+/// error scales the chains' image.
+pub(super) fn direct_and_brightness(
+    ctx: &Ctx,
+    max_depth: u32,
+    spp: u32,
+    n: u64,
+    seed: u64,
+    groups: Range<u32>,
+) -> Result<(BdptSums, RayStats), String> {
+    let direct = Bdpt {
+        max_depth: max_depth.min(MIN_DEPTH - 1),
+        min_depth: 0,
+        rr_depth: u32::MAX,
+    };
+    let samples = shares(spp.max(1) as u64, &groups);
+    let range = SampleRange {
+        start: samples.start as u32,
+        end: samples.end as u32,
+    };
+    let (mut sums, mut stats) = direct.render_range(ctx.scene, ctx.camera, range, &|_| {})?;
+    if max_depth < MIN_DEPTH {
+        return Ok((sums, stats));
+    }
+    // Roulette is fine here (no chain to reject it).
+    let rr = Ctx {
+        rr_depth: 3,
+        ..*ctx
+    };
+    let bright: Vec<(f64, RayStats)> = shares(n, &groups)
+        .into_par_iter()
+        .map_init(Paths::default, |paths, i| {
+            let mut stats = RayStats::default();
+            let mut sampler = MltSampler::independent(hash(&[seed, 0x627269676874, i]));
+            let y = brightness(&rr, max_depth, &mut sampler, paths, &mut stats);
+            (y, stats)
+        })
+        .collect();
+    for (y, st) in &bright {
+        sums.brightness.0 += fixed_brightness(*y);
+        sums.brightness.1 += 1;
+        stats.add(st);
+    }
+    Ok((sums, stats))
+}
+
+/// The mean of n samples with sum `sum` and sum of squares `sum2`, and its standard error.
+pub(super) fn mean_and_error(sum: f64, sum2: f64, n: u64) -> (f64, f64) {
+    let n = n.max(1) as f64;
+    let mean = sum / n;
+    (mean, ((sum2 / n - mean * mean).max(0.0) / n).sqrt())
+}
+
+/// One group's bootstrap paths, to start chains from in proportion to their weights.
+pub(super) struct Bootstrap {
+    first: u64,
+    cdf: Vec<f64>,
+}
+
+impl Bootstrap {
+    /// The bootstrap path chain `c` starts from (drawn ∝ weight with a generator seeded by
+    /// (seed, c)); `None` if every weight is zero.
+    pub(super) fn pick(&self, c: u64, seed: u64) -> Option<u64> {
+        let total = *self.cdf.last()?;
+        if total <= 0.0 {
+            return None;
+        }
+        let u = Rng(hash(&[seed, 0x7374617274, c])).uniform() as f64 * total;
+        let i = self
+            .cdf
+            .partition_point(|&v| v <= u)
+            .min(self.cdf.len() - 1);
+        Some(self.first + i as u64)
+    }
+}
+
+/// Each group's share of `n` bootstrap paths, path i weighing `weight(scratch, i)`.
+pub(super) fn bootstrap_cdfs<S: Send>(
+    n: u64,
+    groups: Range<u32>,
+    scratch: impl Fn() -> S + Sync + Send,
+    weight: impl Fn(&mut S, u64) -> (f64, RayStats) + Sync + Send,
+) -> (Vec<Bootstrap>, RayStats) {
+    let mut stats = RayStats::default();
+    let boots = groups
+        .map(|g| {
+            let ids = share(n, g);
+            let first = ids.start;
+            let weights: Vec<(f64, RayStats)> =
+                ids.into_par_iter().map_init(&scratch, &weight).collect();
+            let mut total = 0.0;
+            let cdf = weights
+                .iter()
+                .map(|(w, st)| {
+                    stats.add(st);
+                    total += w.max(0.0);
+                    total
+                })
+                .collect();
+            Bootstrap { first, cdf }
+        })
+        .collect();
+    (boots, stats)
+}
+
+/// The chains of groups `groups` (of `chains` in all, at most one per mutation), each with
+/// its mutations (a share of `all`) and its group: (chain, mutations, group).
+pub(super) fn chain_list(chains: u32, all: u64, groups: Range<u32>) -> Vec<(u64, u64, u32)> {
+    let chains = (chains as u64).clamp(1, all.max(1));
+    groups
+        .flat_map(|g| {
+            share(chains, g).map(move |c| (c, all / chains + u64::from(c < all % chains), g))
+        })
+        .collect()
+}
+
+#[derive(Debug, Clone, Copy)]
+pub enum Metropolis {
+    /// Primary sample space (Kelemen et al.), multiplexed.
+    Pssmlt(Pssmlt),
+    /// Path space (Veach & Guibas).
+    Mlt(Mlt),
+}
+
+impl Metropolis {
+    /// The Metropolis renderer `kind` names, with `desc`'s settings; `None` for the others.
+    pub fn new(kind: IntegratorKind, desc: &SceneDesc) -> Option<Self> {
+        match kind {
+            IntegratorKind::Pssmlt => Some(Metropolis::Pssmlt(Pssmlt::new(desc))),
+            IntegratorKind::Mlt => Some(Metropolis::Mlt(Mlt::new(desc))),
+            _ => None,
+        }
+    }
+
+    /// Groups `groups` of a frame with `mutations` per pixel (see [`GROUPS`]).
+    pub fn render_groups(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        mutations: u32,
+        groups: Range<u32>,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<(BdptSums, RayStats), String> {
+        match self {
+            Metropolis::Pssmlt(m) => m.render_groups(scene, camera, mutations, groups, progress),
+            Metropolis::Mlt(m) => m.render_groups(scene, camera, mutations, groups, progress),
+        }
+    }
+
+    /// Renders with `mutations` per pixel (every group) on the rayon pool; `progress` counts
+    /// mutations. Refuses lights at infinity, as BDPT does.
+    pub fn render(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        mutations: u32,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<(Image, RayStats), String> {
+        let (sums, stats) = self.render_groups(scene, camera, mutations, 0..GROUPS, progress)?;
+        Ok((sums.image(camera.exposure), stats))
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Metropolis::Pssmlt(_) => "pssmlt",
+            Metropolis::Mlt(_) => "mlt",
+        }
+    }
+
+    /// The settings, for logs and the EXR's metadata.
+    pub fn describe(&self, mutations: u32) -> String {
+        match self {
+            Metropolis::Pssmlt(m) => format!(
+                "{mutations} mutations per pixel, pssmlt ({} chains, {} bootstrap paths, σ {}, large steps {})",
+                m.chains, m.bootstrap, m.sigma, m.large_step
+            ),
+            Metropolis::Mlt(m) => format!(
+                "{mutations} mutations per pixel, mlt ({} chains from {} bootstrap paths; bidirectional, lens subpath, lens and caustic perturbation mutations)",
+                m.chains, m.bootstrap
+            ),
+        }
+    }
+}
