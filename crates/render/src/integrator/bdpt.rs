@@ -54,7 +54,7 @@ pub(super) struct Vertex {
     /// Sampled by a specular lobe: no other strategy can make it.
     pub(super) delta: bool,
     /// Density of this vertex sampled from the previous one of its subpath, per unit area.
-    pdf_fwd: f32,
+    pub(super) pdf_fwd: f32,
     /// Density of this vertex sampled from the next one (the other direction), per unit area.
     pdf_rev: f32,
 }

@@ -1117,9 +1117,10 @@ mod tests {
     /// On cornell-glass (glass sphere and cylinder, a small spherical bulb), for bootstrap
     /// paths of every depth and strategy: the path's f / p_s as this module evaluates it
     /// equals BDPT's unweighted estimate of the strategy that made it (connections s, t ≥ 2,
-    /// camera paths hitting the light s = 0, light tracing t = 1 onto the film; s = 1 samples
-    /// its light point differently in BDPT). So f and every strategy's density, specular
-    /// vertices included (η², shading normals, lobe probabilities), are BDPT's.
+    /// camera paths hitting the light s = 0, light tracing t = 1 onto the film, and s = 1 by
+    /// BDPT's rule for the light point the bootstrap drew). So f and every strategy's
+    /// density, specular vertices included (η², shading normals, lobe probabilities), are
+    /// BDPT's.
     #[test]
     fn path_contributions_equal_bdpt_for_the_strategy_that_made_them() {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
@@ -1140,20 +1141,38 @@ mod tests {
             let r = work.ex.raster;
             let on_film =
                 r.x >= 0.0 && r.y >= 0.0 && r.x < film.width as f32 && r.y < film.height as f32;
-            if w <= 0.0 || s == 1 || (t == 1 && !on_film) {
+            if w <= 0.0 || (t == 1 && !on_film) {
                 continue;
             }
-            let mut sampler = MltSampler::independent(i);
-            let (l, _, _) = ctx.connect_unweighted(
-                &work.y,
-                &work.eye,
-                s,
-                t,
-                0.0,
-                &mut sampler,
-                &mut RayStats::default(),
-            );
-            let bdpt = luminance(l) as f64 * if t == 1 { ext } else { 1.0 };
+            let bdpt = if s == 1 {
+                // BDPT samples s = 1's light point anew; its estimate for this one, by its
+                // own rule: camera subpath β · f · L_e |cos θ| |cos θ_light| / (d² p_light).
+                let (pt, light) = (&work.eye[t - 1], &work.y[0]);
+                let d = light.p - pt.p;
+                let wi = d.normalize();
+                let le = ctx.scene.lights.get(match light.kind {
+                    Kind::Light(l) => l,
+                    _ => unreachable!("a light subpath starts on a light"),
+                });
+                let l = pt.beta
+                    * ctx.f_dir(pt, wi, TransportMode::Radiance)
+                    * le.le_surface(light.ng, -wi)
+                    * (wi.dot(pt.ns).abs() * wi.dot(light.ng).abs()
+                        / (d.length_squared() * light.pdf_fwd));
+                luminance(l) as f64
+            } else {
+                let mut sampler = MltSampler::independent(i);
+                let (l, _, _) = ctx.connect_unweighted(
+                    &work.y,
+                    &work.eye,
+                    s,
+                    t,
+                    0.0,
+                    &mut sampler,
+                    &mut RayStats::default(),
+                );
+                luminance(l) as f64 * if t == 1 { ext } else { 1.0 }
+            };
             let ours = work.ex.c[s];
             assert!(
                 (bdpt - ours).abs() <= 1e-3 * bdpt.max(ours),
