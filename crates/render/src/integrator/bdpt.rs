@@ -348,6 +348,28 @@ impl<'a> Ctx<'a> {
         );
     }
 
+    /// A light subpath's first vertex, its emission and the light's choice probability: a
+    /// light chosen by power, a point and a direction from it.
+    pub(super) fn light_start(
+        &self,
+        sampler: &mut impl Sampler,
+    ) -> Option<(Vertex, crate::light::Emission, f32)> {
+        let u = sampler.get_4d();
+        let u_dir = sampler.get_2d();
+        let (li, pmf) = self.scene.lights.choose(u.x)?;
+        let light = self.scene.lights.get(li);
+        let e = light.sample_le(&Aim::Everywhere, Vec2::new(u.y, u.z), u_dir, u.w)?;
+        let v = Vertex::point(
+            Kind::Light(li),
+            e.ray.o,
+            Vec3A::ZERO,
+            e.n,
+            e.le,
+            pmf * e.pdf_pos,
+        );
+        Some((v, e, pmf))
+    }
+
     /// The light subpath of a sample, at most `max` vertices: a light chosen by power, an
     /// emission from it, the walk.
     pub(super) fn light_subpath(
@@ -358,24 +380,9 @@ impl<'a> Ctx<'a> {
         path: &mut Vec<Vertex>,
     ) {
         path.clear();
-        let u = sampler.get_4d();
-        let u_dir = sampler.get_2d();
-        let Some((li, pmf)) = self.scene.lights.choose(u.x) else {
+        let Some((v, e, pmf)) = self.light_start(sampler) else {
             return;
         };
-        let light = self.scene.lights.get(li);
-        let Some(e) = light.sample_le(&Aim::Everywhere, Vec2::new(u.y, u.z), u_dir, u.w) else {
-            return;
-        };
-        let mut v = Vertex::point(
-            Kind::Light(li),
-            e.ray.o,
-            Vec3A::ZERO,
-            e.n,
-            e.le,
-            pmf * e.pdf_pos,
-        );
-        v.delta = false;
         path.push(v);
         let max = max.min(MAX_VERTICES);
         self.random_walk(

@@ -13,7 +13,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use super::RayStats;
-use super::bdpt::{Bdpt, BdptSums, Ctx, fixed_brightness};
+use super::bdpt::{Bdpt, BdptSums, Ctx, Splats, fixed_brightness};
 use super::mlt::Mlt;
 use super::pssmlt::{MIN_DEPTH, MltSampler, Paths, Pssmlt, Rng, brightness};
 use crate::SampleRange;
@@ -25,6 +25,99 @@ use tessera_scene::{IntegratorKind, SceneDesc};
 
 /// Groups a Metropolis frame's work is cut into (its farm tasks).
 pub const GROUPS: u32 = 8;
+
+/// What [`render_groups`] needs of a Metropolis renderer's settings.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct ChainSettings {
+    /// For errors.
+    pub name: &'static str,
+    pub max_depth: u32,
+    /// The fewest brightness samples (more with the budget: a sixteenth of the mutations).
+    pub bootstrap: u32,
+    /// Bootstrap paths the chains start from.
+    pub bootstrap_paths: u64,
+    pub chains: u32,
+    pub seed: u64,
+}
+
+/// A Metropolis renderer: its bootstrap paths' weights and its chains (the rest of a frame
+/// is [`render_groups`]'s).
+pub(super) trait Chains: Sync {
+    /// A thread's scratch space.
+    type Scratch: Default + Send;
+
+    fn settings(&self) -> ChainSettings;
+
+    /// The context the chains run in (no roulette: chains fix the path length); refuses what
+    /// the renderer does not support.
+    fn ctx<'a>(&self, scene: &'a Scene, camera: &'a Camera) -> Result<Ctx<'a>, String> {
+        Ctx::new(self.settings().name, scene, camera, u32::MAX)
+    }
+
+    /// Bootstrap path `i`'s weight (and what tracing it cost).
+    fn bootstrap_weight(&self, ctx: &Ctx, scratch: &mut Self::Scratch, i: u64) -> (f64, RayStats);
+
+    /// Runs `chain` = (index, mutations, bootstrap path it starts from), splatting into
+    /// `splats`.
+    fn run_chain(
+        &self,
+        ctx: &Ctx,
+        scratch: &mut Self::Scratch,
+        chain: (u64, u64, u64),
+        splats: &Splats,
+    ) -> RayStats;
+}
+
+/// Groups `groups` of a frame of `m` with `mutations` per pixel: their direct light and
+/// brightness samples, and their chains' splats from starts drawn from their own bootstrap
+/// paths.
+pub(super) fn render_groups<C: Chains>(
+    m: &C,
+    scene: &Scene,
+    camera: &Camera,
+    mutations: u32,
+    groups: Range<u32>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(BdptSums, RayStats), String> {
+    let s = m.settings();
+    let ctx = m.ctx(scene, camera)?;
+    let all = (mutations as f64 * super::pssmlt::ctx_area(&ctx)) as u64;
+    let (mut sums, mut stats) = direct_and_brightness(
+        &ctx,
+        s.max_depth,
+        mutations,
+        (all / 16).max(s.bootstrap as u64),
+        s.seed,
+        groups.clone(),
+    )?;
+    if s.max_depth < MIN_DEPTH {
+        return Ok((sums, stats));
+    }
+    let (boots, st) = bootstrap_cdfs(
+        s.bootstrap_paths,
+        groups.clone(),
+        C::Scratch::default,
+        |scratch, i| m.bootstrap_weight(&ctx, scratch, i),
+    );
+    stats.add(&st);
+    let splats = Splats::new(scene.film.width, scene.film.height);
+    let chain_stats: Vec<RayStats> = chain_list(s.chains, all, groups.clone())
+        .into_par_iter()
+        .map_init(C::Scratch::default, |scratch, (c, steps, g)| {
+            let Some(start) = boots[(g - groups.start) as usize].pick(c, s.seed) else {
+                return RayStats::default();
+            };
+            let st = m.run_chain(&ctx, scratch, (c, steps, start), &splats);
+            progress(steps);
+            st
+        })
+        .collect();
+    for st in &chain_stats {
+        stats.add(st);
+    }
+    sums.chain = splats.totals();
+    Ok((sums, stats))
+}
 
 /// The part of `n` items group `g` owns.
 pub fn share(n: u64, g: u32) -> Range<u64> {
@@ -120,7 +213,7 @@ impl Bootstrap {
 }
 
 /// Each group's share of `n` bootstrap paths, path i weighing `weight(scratch, i)`.
-pub(super) fn bootstrap_cdfs<S: Send>(
+fn bootstrap_cdfs<S: Send>(
     n: u64,
     groups: Range<u32>,
     scratch: impl Fn() -> S + Sync + Send,
@@ -150,7 +243,7 @@ pub(super) fn bootstrap_cdfs<S: Send>(
 
 /// The chains of groups `groups` (of `chains` in all, at most one per mutation), each with
 /// its mutations (a share of `all`) and its group: (chain, mutations, group).
-pub(super) fn chain_list(chains: u32, all: u64, groups: Range<u32>) -> Vec<(u64, u64, u32)> {
+fn chain_list(chains: u32, all: u64, groups: Range<u32>) -> Vec<(u64, u64, u32)> {
     let chains = (chains as u64).clamp(1, all.max(1));
     groups
         .flat_map(|g| {
@@ -187,8 +280,8 @@ impl Metropolis {
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<(BdptSums, RayStats), String> {
         match self {
-            Metropolis::Pssmlt(m) => m.render_groups(scene, camera, mutations, groups, progress),
-            Metropolis::Mlt(m) => m.render_groups(scene, camera, mutations, groups, progress),
+            Metropolis::Pssmlt(m) => render_groups(m, scene, camera, mutations, groups, progress),
+            Metropolis::Mlt(m) => render_groups(m, scene, camera, mutations, groups, progress),
         }
     }
 

@@ -41,16 +41,16 @@
 use glam::{Vec2, Vec3A};
 use rayon::prelude::*;
 
-use std::ops::Range;
-
 use super::RayStats;
-use super::bdpt::{BdptSums, Ctx, Kind, Splats, Vertex, shading_correction};
+use super::bdpt::{Ctx, Splats, Vertex, shading_correction};
 use super::consistent;
-use super::metropolis::{bootstrap_cdfs, chain_list, direct_and_brightness, mean_and_error};
-use super::pssmlt::{MIN_DEPTH, MltSampler, Paths, Rng, brightness, ctx_area, film_extent};
+use super::metropolis::{ChainSettings, Chains, mean_and_error};
+use super::pssmlt::{
+    MIN_DEPTH, MltSampler, Paths, Rng, brightness, ctx_area, film_ray, on_extended_film,
+};
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
-use crate::light::{Aim, Light};
+use crate::light::Light;
 use crate::math::{Frame, offset_ray_origin};
 use crate::ray::Ray;
 use crate::sampler::Sampler;
@@ -85,14 +85,16 @@ impl Mlt {
 /// caustic perturbation, among those that apply to the path (see [`mutation_probabilities`]).
 const MUTATIONS: [f64; 4] = [0.5, 0.1, 0.2, 0.2];
 
+/// Whether a vertex's surface has a diffuse or glossy part (can be joined to).
+fn smooth(scene: &Scene, v: &Vertex) -> bool {
+    v.si.is_some_and(|si| scene.material(si.material).flags.smooth)
+}
+
 /// The vertex a lens subpath mutation joins to: x_q, the first from the eye with a diffuse
 /// or glossy part (those between are purely specular), not itself reached specularly, and
 /// x_{q−1} joinable.
 fn lens_subpath_start(scene: &Scene, x: &[Vertex]) -> Option<usize> {
-    let smooth = |v: &Vertex| {
-        v.si.is_some_and(|si| scene.material(si.material).flags.smooth)
-    };
-    let q = (1..x.len() - 1).rev().find(|&i| smooth(&x[i]))?;
+    let q = (1..x.len() - 1).rev().find(|&i| smooth(scene, &x[i]))?;
     (!x[q].delta && !x[q - 1].delta).then_some(q)
 }
 
@@ -175,7 +177,7 @@ struct Scatter {
 
 /// A chain's working space: the current path, a proposal, and scratch.
 #[derive(Default)]
-struct Work {
+pub(super) struct Work {
     x: Vec<Vertex>,
     ex: PathEval,
     y: Vec<Vertex>,
@@ -239,62 +241,21 @@ fn p_split(l: isize, n: usize, j: usize) -> f64 {
     }
 }
 
-impl Mlt {
-    /// Groups `groups` of the frame's work (see [`super::metropolis::GROUPS`]): their direct light and
-    /// brightness samples, and their chains' splats from starts drawn from their bootstrap
-    /// paths.
-    pub fn render_groups(
-        &self,
-        scene: &Scene,
-        camera: &Camera,
-        mutations: u32,
-        groups: Range<u32>,
-        progress: &(dyn Fn(u64) + Sync),
-    ) -> Result<(BdptSums, RayStats), String> {
-        let ctx = self.ctx(scene, camera)?;
-        let all = (mutations as f64 * ctx_area(&ctx)) as u64;
-        let (mut sums, mut stats) = direct_and_brightness(
-            &ctx,
-            self.max_depth,
-            mutations,
-            (all / 16).max(self.bootstrap as u64),
-            self.seed,
-            groups.clone(),
-        )?;
-        if self.max_depth < MIN_DEPTH {
-            return Ok((sums, stats));
+impl Chains for Mlt {
+    type Scratch = Work;
+
+    fn settings(&self) -> ChainSettings {
+        ChainSettings {
+            name: "mlt",
+            max_depth: self.max_depth,
+            bootstrap: self.bootstrap,
+            bootstrap_paths: self.bootstrap as u64,
+            chains: self.chains,
+            seed: self.seed,
         }
-        let (boots, st) = bootstrap_cdfs(
-            self.bootstrap as u64,
-            groups.clone(),
-            Work::default,
-            |work, i| {
-                let mut st = RayStats::default();
-                let w = self.bootstrap_path(&ctx, i, work, &mut st);
-                (w, st)
-            },
-        );
-        stats.add(&st);
-        let splats = Splats::new(scene.film.width, scene.film.height);
-        let chain_stats: Vec<RayStats> = chain_list(self.chains, all, groups.clone())
-            .into_par_iter()
-            .map_init(Work::default, |work, (c, steps, g)| {
-                let Some(start) = boots[(g - groups.start) as usize].pick(c, self.seed) else {
-                    return RayStats::default();
-                };
-                let st = self.chain(&ctx, c, steps, start, work, &splats);
-                progress(steps);
-                st
-            })
-            .collect();
-        for st in &chain_stats {
-            stats.add(st);
-        }
-        sums.chain = splats.totals();
-        Ok((sums, stats))
     }
 
-    /// The context MLT runs in; refuses what it does not support.
+    /// Only pinhole cameras and area lights, besides BDPT's refusals.
     fn ctx<'a>(&self, scene: &'a Scene, camera: &'a Camera) -> Result<Ctx<'a>, String> {
         let ctx = Ctx::new("mlt", scene, camera, u32::MAX)?;
         if camera.has_aperture() {
@@ -308,6 +269,25 @@ impl Mlt {
         Ok(ctx)
     }
 
+    fn bootstrap_weight(&self, ctx: &Ctx, work: &mut Work, i: u64) -> (f64, RayStats) {
+        let mut stats = RayStats::default();
+        let w = self.bootstrap_path(ctx, i, work, &mut stats);
+        (w, stats)
+    }
+
+    fn run_chain(
+        &self,
+        ctx: &Ctx,
+        work: &mut Work,
+        chain: (u64, u64, u64),
+        splats: &Splats,
+    ) -> RayStats {
+        let (c, steps, start) = chain;
+        self.chain(ctx, c, steps, start, work, splats)
+    }
+}
+
+impl Mlt {
     /// Two independent estimates of b, the mean luminance of the indirect light over the
     /// extended film, each with its standard error: the bootstrap's (`n` paths weighted by
     /// this module's f / Σ_s p_s) and BDPT's (`n` samples, as the image is scaled by). They
@@ -379,7 +359,7 @@ impl Mlt {
                 return (0.0, 0);
             }
         }
-        let ray = film_ray(ctx, &mut sampler);
+        let (ray, _) = film_ray(ctx, &mut sampler);
         ctx.camera_subpath(ray, t, &mut sampler, stats, eye);
         if eye.len() != t {
             return (0.0, 0);
@@ -501,11 +481,11 @@ impl Mlt {
         // The light side: j new vertices after x_l (from a new light point if l = −1).
         if j > 0 {
             let mut ray = if l < 0 {
-                let Some((v, ray)) = sample_light(ctx, rng) else {
+                let Some((v, e, _)) = ctx.light_start(&mut RngSampler(rng)) else {
                     return 0.0;
                 };
                 y.push(v);
-                ray
+                e.ray
             } else {
                 let at = l as usize;
                 let Some(ray) = extend(ctx, y, at, TransportMode::Importance, rng) else {
@@ -543,7 +523,7 @@ impl Mlt {
         let mut ray = if e == 0 {
             None
         } else if m == kx {
-            Some(film_ray(ctx, &mut RngSampler(rng)))
+            Some(film_ray(ctx, &mut RngSampler(rng)).0)
         } else {
             // eye = [x_m, x_{m+1}]: sampling at 0 toward the light side, from x_{m+1}.
             eye.swap(0, 1);
@@ -606,15 +586,12 @@ impl Mlt {
         let Work { x, ex, y, ey, eye } = w;
         let kx = x.len() - 1;
         let scene = ctx.scene;
-        let smooth = |v: &Vertex| {
-            v.si.is_some_and(|si| scene.material(si.material).flags.smooth)
-        };
         let Some(q) = lens_subpath_start(scene, x) else {
             return 0.0;
         };
         eye.clear();
         eye.push(x[kx]);
-        let mut ray = film_ray(ctx, &mut RngSampler(rng));
+        let mut ray = film_ray(ctx, &mut RngSampler(rng)).0;
         loop {
             let Some(v) = trace(ctx, &ray, stats) else {
                 return 0.0;
@@ -623,7 +600,7 @@ impl Mlt {
             if q + eye.len() - 1 > self.max_depth as usize + 1 {
                 return 0.0;
             }
-            if smooth(&v) {
+            if smooth(scene, &v) {
                 break;
             }
             let at = eye.len() - 1;
@@ -668,8 +645,7 @@ impl Mlt {
         let r = r2 * (r1 / r2).powf(rng.uniform());
         let phi = std::f32::consts::TAU * rng.uniform();
         let raster = ex.raster + r * Vec2::new(phi.cos(), phi.sin());
-        let (origin, size) = film_extent(ctx);
-        if raster.cmplt(origin).any() || raster.cmpge(origin + size).any() {
+        if !on_extended_film(ctx, raster) {
             return 0.0;
         }
         let ray = ctx.camera.generate_ray(raster, Vec2::ZERO);
@@ -773,8 +749,7 @@ impl Mlt {
         let Some((we, pdf_cam, cos_cam, raster)) = ctx.camera.pinhole_importance(to_cam) else {
             return false;
         };
-        let (origin, size) = film_extent(ctx);
-        if raster.cmplt(origin).any() || raster.cmpge(origin + size).any() {
+        if !on_extended_film(ctx, raster) {
             return false;
         }
         let film = &ctx.scene.film;
@@ -811,7 +786,7 @@ impl Mlt {
         }
         e.pa_fwd[1] = e.sel_fwd[0] * e.conv_fwd[0];
         e.pa_rev[k - 1] = pdf_cam * e.conv_rev[k - 1];
-        let mut color = le;
+        let mut color = Spectrum::ONE;
         let mut mag = 1.0f64;
         let norm = |f: Spectrum, color: &mut Spectrum, mag: &mut f64| {
             let m = f.max_element();
@@ -823,12 +798,8 @@ impl Mlt {
                 false
             }
         };
-        {
-            let c0 = color;
-            color = Spectrum::ONE;
-            if !norm(c0, &mut color, &mut mag) {
-                return false;
-            }
+        if !norm(le, &mut color, &mut mag) {
+            return false;
         }
         for i in 1..k {
             let Some(s) = scatter(
@@ -1050,42 +1021,6 @@ fn trace(ctx: &Ctx, ray: &Ray, stats: &mut RayStats) -> Option<Vertex> {
         .map(|si| Vertex::surface(si, -ray.d))
 }
 
-/// A point on a light chosen by power and a direction from it (cosine-weighted), as a light
-/// subpath starts.
-fn sample_light(ctx: &Ctx, rng: &mut Rng) -> Option<(Vertex, Ray)> {
-    let (li, pmf) = ctx.scene.lights.choose(rng.uniform())?;
-    let light = ctx.scene.lights.get(li);
-    let u = [
-        rng.uniform(),
-        rng.uniform(),
-        rng.uniform(),
-        rng.uniform(),
-        rng.uniform(),
-    ];
-    let e = light.sample_le(
-        &Aim::Everywhere,
-        Vec2::new(u[0], u[1]),
-        Vec2::new(u[2], u[3]),
-        u[4],
-    )?;
-    let v = Vertex::point(
-        Kind::Light(li),
-        e.ray.o,
-        Vec3A::ZERO,
-        e.n,
-        e.le,
-        pmf * e.pdf_pos,
-    );
-    Some((v, e.ray))
-}
-
-/// A camera ray through a uniform point of the extended film.
-fn film_ray(ctx: &Ctx, sampler: &mut impl Sampler) -> Ray {
-    let (origin, size) = film_extent(ctx);
-    ctx.camera
-        .generate_ray(origin + sampler.get_2d() * size, Vec2::ZERO)
-}
-
 /// [`Rng`] as a sampler.
 struct RngSampler<'a>(&'a mut Rng);
 
@@ -1151,7 +1086,7 @@ mod tests {
                 let d = light.p - pt.p;
                 let wi = d.normalize();
                 let le = ctx.scene.lights.get(match light.kind {
-                    Kind::Light(l) => l,
+                    super::super::bdpt::Kind::Light(l) => l,
                     _ => unreachable!("a light subpath starts on a light"),
                 });
                 let l = pt.beta

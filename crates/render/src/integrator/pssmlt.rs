@@ -30,17 +30,12 @@
 //! to the same bits.
 
 use glam::{UVec2, Vec2, Vec3A, Vec4};
-use rayon::prelude::*;
-
-use std::ops::Range;
 
 use super::RayStats;
-use super::bdpt::{BdptSums, Ctx, Splats, Vertex};
-use super::metropolis::{bootstrap_cdfs, chain_list, direct_and_brightness};
-use crate::camera::Camera;
+use super::bdpt::{Ctx, Splats, Vertex};
+use super::metropolis::{ChainSettings, Chains};
 use crate::sampler::Sampler;
 use crate::sampler::hash::{hash, mix64, u32_to_unit};
-use crate::scene::Scene;
 use crate::spectrum::{Spectrum, luminance};
 
 /// The settings PSSMLT runs with.
@@ -225,6 +220,42 @@ pub(super) struct Paths {
     light: Vec<Vertex>,
 }
 
+impl Chains for Pssmlt {
+    type Scratch = Paths;
+
+    fn settings(&self) -> ChainSettings {
+        let depths = self.depths();
+        ChainSettings {
+            name: "pssmlt",
+            max_depth: self.max_depth,
+            bootstrap: self.bootstrap,
+            bootstrap_paths: (self.bootstrap as u64).div_ceil(depths) * depths,
+            chains: self.chains,
+            seed: self.seed,
+        }
+    }
+
+    fn bootstrap_weight(&self, ctx: &Ctx, paths: &mut Paths, i: u64) -> (f64, RayStats) {
+        let mut stats = RayStats::default();
+        let mut sampler = MltSampler::new(self.seed_of(i), self.sigma, self.large_step);
+        let depths = self.depths();
+        let depth = MIN_DEPTH as usize + (i % depths) as usize;
+        let (l, _) = self.l(ctx, &mut sampler, depth, paths, &mut stats);
+        (luminance(l).max(0.0) as f64, stats)
+    }
+
+    fn run_chain(
+        &self,
+        ctx: &Ctx,
+        paths: &mut Paths,
+        chain: (u64, u64, u64),
+        splats: &Splats,
+    ) -> RayStats {
+        let (c, steps, start) = chain;
+        self.chain(ctx, c, steps, start, self.depths(), paths, splats)
+    }
+}
+
 impl Pssmlt {
     /// The contribution of a path of `depth` scattering events made from the sampler's primary
     /// sample, and where on the film it lands.
@@ -272,58 +303,9 @@ impl Pssmlt {
         hash(&[self.seed, 0x6d6c74, bootstrap_index])
     }
 
-    /// Groups `groups` of the frame's work (see [`super::metropolis::GROUPS`]): their direct light and
-    /// brightness samples, and their chains' splats from starts drawn from their bootstrap
-    /// paths.
-    pub fn render_groups(
-        &self,
-        scene: &Scene,
-        camera: &Camera,
-        mutations: u32,
-        groups: Range<u32>,
-        progress: &(dyn Fn(u64) + Sync),
-    ) -> Result<(BdptSums, RayStats), String> {
-        // Chains fix the path length; roulette would only add rejections.
-        let ctx = Ctx::new("pssmlt", scene, camera, u32::MAX)?;
-        let all = (mutations as f64 * ctx_area(&ctx)) as u64;
-        let (mut sums, mut stats) = direct_and_brightness(
-            &ctx,
-            self.max_depth,
-            mutations,
-            (all / 16).max(self.bootstrap as u64),
-            self.seed,
-            groups.clone(),
-        )?;
-        if self.max_depth < MIN_DEPTH {
-            return Ok((sums, stats));
-        }
-        let depths = (self.max_depth - MIN_DEPTH + 1) as u64;
-        let n_boot = (self.bootstrap as u64).div_ceil(depths) * depths;
-        let (cdfs, st) = bootstrap_cdfs(n_boot, groups.clone(), Paths::default, |paths, i| {
-            let mut stats = RayStats::default();
-            let mut sampler = MltSampler::new(self.seed_of(i), self.sigma, self.large_step);
-            let depth = MIN_DEPTH as usize + (i % depths) as usize;
-            let (l, _) = self.l(&ctx, &mut sampler, depth, paths, &mut stats);
-            (luminance(l).max(0.0) as f64, stats)
-        });
-        stats.add(&st);
-        let splats = Splats::new(scene.film.width, scene.film.height);
-        let chain_stats: Vec<RayStats> = chain_list(self.chains, all, groups.clone())
-            .into_par_iter()
-            .map_init(Paths::default, |paths, (c, steps, g)| {
-                let Some(start) = cdfs[(g - groups.start) as usize].pick(c, self.seed) else {
-                    return RayStats::default();
-                };
-                let st = self.chain(&ctx, c, steps, start, depths, paths, &splats);
-                progress(steps);
-                st
-            })
-            .collect();
-        for st in &chain_stats {
-            stats.add(st);
-        }
-        sums.chain = splats.totals();
-        Ok((sums, stats))
+    /// Depths 2..=max_depth the chains carry (at least one, for the arithmetic).
+    fn depths(&self) -> u64 {
+        (self.max_depth.max(MIN_DEPTH) - MIN_DEPTH + 1) as u64
     }
 
     /// Runs chain `c` for `steps` mutations from a start drawn from the bootstrap paths. The
@@ -419,8 +401,14 @@ pub(super) fn film_extent(ctx: &Ctx) -> (Vec2, Vec2) {
     )
 }
 
+/// Whether raster point `p` lies on the extended film.
+pub(super) fn on_extended_film(ctx: &Ctx, p: Vec2) -> bool {
+    let (origin, size) = film_extent(ctx);
+    p.cmpge(origin).all() && p.cmplt(origin + size).all()
+}
+
 /// A camera ray through a uniform point of the extended film, and the point.
-fn film_ray(ctx: &Ctx, sampler: &mut MltSampler) -> (crate::ray::Ray, Vec2) {
+pub(super) fn film_ray(ctx: &Ctx, sampler: &mut impl Sampler) -> (crate::ray::Ray, Vec2) {
     let (origin, size) = film_extent(ctx);
     let p = origin + sampler.get_2d() * size;
     let u_lens = if ctx.camera.has_aperture() {
