@@ -56,7 +56,7 @@ pub(super) struct Vertex {
     /// Density of this vertex sampled from the previous one of its subpath, per unit area.
     pub(super) pdf_fwd: f32,
     /// Density of this vertex sampled from the next one (the other direction), per unit area.
-    pdf_rev: f32,
+    pub(super) pdf_rev: f32,
 }
 
 impl Vertex {
@@ -196,7 +196,7 @@ impl<'a> Ctx<'a> {
 
     /// Density per unit area at `next` of sampling it from `v` (whose subpath came from
     /// `prev`): BSDF sampling at surfaces, emission at lights, importance at the camera.
-    fn pdf(&self, v: &Vertex, prev: Option<&Vertex>, next: &Vertex) -> f32 {
+    pub(super) fn pdf(&self, v: &Vertex, prev: Option<&Vertex>, next: &Vertex) -> f32 {
         let wn = (next.p - v.p).normalize_or_zero();
         let pdf = match v.kind {
             Kind::Light(_) => return self.pdf_le(v, next).1,
@@ -216,6 +216,65 @@ impl<'a> Ctx<'a> {
             }
         };
         v.convert_density(pdf, next)
+    }
+
+    /// The specular lobe at `si` between `wn` (toward the eye side) and `wp` (toward the
+    /// light side), seen from both ends. One delta convention serves every strategy's
+    /// density (BDPT's and VCM's weights, MLT's C_s = f / p_s): a specular vertex sampled from
+    /// the eye side has its radiance lobe's probability; from the light side, its importance
+    /// lobe's probability times c_rad |ω_n·n_g| / (c_imp |ω_p·n_g|), c the lobe's coefficient
+    /// f|cos θ_i| in each mode — the Jacobian between the two directions' delta measures
+    /// (η² across a refraction, shading normals). With it the ratios of densities along a
+    /// specular chain are the true ones, which merging needs (a caustic seen through glass
+    /// is merged or hit, never connected). `None` where no specular lobe turns one into the
+    /// other.
+    pub(super) fn delta_lobe(
+        &self,
+        si: &SurfaceInteraction,
+        wn: Vec3A,
+        wp: Vec3A,
+    ) -> Option<DeltaLobe> {
+        let (w_rad, p_rad) = self.lobe_between(si, wn, wp, TransportMode::Radiance)?;
+        let (w_imp, p_imp) = self.lobe_between(si, wp, wn, TransportMode::Importance)?;
+        let (c_rad, c_imp) = (w_rad * p_rad, w_imp * p_imp);
+        let (m_rad, m_imp) = (c_rad.max_element(), c_imp.max_element());
+        let cos_p = wp.dot(si.ng).abs();
+        if m_rad <= 0.0 || m_imp <= 0.0 || cos_p == 0.0 {
+            return None;
+        }
+        Some(DeltaLobe {
+            c_rad,
+            p_rad,
+            p_imp,
+            pdf_imp: p_imp * m_rad * wn.dot(si.ng).abs() / (m_imp * cos_p),
+        })
+    }
+
+    /// The specular lobe at `si` that turns `wo` into `wi` in `mode`: its sampling weight
+    /// (with the shading correction of importance transport) and probability.
+    fn lobe_between(
+        &self,
+        si: &SurfaceInteraction,
+        wo: Vec3A,
+        wi: Vec3A,
+        mode: TransportMode,
+    ) -> Option<(Spectrum, f32)> {
+        let material = self.scene.material(si.material);
+        let fr = material.frame(si, wo);
+        let wo_l = fr.to_local(wo);
+        for u in [0.0, 0.5, 0.999_999] {
+            let Some(bs) = material.bsdf.sample(wo_l, u, Vec2::splat(0.5), mode) else {
+                continue;
+            };
+            if !bs.specular || fr.to_world(bs.wi).dot(wi) < 1.0 - 1e-4 {
+                continue;
+            }
+            if !consistent(si, wo, wi, wo_l, bs.wi) {
+                return None;
+            }
+            return Some((bs.weight() * shading_correction(si, wo, wi, mode), bs.pdf));
+        }
+        None
     }
 
     /// Densities of the light at `v` emitting from `v` toward `to`: of choosing the light
@@ -241,7 +300,7 @@ impl<'a> Ctx<'a> {
     }
 
     /// Whether a light vertex is a delta in position (a point light).
-    fn is_delta_light(&self, v: &Vertex) -> bool {
+    pub(super) fn is_delta_light(&self, v: &Vertex) -> bool {
         matches!(
             self.light_of(v),
             Some((_, Light::Point(_) | Light::Spot(_)))
@@ -293,13 +352,30 @@ impl<'a> Ctx<'a> {
                 break;
             }
             let cur = path.len() - 1;
-            let mut pdf_rev = material.bsdf.pdf(bs.wi, wo_l, mode);
-            pdf_fwd = bs.pdf;
-            if bs.specular {
+            let pdf_rev = if bs.specular {
+                // Both directions' densities by the delta convention of `delta_lobe`.
                 path[cur].delta = true;
-                pdf_rev = 0.0;
-                pdf_fwd = 0.0;
-            }
+                let (wn, wp) = match mode {
+                    TransportMode::Radiance => (wo, wi),
+                    TransportMode::Importance => (wi, wo),
+                };
+                let (from_eye, from_light) = self
+                    .delta_lobe(&si, wn, wp)
+                    .map_or((0.0, 0.0), |l| (l.p_rad, l.pdf_imp));
+                match mode {
+                    TransportMode::Radiance => {
+                        pdf_fwd = from_eye;
+                        from_light
+                    }
+                    TransportMode::Importance => {
+                        pdf_fwd = from_light;
+                        from_eye
+                    }
+                }
+            } else {
+                pdf_fwd = bs.pdf;
+                material.bsdf.pdf(bs.wi, wo_l, mode)
+            };
             beta *= bs.weight() * shading_correction(&si, wo, wi, mode);
             let rev = path[cur].convert_density(pdf_rev, &path[prev]);
             path[prev].pdf_rev = rev;
@@ -412,16 +488,15 @@ impl<'a> Ctx<'a> {
         if s + t == 2 {
             return 1.0;
         }
-        1.0 / (1.0 + self.mis_sums(light, camera, sampled, s, t, merge).0)
+        1.0 / (1.0 + self.mis_sums(light, camera, sampled, s, t, merge))
     }
 
     /// Σ over the other strategies j of the path made by (s, t) of (p_j / p_{s,t})²: the
     /// connections, and with `merge` = η π r² > 0 (light paths per iteration × the merging
     /// disc) also vertex merging at each interior non-specular vertex (Georgiev et al. 2012;
     /// p_merge at z = p of the connection that samples z from one side × the density of z from
-    /// the other × η π r²; of the two, the side whose density is not a specular delta).
-    /// Also returns the term of merging at the light end `light[s - 1]` (0 if none).
-    pub(super) fn mis_sums(
+    /// the other × η π r²). (A merge's own weight is VCM's `merge_weight`.)
+    fn mis_sums(
         &self,
         light: &[Vertex],
         camera: &[Vertex],
@@ -429,7 +504,7 @@ impl<'a> Ctx<'a> {
         s: usize,
         t: usize,
         merge: f32,
-    ) -> (f32, f32) {
+    ) -> f32 {
         // The four vertices whose reverse densities the connection changes, and the two
         // endpoints, which a connection never treats as specular.
         let qs = match (s, sampled) {
@@ -474,7 +549,6 @@ impl<'a> Ctx<'a> {
             }
         };
         let mut sum = 0.0f32;
-        let mut at_qs = 0.0f32;
 
         // Camera side: strategies with fewer camera vertices.
         let cam = |i: usize| -> (f32, f32, bool) {
@@ -525,11 +599,7 @@ impl<'a> Ctx<'a> {
             let before = ri;
             ri *= remap(rev) / remap(fwd);
             if merge > 0.0 && i >= 1 && !delta {
-                let m = merged(before, ri, rev, fwd);
-                sum += m;
-                if i + 1 == s {
-                    at_qs = m;
-                }
+                sum += merged(before, ri, rev, fwd);
             }
             let delta_light = if i > 0 {
                 lig(i - 1).2
@@ -544,7 +614,7 @@ impl<'a> Ctx<'a> {
                 sum += ri;
             }
         }
-        (sum, at_qs)
+        sum
     }
 
     /// The contribution of strategy (s, t), MIS-weighted; for t = 1 also where it lands.
@@ -696,6 +766,17 @@ impl<'a> Ctx<'a> {
             _ => true,
         }
     }
+}
+
+/// A specular vertex's lobe seen from both ends ([`Ctx::delta_lobe`]).
+pub(super) struct DeltaLobe {
+    /// The radiance lobe's coefficient f |cos θ| toward the light side.
+    pub(super) c_rad: Spectrum,
+    /// Lobe probabilities sampled from the eye side (radiance) and the light side.
+    pub(super) p_rad: f32,
+    pub(super) p_imp: f32,
+    /// The density, in the eye side's delta measure, of the light side's choice.
+    pub(super) pdf_imp: f32,
 }
 
 /// Veach's correction for shading normals in importance transport (thesis §5.3, eq. 5.19):

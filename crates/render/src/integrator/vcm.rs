@@ -10,7 +10,7 @@
 //! how specular–diffuse–specular paths (a caustic seen through glass) are found, which no
 //! connection can make. One power-heuristic MIS weighs connections and merges: a merge at
 //! vertex z has density p(connection sampling z from one side) × p(z from the other side) ×
-//! η π r² (`Ctx::mis_sums`). The radius shrinks as r_k = r₀ k^((α−1)/2) over iterations k, so
+//! η π r² (`Ctx::mis_sums` for connections, [`merge_weight`] for merges). The radius shrinks as r_k = r₀ k^((α−1)/2) over iterations k, so
 //! the merging bias vanishes (α = 0.75, as the paper).
 //!
 //! Light tracing (t = 1) splats during the light pass; the camera pass fills each pixel's
@@ -249,15 +249,106 @@ impl CameraPass<'_> {
             if is_black(f) {
                 return;
             }
-            // As the connection (s = i + 1, t − 1) would weigh it, merging at its light end.
-            let (sum, own) = ctx.mis_sums(light, &cam[..t - 1], None, i + 1, t - 1, self.merge);
-            let connectible = t == 2 || (!cam[t - 2].delta && ctx.connectible(&cam[t - 2]));
-            let total = sum + if connectible { 1.0 } else { 0.0 };
-            if own <= 0.0 || total <= 0.0 {
-                return;
-            }
-            l += x.beta * f * v.beta * (own / total / self.merge);
+            let w = merge_weight(ctx, light, &cam[..t], self.merge);
+            l += x.beta * f * v.beta * (w / self.merge);
         });
         l
     }
+}
+
+/// The power-heuristic weight of merging camera vertex x = `cam[t − 1]` with light vertex
+/// y = `light[i]` (i ≥ 1), over every connection and merge that makes the path z =
+/// `light[..i]`, y, `cam[t − 2]` … `cam[0]` (y standing in for x). Each z_j has its density
+/// sampled from the light side (p→) and from the eye side (p←), as its subpath stored them;
+/// those the join changes are evaluated at y — except what a specular `cam[t − 2]` samples,
+/// which can only be x: those stay the camera subpath's. Connection s (light vertices z_0 …
+/// z_{s−1}) has density P_s = Π_{j<s} p→(z_j) Π_{s≤j<n} p←(z_j), z_n the lens; merging at
+/// z_j, P_{j+1} p←(z_j) η π r². Specular vertices carry the delta convention of
+/// [`Ctx::delta_lobe`], so the chain S D S of a caustic seen through glass weighs right.
+fn merge_weight(ctx: &Ctx, light: &[Vertex], cam: &[Vertex], merge: f32) -> f32 {
+    let (i, t) = (light.len() - 1, cam.len());
+    let n = i + t - 1;
+    let (x, y, c) = (&cam[t - 1], &light[i], &cam[t - 2]);
+    let before = (t >= 3).then(|| &cam[t - 3]);
+    // y's neighbours sampled from y, and y and c's predecessor sampled from c.
+    let to_light = ctx.pdf(y, Some(c), &light[i - 1]);
+    let to_eye = before.map_or(0.0, |_| ctx.pdf(y, Some(&light[i - 1]), c));
+    let (at_y, past_c) = if c.delta {
+        (x.pdf_fwd, before.map_or(0.0, |b| b.pdf_rev))
+    } else {
+        (
+            ctx.pdf(c, before, y),
+            before.map_or(0.0, |b| ctx.pdf(c, Some(y), b)),
+        )
+    };
+    // (p→, p←, specular) of z_j; a zero density (a film edge, a neighbour behind y's
+    // surface) counts as 1, as in BDPT's weights (pbrt's remap), so that connections and
+    // merges weigh each path alike.
+    let z_raw = |j: usize| -> (f32, f32, bool) {
+        if j < i {
+            let v = &light[j];
+            let rev = if j + 1 == i { to_light } else { v.pdf_rev };
+            (v.pdf_fwd, rev, v.delta)
+        } else if j == i {
+            (y.pdf_fwd, at_y, false)
+        } else {
+            let v = &cam[n - j];
+            let fwd = match j - i {
+                1 => to_eye,
+                2 => past_c,
+                _ => v.pdf_rev,
+            };
+            (fwd, v.pdf_fwd, v.delta)
+        }
+    };
+    let one = |p: f32| if p == 0.0 { 1.0 } else { p };
+    let z = |j: usize| -> (f32, f32, bool) {
+        let (fwd, rev, delta) = z_raw(j);
+        (one(fwd), one(rev), delta)
+    };
+    let delta_light = ctx.is_delta_light(&light[0]);
+    // Connection s needs non-specular ends (and s = 0, a camera path hitting the light, an
+    // area light).
+    let joins = |s: usize| {
+        let light_end = if s == 0 { !delta_light } else { !z(s - 1).2 };
+        light_end && (s == n || !z(s).2)
+    };
+    let (own_fwd, own_rev, _) = z(i);
+    if own_fwd <= 0.0 || own_rev <= 0.0 {
+        return 0.0;
+    }
+    let sq = |v: f32| v * v;
+    let mut sum = 1.0f32;
+    // Toward the eye: connections s = i + 1 … n and merges at z_{i+1} … z_{n−1}, as ratios
+    // to this merge's density.
+    let mut r = 1.0 / (own_rev * merge);
+    for s in i + 1..=n {
+        if joins(s) {
+            sum += sq(r);
+        }
+        if s == n {
+            break;
+        }
+        let (fwd, rev, delta) = z(s);
+        if !delta {
+            sum += sq(r * fwd * merge);
+        }
+        r *= fwd / rev;
+    }
+    // Toward the light: connections s = i … 0 and merges at z_{i−1} … z_1.
+    let mut r = 1.0 / (own_fwd * merge);
+    for s in (0..=i).rev() {
+        if joins(s) {
+            sum += sq(r);
+        }
+        if s == 0 {
+            break;
+        }
+        let (fwd, rev, delta) = z(s - 1);
+        if s >= 2 && !delta {
+            sum += sq(r * rev * merge);
+        }
+        r *= rev / fwd;
+    }
+    if sum.is_finite() { 1.0 / sum } else { 0.0 }
 }
