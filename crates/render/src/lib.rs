@@ -5,6 +5,7 @@
 
 pub mod analysis;
 pub mod bsdf;
+pub mod bssrdf;
 pub mod camera;
 pub mod error;
 pub mod film;
