@@ -102,15 +102,7 @@ pub fn slab_profile(
 /// boundary with cosine `cos_i` (> 0) to its normal; 1 under total internal reflection.
 /// (For `cos_i` = 1 it is also the reflectance at normal incidence from outside.)
 fn fresnel(cos_i: f64, eta: f64) -> f64 {
-    // Snell from inside (index η) out (index 1): sin θt = η sin θi.
-    let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    let rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    0.5 * (rs * rs + rp * rp)
+    crate::bsdf::fresnel::dielectric(-cos_i as f32, eta as f32) as f64
 }
 
 /// A direction scattered from `d` by the Henyey–Greenstein phase function with mean cosine
