@@ -285,6 +285,19 @@ pub fn apply(
     if crate::bdpt::film_tasks(desc.integrator.kind) {
         crate::bdpt::check(desc, settings)?;
     }
+    let translucent = desc.translucent_materials();
+    if !translucent.is_empty()
+        && !matches!(
+            desc.integrator.kind,
+            IntegratorKind::Path | IntegratorKind::Direct | IntegratorKind::Auto
+        )
+    {
+        return Err(format!(
+            "integrator.type: {} does not render translucent (subsurface) materials yet ({}); expected path, direct or auto",
+            format!("{:?}", desc.integrator.kind).to_lowercase(),
+            translucent.join(", ")
+        ));
+    }
     let available = desc.frame_count();
     if frames.first == 0 || frames.last < frames.first || frames.last > available {
         return Err(format!(

@@ -10,7 +10,7 @@
 //! (caustics), how small the emitters are, whether they are in view.
 
 use glam::Vec3A;
-use tessera_scene::{IntegratorKind, LightDesc, MaterialKind, SceneDesc};
+use tessera_scene::{IntegratorKind, LightDesc, MaterialKind, SceneDesc, SubsurfaceMethod};
 
 use crate::camera::Camera;
 
@@ -98,6 +98,8 @@ fn class(m: &MaterialKind) -> Class {
                 Class::Diffuse
             }
         }
+        // Light leaves a translucent surface in every direction, as from a diffuse one.
+        MaterialKind::Subsurface { .. } => Class::Diffuse,
         MaterialKind::Mirror { reflectance } => {
             if black(*reflectance) {
                 Class::Black
@@ -295,10 +297,25 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
             },
         }
     });
-    decisions.push(Decision {
-        topic: "subsurface scattering",
-        choice: "skipped".into(),
-        reason: "no translucent materials".into(),
+    let translucent = desc.translucent_materials();
+    decisions.push(if translucent.is_empty() {
+        Decision {
+            topic: "subsurface scattering",
+            choice: "skipped".into(),
+            reason: "no translucent materials".into(),
+        }
+    } else {
+        Decision {
+            topic: "subsurface scattering",
+            choice: match desc.integrator.subsurface {
+                SubsurfaceMethod::Dipole => "dipole BSSRDF, sampled by probe rays".into(),
+                SubsurfaceMethod::Hierarchical => {
+                    "point-cloud irradiance pass, dipole summed through an octree".into()
+                }
+                SubsurfaceMethod::RandomWalk => "random walk inside the objects (reference)".into(),
+            },
+            reason: format!("translucent materials: {}", translucent.join(", ")),
+        }
     });
     if let Some(inv) = surfaces.iter().find(|s| s.class == Class::Invisible) {
         decisions.push(Decision {
@@ -422,6 +439,32 @@ mod tests {
         let (io, text) = analyze_scene("hard/ior-one/scene.json");
         assert!(text.contains("IOR 1"), "{text}");
         assert_eq!(io.integrator, IntegratorKind::Direct, "{text}");
+    }
+
+    /// No translucent material, no point-cloud pass: the decision says so (and `prepare`
+    /// builds none even when the scene asks for the hierarchical method).
+    #[test]
+    fn a_point_cloud_pass_only_for_translucent_materials() {
+        let (cb, text) = analyze_scene("cornell-box/scene.json");
+        assert_eq!(choice(&cb, "subsurface scattering"), "skipped", "{text}");
+        assert!(text.contains("no translucent materials"), "{text}");
+        let (ms, text) = analyze_scene("marble-skin/scene.json");
+        assert!(
+            choice(&ms, "subsurface scattering").contains("point-cloud irradiance pass"),
+            "{text}"
+        );
+        assert!(
+            text.contains("translucent materials: marble, skin"),
+            "{text}"
+        );
+
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
+        let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        d.integrator.subsurface = tessera_scene::SubsurfaceMethod::Hierarchical;
+        let scene = crate::Scene::build(&d);
+        let (_, passes) = crate::integrator::prepare(&d, &scene, &analyze(&d), 1..=1);
+        assert!(passes.is_empty(), "{passes:?}");
     }
 
     #[test]

@@ -6,6 +6,7 @@ use glam::{Mat3A, Vec3A};
 use tessera_scene::{FilmDesc, IntegratorDesc, LightDesc, SceneDesc};
 
 use crate::bsdf::{self, Bsdf, BsdfFlags};
+use crate::bssrdf::Subsurface;
 use crate::filter::Filter;
 use crate::geometry::{Accel, Prim};
 use crate::light::{
@@ -24,19 +25,35 @@ pub const NO_LIGHT: u32 = u32::MAX;
 /// so it is scale-free.
 const SHADOW_EPSILON: f32 = 1e-4;
 
-/// A material: its BSDF and how to orient it.
+/// A material: its BSDF and how to orient it, and for a translucent one what lies beneath
+/// its interface.
 #[derive(Debug)]
 pub struct Material {
     pub bsdf: Box<dyn Bsdf>,
     pub flags: BsdfFlags,
+    pub subsurface: Option<Box<Subsurface>>,
 }
 
 impl Material {
     pub fn from_desc(kind: &tessera_scene::MaterialKind) -> Material {
-        let bsdf = bsdf::from_desc(kind);
+        let mut m = Material::from_bsdf(bsdf::from_desc(kind));
+        if let tessera_scene::MaterialKind::Subsurface {
+            sigma_s_prime,
+            sigma_a,
+            eta,
+            g,
+        } = *kind
+        {
+            m.subsurface = Some(Box::new(Subsurface::new(sigma_s_prime, sigma_a, eta, g)));
+        }
+        m
+    }
+
+    pub fn from_bsdf(bsdf: Box<dyn Bsdf>) -> Material {
         Material {
             flags: bsdf.flags(),
             bsdf,
+            subsurface: None,
         }
     }
 

@@ -9,7 +9,7 @@
 
 use glam::{Mat3, Vec3};
 
-pub use crate::file::{Distribution, FovAxis, PhotonFilter, SamplerType};
+pub use crate::file::{Distribution, FovAxis, PhotonFilter, SamplerType, SubsurfaceMethod};
 
 /// A scene ready to render.
 #[derive(Debug, Clone)]
@@ -29,6 +29,15 @@ pub struct SceneDesc {
 }
 
 impl SceneDesc {
+    /// Names of the translucent (`subsurface`) materials.
+    pub fn translucent_materials(&self) -> Vec<&str> {
+        self.materials
+            .iter()
+            .filter(|m| matches!(m.kind, MaterialKind::Subsurface { .. }))
+            .map(|m| m.name.as_str())
+            .collect()
+    }
+
     /// Frames of the scene's animation (1 without a camera path).
     pub fn frame_count(&self) -> u32 {
         self.camera_path.as_ref().map_or(1, |p| p.frame_count())
@@ -160,6 +169,7 @@ pub struct IntegratorDesc {
     pub seed: u64,
     pub sampler: SamplerType,
     pub photon: PhotonDesc,
+    pub subsurface: SubsurfaceMethod,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -222,6 +232,15 @@ pub enum MaterialKind {
     },
     Mirror {
         reflectance: Vec3,
+    },
+    /// A translucent object: a smooth dielectric interface of relative index `eta` around a
+    /// homogeneous scattering medium — reduced scattering σs′ = σs (1 − g) and absorption σa
+    /// per scene unit of length, Henyey–Greenstein asymmetry `g`.
+    Subsurface {
+        sigma_s_prime: Vec3,
+        sigma_a: Vec3,
+        eta: f32,
+        g: f32,
     },
 }
 

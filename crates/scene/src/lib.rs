@@ -8,6 +8,7 @@ pub mod desc;
 pub mod error;
 pub mod file;
 pub mod image;
+pub mod media;
 pub mod mesh;
 pub mod photometry;
 mod resolve;

@@ -198,7 +198,7 @@ impl Ctx<'_> {
             .map(|(name, t)| MaterialDesc {
                 name: name.clone(),
                 kind: self
-                    .material(&format!("materials.{name}"), t)
+                    .material(&format!("materials.{name}"), t, metres_per_unit)
                     .unwrap_or(MaterialKind::Diffuse { albedo: Vec3::ZERO }),
             })
             .collect();
@@ -551,6 +551,7 @@ impl Ctx<'_> {
             seed: i.seed,
             sampler: i.sampler,
             photon: self.photon_map(&i.photon_map),
+            subsurface: i.subsurface,
         }
     }
 
@@ -667,7 +668,8 @@ impl Ctx<'_> {
         }
     }
 
-    fn material(&mut self, path: &str, t: &Tagged) -> Option<MaterialKind> {
+    /// The material `t`; lengths in it (the subsurface coefficients) converted to scene units.
+    fn material(&mut self, path: &str, t: &Tagged, metres_per_unit: f64) -> Option<MaterialKind> {
         Some(match t.kind.as_str() {
             "diffuse" => {
                 let m: DiffuseMaterial = self.body(path, t)?;
@@ -824,6 +826,10 @@ impl Ctx<'_> {
                     ),
                 }
             }
+            "subsurface" => {
+                let m: SubsurfaceMaterial = self.body(path, t)?;
+                self.subsurface(path, &m, metres_per_unit)
+            }
             other => {
                 self.unknown_type(
                     path,
@@ -838,11 +844,84 @@ impl Ctx<'_> {
                         "conductor",
                         "dielectric",
                         "mirror",
+                        "subsurface",
                     ],
                 );
                 return None;
             }
         })
+    }
+
+    /// A translucent material: the coefficients of its preset or its own (per mm), times
+    /// `scale`, per scene unit.
+    fn subsurface(
+        &mut self,
+        path: &str,
+        m: &SubsurfaceMaterial,
+        metres_per_unit: f64,
+    ) -> MaterialKind {
+        let (sigma_s_prime, sigma_a) = match (&m.preset, m.sigma_s_prime_per_mm, m.sigma_a_per_mm) {
+            (Some(name), None, None) => match crate::media::measured(name) {
+                Some(p) => (Vec3::from(p.sigma_s_prime), Vec3::from(p.sigma_a)),
+                None => {
+                    let known: Vec<&str> = crate::media::MEASURED.iter().map(|p| p.name).collect();
+                    self.problem(
+                        format!("{path}.preset"),
+                        format!(
+                            "unknown medium \"{name}\"; expected one of: {}",
+                            known.join(", ")
+                        ),
+                    );
+                    (Vec3::ONE, Vec3::ZERO)
+                }
+            },
+            (None, Some(s), Some(a)) => {
+                let s = self.non_negative3(&format!("{path}.sigma_s_prime_per_mm"), s.expand());
+                if s.min_element() <= 0.0 {
+                    self.problem(
+                            format!("{path}.sigma_s_prime_per_mm"),
+                            format!("expected a positive scattering coefficient per channel (a medium that does not scatter is a dielectric), got {s}"),
+                        );
+                }
+                (
+                    s,
+                    self.non_negative3(&format!("{path}.sigma_a_per_mm"), a.expand()),
+                )
+            }
+            _ => {
+                self.problem(
+                    path.to_string(),
+                    "expected either `preset` or both `sigma_s_prime_per_mm` and `sigma_a_per_mm`",
+                );
+                (Vec3::ONE, Vec3::ZERO)
+            }
+        };
+        let scale = match m.scale {
+            Some(s) => self.positive(&format!("{path}.scale"), s),
+            None => 1.0,
+        };
+        let eta = self.range(
+            &format!("{path}.ior"),
+            m.ior.unwrap_or(crate::media::MEASURED_ETA),
+            1.0,
+            3.0,
+            "an index of refraction in [1, 3] (the dipole's diffuse Fresnel fit holds there)",
+        );
+        let g = self.range(
+            &format!("{path}.g"),
+            m.g.unwrap_or(0.0),
+            -0.99,
+            0.99,
+            "a Henyey–Greenstein asymmetry in [-0.99, 0.99]",
+        );
+        // Per mm → per scene unit.
+        let per_unit = (metres_per_unit * 1000.0) as f32 * scale;
+        MaterialKind::Subsurface {
+            sigma_s_prime: sigma_s_prime * per_unit,
+            sigma_a: sigma_a * per_unit,
+            eta,
+            g,
+        }
     }
 
     fn material_ref(&mut self, path: &str, name: &str, env: &ShapeEnv) -> u32 {

@@ -511,3 +511,69 @@ fn bad_camera_paths_name_the_keyframe_and_field() {
     let (_, path, _) = one_problem(&with_path(""), &[]);
     assert_eq!(path, "camera.path.keyframes");
 }
+
+/// Translucent materials: a preset by name (its mm⁻¹ coefficients converted to scene units and
+/// scaled), coefficients of one's own, and what a bad one is told.
+#[test]
+fn subsurface_presets_units_and_errors() {
+    let with = |materials: &str| {
+        scene(QUAD, POINT)
+            .replace(r#""units": "m""#, r#""units": "cm""#)
+            .replace(
+                r#""materials": { "white": { "type": "diffuse", "albedo": 0.8 } }"#,
+                &format!(r#""materials": {{ "white": {{ "type": "diffuse", "albedo": 0.8 }}, {materials} }}"#),
+            )
+    };
+    let (_dir, r) = try_load(
+        &with(r#""marble": { "type": "subsurface", "preset": "Marble", "scale": 2, "g": 0.5 }"#),
+        &[],
+    );
+    let d = r.expect("valid");
+    match d
+        .materials
+        .iter()
+        .find(|m| m.name == "marble")
+        .map(|m| &m.kind)
+    {
+        Some(MaterialKind::Subsurface {
+            sigma_s_prime,
+            sigma_a,
+            eta,
+            g,
+        }) => {
+            // Marble's σs′ red 2.19 mm⁻¹ = 21.9 cm⁻¹, × scale 2.
+            assert!((sigma_s_prime.x - 43.8).abs() < 1e-3, "{sigma_s_prime}");
+            assert!((sigma_a.z - 0.142).abs() < 1e-5, "{sigma_a}");
+            assert_eq!((*eta, *g), (1.3, 0.5));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(d.translucent_materials(), vec!["marble"]);
+
+    let p = problems(
+        &with(r#""jade": { "type": "subsurface", "preset": "jade" }"#),
+        &[],
+    );
+    assert_eq!(p[0].1, "materials.jade.preset");
+    assert!(
+        p[0].2.contains("unknown medium \"jade\"") && p[0].2.contains("skim-milk"),
+        "{p:?}"
+    );
+    let p = problems(
+        &with(
+            r#""wax": { "type": "subsurface", "sigma_s_prime_per_mm": [1, 0, 1], "sigma_a_per_mm": 0.1, "ior": 0.5 }"#,
+        ),
+        &[],
+    );
+    let paths: Vec<&str> = p.iter().map(|x| x.1.as_str()).collect();
+    assert_eq!(
+        paths,
+        ["materials.wax.sigma_s_prime_per_mm", "materials.wax.ior"],
+        "{p:?}"
+    );
+    let p = problems(
+        &with(r#""half": { "type": "subsurface", "sigma_a_per_mm": 0.1 }"#),
+        &[],
+    );
+    assert!(p[0].2.contains("expected either `preset` or both"), "{p:?}");
+}

@@ -4,7 +4,9 @@
 //! own variance predicts is at most `--target-error` (default 1e-4), or every tile has
 //! `--max-spp` samples per pixel (default 65536), or `--time-limit` passes. The rule, the spp
 //! range reached and the final estimate are written into the EXR header; the EXR carries the
-//! per-pixel variance, so tests can compare renders with it within their joint noise.
+//! per-pixel variance, so tests can compare renders with it within their joint noise. The
+//! integrator is the path tracer, translucent materials by their random walk: unbiased whatever
+//! the scene asks for.
 
 use std::path::PathBuf;
 
@@ -56,6 +58,8 @@ pub fn run(args: ReferenceArgs) -> anyhow::Result<()> {
         seed: None,
         // Unbiased whatever the scene asks for: references judge the biased methods.
         integrator: Some(tessera_farm::job::IntegratorName::Path),
+        // Translucent materials by the brute-force random walk, not the dipole's model.
+        subsurface: Some(tessera_scene::SubsurfaceMethod::RandomWalk),
         size: args.size,
         frame: 1,
         target_error: Some(args.target_error),

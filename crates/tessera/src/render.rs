@@ -31,9 +31,15 @@ pub struct RenderArgs {
     /// Film size WxH (overrides the scene's film; the vertical field of view is kept).
     #[arg(long)]
     pub size: Option<Size>,
-    /// The integrator: path, direct, auto, photon, sppm or bdpt (overrides the scene's integrator.type).
+    /// The integrator: path, direct, auto, photon, sppm, bdpt, pssmlt, mlt or vcm (overrides
+    /// the scene's integrator.type).
     #[arg(long)]
     pub integrator: Option<tessera_farm::job::IntegratorName>,
+    /// Translucent materials: dipole (the sampled BSSRDF), hierarchical (Jensen & Buhler's point
+    /// cloud) or random-walk (the brute-force reference); overrides the scene's
+    /// integrator.subsurface.
+    #[arg(long, value_parser = parse_subsurface)]
+    pub subsurface: Option<tessera_scene::SubsurfaceMethod>,
     /// The frame of the scene's camera path to render (1-based).
     #[arg(long, default_value_t = 1)]
     pub frame: u32,
@@ -51,6 +57,19 @@ pub struct RenderArgs {
     /// (`d1_s2_t1.exr`) and unweighted (`d1_s2_t1_unweighted.exr`), for debugging.
     #[arg(long)]
     pub strategies: Option<PathBuf>,
+}
+
+/// A subsurface method by name (`dipole`, `hierarchical`, `random-walk` or `random_walk`).
+pub fn parse_subsurface(s: &str) -> Result<tessera_scene::SubsurfaceMethod, String> {
+    use tessera_scene::SubsurfaceMethod;
+    match s.trim().to_ascii_lowercase().replace('-', "_").as_str() {
+        "dipole" => Ok(SubsurfaceMethod::Dipole),
+        "hierarchical" => Ok(SubsurfaceMethod::Hierarchical),
+        "random_walk" => Ok(SubsurfaceMethod::RandomWalk),
+        other => Err(format!(
+            "unknown subsurface method \"{other}\"; expected dipole, hierarchical or random-walk"
+        )),
+    }
 }
 
 /// Renders one frame in this process, through the same plan → tasks → stitch path as the
@@ -76,6 +95,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         &Limits::default(),
     )
     .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
+    if let Some(m) = args.subsurface {
+        desc.integrator.subsurface = m;
+    }
     let output = args
         .output
         .clone()

@@ -19,6 +19,7 @@ mod mirror;
 mod oren_nayar;
 mod phong;
 mod rough_dielectric;
+mod subsurface_exit;
 mod ward;
 
 #[cfg(test)]
@@ -39,6 +40,7 @@ pub use mirror::Mirror;
 pub use oren_nayar::OrenNayar;
 pub use phong::{Phong, PhongLobe};
 pub use rough_dielectric::RoughDielectric;
+pub use subsurface_exit::SubsurfaceExit;
 pub use ward::{Ward, WardLobe};
 
 /// Whether the path carries radiance (from the camera) or importance (from a light): BTDFs
@@ -192,6 +194,8 @@ pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
             }
         }
         MaterialKind::Mirror { reflectance } => Box::new(Mirror::new(v(reflectance))),
+        // The interface of a translucent object; what enters is the BSSRDF's (`bssrdf`).
+        MaterialKind::Subsurface { eta, .. } => Box::new(SmoothDielectric::new(eta)),
     }
 }
 

@@ -17,49 +17,20 @@ pub struct Medium {
     pub eta: f64,
 }
 
-/// The measured media of Jensen et al. 2001, Figure 5 (σs′, σa in mm⁻¹; η = 1.3), by name.
-pub const PRESETS: &[(&str, Medium)] = &[
-    ("apple", preset([2.29, 2.39, 1.97], [0.0030, 0.0034, 0.046])),
-    ("chicken1", preset([0.15, 0.21, 0.38], [0.015, 0.077, 0.19])),
-    ("chicken2", preset([0.19, 0.25, 0.32], [0.018, 0.088, 0.20])),
-    (
-        "cream",
-        preset([7.38, 5.47, 3.15], [0.0002, 0.0028, 0.0163]),
-    ),
-    ("ketchup", preset([0.18, 0.07, 0.03], [0.061, 0.97, 1.45])),
-    (
-        "marble",
-        preset([2.19, 2.62, 3.00], [0.0021, 0.0041, 0.0071]),
-    ),
-    ("potato", preset([0.68, 0.70, 0.55], [0.0024, 0.0090, 0.12])),
-    (
-        "skim-milk",
-        preset([0.70, 1.22, 1.90], [0.0014, 0.0025, 0.0142]),
-    ),
-    ("skin1", preset([0.74, 0.88, 1.01], [0.032, 0.17, 0.48])),
-    ("skin2", preset([1.09, 1.59, 1.79], [0.013, 0.070, 0.145])),
-    ("spectralon", preset([11.6, 20.4, 14.9], [0.0, 0.0, 0.0])),
-    (
-        "whole-milk",
-        preset([2.55, 3.21, 3.77], [0.0011, 0.0024, 0.014]),
-    ),
-];
-
-const fn preset(sigma_s_prime: [f64; 3], sigma_a: [f64; 3]) -> Medium {
-    Medium {
-        sigma_s_prime,
-        sigma_a,
-        eta: 1.3,
+impl Medium {
+    /// A measured medium of Jensen et al. 2001 (`tessera_scene::media`), per millimetre.
+    pub fn measured(m: &tessera_scene::media::MeasuredMedium) -> Self {
+        Medium {
+            sigma_s_prime: m.sigma_s_prime.map(f64::from),
+            sigma_a: m.sigma_a.map(f64::from),
+            eta: tessera_scene::media::MEASURED_ETA as f64,
+        }
     }
-}
 
-/// The preset named `name` (case-insensitive; "skimmilk" and "skim-milk" alike).
-pub fn preset_named(name: &str) -> Option<Medium> {
-    let key = |s: &str| s.to_ascii_lowercase().replace(['-', '_', ' '], "");
-    PRESETS
-        .iter()
-        .find(|(n, _)| key(n) == key(name))
-        .map(|(_, m)| *m)
+    /// The measured medium named `name` (any spelling `tessera_scene::media::measured` takes).
+    pub fn named(name: &str) -> Option<Self> {
+        tessera_scene::media::measured(name).map(Self::measured)
+    }
 }
 
 /// Diffuse Fresnel reflectance of the interface seen from inside a medium of relative index
@@ -145,7 +116,8 @@ mod tests {
     /// expression; it lies in (0, 1] (1 for spectralon, which does not absorb).
     #[test]
     fn profile_integrates_to_the_closed_form_total_reflectance() {
-        for (name, m) in PRESETS {
+        for preset in tessera_scene::media::MEASURED {
+            let (name, m) = (preset.name, &Medium::measured(preset));
             for c in 0..3 {
                 let d = Dipole::new(m, c);
                 let total = d.total();
@@ -166,7 +138,7 @@ mod tests {
         }
         // Marble absorbs blue most (relative to its scattering): its total reflectance falls
         // from red to blue, as its albedo α′ does.
-        let marble = preset_named("Marble").expect("marble");
+        let marble = Medium::named("Marble").expect("marble");
         let t: Vec<f64> = (0..3).map(|c| Dipole::new(&marble, c).total()).collect();
         assert!(t[0] > t[1] && t[1] > t[2], "{t:?}");
     }
@@ -192,12 +164,5 @@ mod tests {
                 "η {eta}: fit {fit}, exact {exact}"
             );
         }
-    }
-
-    #[test]
-    fn presets_are_found_by_name() {
-        assert!(preset_named("skimmilk").is_some());
-        assert!(preset_named("Whole milk").is_some());
-        assert!(preset_named("jade").is_none());
     }
 }

@@ -108,12 +108,7 @@ fn fresnel(cos_i: f64, eta: f64) -> f64 {
 /// A direction scattered from `d` by the Henyey–Greenstein phase function with mean cosine
 /// `g` (uniform over the sphere at g = 0).
 fn henyey_greenstein(d: [f64; 3], g: f64, u1: f64, u2: f64) -> [f64; 3] {
-    let cos = if g.abs() < 1e-3 {
-        1.0 - 2.0 * u1
-    } else {
-        let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u1);
-        (1.0 + g * g - s * s) / (2.0 * g)
-    };
+    let cos = super::hg_cos(g, u1);
     let sin = (1.0 - cos * cos).max(0.0).sqrt();
     let phi = 2.0 * std::f64::consts::PI * u2;
     // A frame around d.
@@ -155,7 +150,7 @@ mod tests {
     /// total, is not in it), at 1.25 mfp 0.75×.
     #[test]
     fn random_walk_on_a_slab_matches_the_dipole_within_its_known_error() {
-        let marble = super::super::dipole::preset_named("marble").expect("marble");
+        let marble = Medium::named("marble").expect("marble");
         let cases = [
             ("albedo 0.99", 1.0, 0.0101),
             ("marble red", marble.sigma_s_prime[0], marble.sigma_a[0]),

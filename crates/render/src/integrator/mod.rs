@@ -16,7 +16,7 @@ pub mod sppm;
 pub mod vcm;
 
 use glam::{Vec2, Vec3A};
-use tessera_scene::{IntegratorDesc, IntegratorKind, SceneDesc};
+use tessera_scene::{IntegratorDesc, IntegratorKind, SceneDesc, SubsurfaceMethod};
 
 use crate::analysis::Analysis;
 
@@ -160,6 +160,7 @@ fn path_family(desc: &IntegratorDesc) -> PathIntegrator {
         IntegratorKind::Direct => PathIntegrator::direct_lighting(desc.max_depth),
         _ => PathIntegrator::new(desc.max_depth, desc.rr_depth),
     }
+    .with_subsurface(desc.subsurface)
 }
 
 /// The integrator that renders `desc` (built as `scene`; `analysis` resolved `auto`), with
@@ -195,14 +196,37 @@ pub fn prepare(
                 format!("{kind:?}").to_lowercase()
             )],
         ),
-        kind => (
-            Box::new(path_family(&IntegratorDesc {
+        kind => {
+            let path = path_family(&IntegratorDesc {
                 kind,
                 ..desc.integrator
-            })),
-            Vec::new(),
-        ),
+            });
+            if desc.integrator.subsurface != SubsurfaceMethod::Hierarchical
+                || desc.translucent_materials().is_empty()
+            {
+                return (Box::new(path), Vec::new());
+            }
+            let clouds = subsurface_pass(desc, scene);
+            let passes = clouds.summary.clone();
+            (
+                Box::new(path.with_clouds(std::sync::Arc::new(clouds))),
+                passes,
+            )
+        }
     }
+}
+
+/// The hierarchical method's pass: point clouds on the translucent surfaces, their irradiance
+/// path traced (translucent surfaces those paths meet sampled by the dipole). Empty without
+/// translucent materials.
+pub fn subsurface_pass(
+    desc: &SceneDesc,
+    scene: &Scene,
+) -> crate::bssrdf::hierarchical::PointClouds {
+    let tracer = PathIntegrator::new(desc.integrator.max_depth, desc.integrator.rr_depth);
+    crate::bssrdf::hierarchical::PointClouds::build(desc, scene, &|si, sub, sampler, stats| {
+        tracer.exit_irradiance(scene, si, sub, sampler, stats)
+    })
 }
 
 /// The integrator for frame 1 of a scene: its own choice, or the one scene analysis makes for

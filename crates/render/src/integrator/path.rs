@@ -3,7 +3,13 @@
 use glam::{Vec2, Vec3A};
 
 use super::{Integrator, RadianceSample, RayStats, consistent, sample_direct};
+use tessera_scene::SubsurfaceMethod;
+
 use crate::bsdf::TransportMode;
+use std::sync::Arc;
+
+use crate::bssrdf::hierarchical::{self, PointClouds};
+use crate::bssrdf::{Subsurface, probe, walk};
 use crate::integrator::FirstHit;
 use crate::math::Frame;
 use crate::ray::Ray;
@@ -20,6 +26,10 @@ pub struct PathIntegrator {
     rr_depth: u32,
     /// Most diffuse or glossy scattering events (1 for direct lighting).
     max_nonspecular: u32,
+    /// How light beneath translucent surfaces is carried.
+    subsurface: SubsurfaceMethod,
+    /// The hierarchical method's point clouds (its pass), when that is the method.
+    clouds: Option<Arc<PointClouds>>,
 }
 
 impl PathIntegrator {
@@ -28,6 +38,8 @@ impl PathIntegrator {
             max_depth,
             rr_depth,
             max_nonspecular: u32::MAX,
+            subsurface: SubsurfaceMethod::Dipole,
+            clouds: None,
         }
     }
 
@@ -37,6 +49,24 @@ impl PathIntegrator {
             max_depth,
             rr_depth: u32::MAX,
             max_nonspecular: 1,
+            subsurface: SubsurfaceMethod::Dipole,
+            clouds: None,
+        }
+    }
+
+    /// The same integrator summing translucent materials' light over `clouds`.
+    pub fn with_clouds(self, clouds: Arc<PointClouds>) -> Self {
+        PathIntegrator {
+            clouds: Some(clouds),
+            ..self
+        }
+    }
+
+    /// The same integrator with translucent materials rendered by `method`.
+    pub fn with_subsurface(self, method: SubsurfaceMethod) -> Self {
+        PathIntegrator {
+            subsurface: method,
+            ..self
         }
     }
 }
@@ -70,10 +100,28 @@ impl PathIntegrator {
     pub(crate) fn trace(
         &self,
         scene: &Scene,
+        ray: Ray,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+        gather: Option<Gather>,
+    ) -> RadianceSample {
+        let start = PathStart {
+            specular: true,
+            prev_pdf: 0.0,
+            depth: 0,
+        };
+        self.trace_from(scene, ray, sampler, stats, gather, start)
+    }
+
+    /// The path tracer continuing a path whose last vertex sampled `ray` (`start`).
+    fn trace_from(
+        &self,
+        scene: &Scene,
         mut ray: Ray,
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
         gather: Option<Gather>,
+        start: PathStart,
     ) -> RadianceSample {
         let mode = TransportMode::Radiance;
         let mut l = Spectrum::ZERO;
@@ -81,12 +129,12 @@ impl PathIntegrator {
         let mut eta_scale = 1.0f32;
         // The last scattering was specular (or there was none yet): emitters hit now could
         // not have been found by light sampling, so they count fully.
-        let mut specular = true;
+        let mut specular = start.specular;
         let mut prev_p = ray.o;
-        let mut prev_pdf = 0.0f32;
+        let mut prev_pdf = start.prev_pdf;
         let mut first_hit = None;
-        let mut depth = 0u32;
-        let mut nonspecular = 0u32;
+        let mut depth = start.depth;
+        let mut nonspecular = start.depth;
 
         loop {
             stats.rays += 1;
@@ -161,17 +209,37 @@ impl PathIntegrator {
             if !consistent(&si, wo, wi, wo_local, bs.wi) {
                 break;
             }
-            beta *= bs.weight();
-            if bs.transmission {
-                eta_scale *= bs.eta * bs.eta;
-            }
-            specular = bs.specular;
-            if !bs.specular {
+            let u_rr = if let Some(sub) = &material.subsurface
+                && bs.transmission
+                && wo_local.z > 0.0
+            {
+                // Light enters a translucent object (the Fresnel transmittance was the
+                // probability of this branch) and leaves elsewhere.
+                let Some(exit) = self.subsurface(scene, &si, wi, sub, sampler, stats, &mut l, beta)
+                else {
+                    break;
+                };
+                beta *= exit.weight;
+                specular = exit.specular;
                 nonspecular += 1;
-            }
-            prev_pdf = bs.pdf;
-            prev_p = si.p;
-            ray = si.spawn(wi);
+                prev_pdf = exit.pdf;
+                prev_p = exit.ray.o;
+                ray = exit.ray;
+                exit.u_rr
+            } else {
+                beta *= bs.weight();
+                if bs.transmission {
+                    eta_scale *= bs.eta * bs.eta;
+                }
+                specular = bs.specular;
+                if !bs.specular {
+                    nonspecular += 1;
+                }
+                prev_pdf = bs.pdf;
+                prev_p = si.p;
+                ray = si.spawn(wi);
+                u.w
+            };
             if is_black(beta) {
                 break;
             }
@@ -180,7 +248,7 @@ impl PathIntegrator {
             if depth >= self.rr_depth {
                 let survive = (beta * eta_scale).max_element();
                 if survive < 1.0 {
-                    if u.w >= survive {
+                    if u_rr >= survive {
                         break;
                     }
                     beta /= survive;
@@ -189,4 +257,119 @@ impl PathIntegrator {
         }
         RadianceSample { l, first_hit }
     }
+
+    /// Subsurface transport from `si`, where the path refracted into a translucent object
+    /// along `wi`: the dipole (an exit point by probe rays, direct light there added to `l`
+    /// with the path's throughput `beta`, then a direction from the exit lobe) or the random
+    /// walk (the point and refracted direction it leaves by). `None` ends the path.
+    #[allow(clippy::too_many_arguments)]
+    fn subsurface(
+        &self,
+        scene: &Scene,
+        si: &SurfaceInteraction,
+        wi: Vec3A,
+        sub: &Subsurface,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+        l: &mut Spectrum,
+        beta: Spectrum,
+    ) -> Option<Exit> {
+        match self.subsurface {
+            SubsurfaceMethod::Hierarchical => {
+                // The path ends here: the cloud's irradiance holds all the light that enters.
+                if let Some(tree) = self.clouds.as_ref().and_then(|c| c.get(si.material)) {
+                    *l += beta * tree.exitance(si.p, sub, hierarchical::EPSILON);
+                }
+                None
+            }
+            SubsurfaceMethod::Dipole => {
+                let (pi, w) = probe::sample_exit(scene, si, sub, sampler.get_4d(), stats)?;
+                let beta = beta * w;
+                let frame = Frame::from_normal(pi.ns);
+                let u = sampler.get_3d();
+                *l += beta * sample_direct(scene, &pi, &sub.exit, &frame, pi.ns, u, true, stats);
+                let u = sampler.get_4d();
+                let mode = TransportMode::Radiance;
+                let bs = sub
+                    .exit
+                    .bsdf
+                    .sample(Vec3A::Z, u.x, Vec2::new(u.y, u.z), mode)?;
+                let wi = frame.to_world(bs.wi);
+                (wi.dot(pi.ng) > 0.0).then(|| Exit {
+                    weight: w * bs.weight(),
+                    specular: false,
+                    pdf: bs.pdf,
+                    ray: pi.spawn(wi),
+                    u_rr: u.w,
+                })
+            }
+            SubsurfaceMethod::RandomWalk => {
+                let (exit, d, w) = walk::walk(scene, si, wi, sub, sampler, stats)?;
+                Some(Exit {
+                    weight: w,
+                    specular: true,
+                    pdf: 0.0,
+                    ray: exit.spawn(d),
+                    u_rr: sampler.get_1d(),
+                })
+            }
+        }
+    }
+}
+
+/// Where a path starts: whether its last scattering was specular, that scattering's density
+/// (for MIS against light sampling), and the scattering events so far.
+#[derive(Debug, Clone, Copy)]
+struct PathStart {
+    specular: bool,
+    prev_pdf: f32,
+    depth: u32,
+}
+
+impl PathIntegrator {
+    /// The light leaving translucent surface point `si` through the exit lobe of `sub`,
+    /// E = ∫ Sw(ω) L(ω) cos θ dω: light sampling and one path from the lobe, weighted by
+    /// MIS (the irradiance of the hierarchical method's points).
+    pub fn exit_irradiance(
+        &self,
+        scene: &Scene,
+        si: &SurfaceInteraction,
+        sub: &Subsurface,
+        sampler: &mut PixelSampler,
+        stats: &mut RayStats,
+    ) -> Spectrum {
+        let frame = Frame::from_normal(si.ns);
+        let u = sampler.get_3d();
+        let direct = sample_direct(scene, si, &sub.exit, &frame, si.ns, u, true, stats);
+        let u = sampler.get_4d();
+        let Some(bs) =
+            sub.exit
+                .bsdf
+                .sample(Vec3A::Z, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
+        else {
+            return direct;
+        };
+        let wi = frame.to_world(bs.wi);
+        if wi.dot(si.ng) <= 0.0 {
+            return direct;
+        }
+        let start = PathStart {
+            specular: false,
+            prev_pdf: bs.pdf,
+            depth: 1,
+        };
+        let rest = self.trace_from(scene, si.spawn(wi), sampler, stats, None, start);
+        direct + bs.weight() * rest.l
+    }
+}
+
+/// How a path leaves a translucent object: the throughput factor, whether the direction was
+/// a delta event (emitters then count without MIS), its density, the ray, and the sample value
+/// for Russian roulette.
+struct Exit {
+    weight: Spectrum,
+    specular: bool,
+    pdf: f32,
+    ray: Ray,
+    u_rr: f32,
 }

@@ -17,7 +17,7 @@ use tessera_render::integrator::bdpt::BdptSums;
 use tessera_render::integrator::metropolis::Metropolis;
 use tessera_render::integrator::sppm::{Sppm, SppmSettings, SppmState};
 use tessera_render::metrics;
-use tessera_scene::IntegratorKind;
+use tessera_scene::{IntegratorKind, SubsurfaceMethod};
 
 #[derive(clap::Args)]
 pub struct ErrorArgs {
@@ -28,7 +28,8 @@ pub struct ErrorArgs {
     #[arg(long)]
     pub reference: Option<PathBuf>,
     /// Integrators to compare, comma-separated: path, direct, auto, photon, sppm (whose
-    /// sample budgets are iterations), bdpt.
+    /// sample budgets are iterations), bdpt, pssmlt, mlt, vcm; a suffix picks how translucent
+    /// materials are rendered: `path:dipole`, `path:random-walk`.
     #[arg(long, value_delimiter = ',', default_value = "path,direct")]
     pub integrators: Vec<String>,
     /// Budgets, comma-separated and increasing: samples per pixel (`64`) or seconds of wall
@@ -68,12 +69,23 @@ fn parse_budget(s: &str) -> anyhow::Result<Budget> {
     Ok(Budget::Samples(v))
 }
 
-fn integrator_kind(name: &str) -> anyhow::Result<IntegratorKind> {
-    let kind = name
+/// An integrator of `--integrators`, with its subsurface method if it names one.
+fn integrator_kind(name: &str) -> anyhow::Result<(IntegratorKind, Option<SubsurfaceMethod>)> {
+    let (kind, method) = match name.trim().split_once(':') {
+        Some((k, m)) => (
+            k,
+            Some(
+                crate::render::parse_subsurface(m)
+                    .map_err(|e| anyhow::anyhow!("--integrators: {e}"))?,
+            ),
+        ),
+        None => (name.trim(), None),
+    };
+    let kind = kind
         .parse::<tessera_farm::job::IntegratorName>()
         .map(|n| n.kind())
         .map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
-    Ok(kind)
+    Ok((kind, method))
 }
 
 /// One checkpoint of one integrator.
@@ -131,7 +143,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         !budgets.is_empty(),
         "--budgets: expected at least one budget"
     );
-    let kinds: Vec<(String, IntegratorKind)> = args
+    let kinds: Vec<(String, (IntegratorKind, Option<SubsurfaceMethod>))> = args
         .integrators
         .iter()
         .map(|n| Ok((n.trim().to_string(), integrator_kind(n)?)))
@@ -149,9 +161,12 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         .build()?;
 
     let mut runs = Vec::new();
-    for (name, kind) in &kinds {
+    for (name, (kind, method)) in &kinds {
         let mut desc = base.clone();
         desc.integrator.kind = *kind;
+        if let Some(m) = method {
+            desc.integrator.subsurface = *m;
+        }
         job::apply(
             &mut desc,
             &RenderSettings::default(),
@@ -213,8 +228,9 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
             match *budget {
                 Budget::Samples(n) => last = render(&mut acc, n)?,
                 Budget::Seconds(limit) => {
-                    // Double the samples until the wall time reaches the budget.
-                    while clock(last).0 < limit {
+                    // Double the samples until the wall time reaches the budget (at least one
+                    // sample, even when the setup alone took longer).
+                    while clock(last).0 < limit || acc.samples() == 0 {
                         let next = (acc.samples() * 2).max(acc.samples() + 1);
                         last = render(&mut acc, next)?;
                     }
@@ -339,7 +355,7 @@ fn estimate(e: Option<f64>) -> String {
     e.map_or_else(|| "–".into(), |e| format!("{e:.3e}"))
 }
 
-fn time_to_error(kinds: &[(String, IntegratorKind)], runs: &[Run]) -> Vec<TimeToError> {
+fn time_to_error<T>(kinds: &[(String, T)], runs: &[Run]) -> Vec<TimeToError> {
     let mut out = Vec::new();
     for (name, _) in kinds {
         let points: Vec<&Run> = runs.iter().filter(|r| &r.integrator == name).collect();
