@@ -20,8 +20,22 @@ use tessera_render::integrator::for_scene;
 use tessera_render::render::render_frame;
 use tessera_scene::SubsurfaceMethod;
 
+/// Writes `json` as a scene file in a fresh temporary folder and loads it.
+fn load_json(name: &str, json: &str) -> tessera_scene::SceneDesc {
+    let dir = std::env::temp_dir().join(format!("tessera-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("scene.json");
+    std::fs::write(&path, json).expect("write scene");
+    tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// The block, `half` mm to each side of the middle of its top face and `half` deep.
-fn block(method: &str, spp: u32, half: f32) -> tessera_scene::SceneDesc {
+fn block(method: SubsurfaceMethod, spp: u32, half: f32) -> tessera_scene::SceneDesc {
+    let method = match method {
+        SubsurfaceMethod::Dipole => "dipole",
+        SubsurfaceMethod::Hierarchical => "hierarchical",
+        SubsurfaceMethod::RandomWalk => "random_walk",
+    };
     let json = format!(
         r#"{{
   "name": "marble block under a white sky",
@@ -34,44 +48,68 @@ fn block(method: &str, spp: u32, half: f32) -> tessera_scene::SceneDesc {
   "lights": [{{ "type": "environment", "radiance": 1 }}]
 }}"#
     );
-    let dir = std::env::temp_dir().join(format!(
-        "tessera-subsurface-{method}-{}",
-        std::process::id()
-    ));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    let path = dir.join("scene.json");
-    std::fs::write(&path, json).expect("write scene");
-    tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
+    load_json(&format!("subsurface-{method}"), &json)
 }
 
-/// Mean over the film's pixels per channel, and its standard error from their scatter (the
-/// box filter keeps pixels independent).
-fn mean_and_error(method: SubsurfaceMethod, spp: u32, half: f32) -> ([f64; 3], [f64; 3]) {
-    let name = match method {
-        SubsurfaceMethod::Dipole => "dipole",
-        SubsurfaceMethod::Hierarchical => "hierarchical",
-        SubsurfaceMethod::RandomWalk => "random_walk",
-    };
-    let desc = block(name, spp, half);
-    let scene = Scene::build(&desc);
+/// `desc` rendered at its spp on two threads, with the integrator it asks for (and its pass).
+fn render(desc: &tessera_scene::SceneDesc) -> tessera_render::Image {
+    let scene = Scene::build(desc);
     let camera = Camera::new(&desc.camera, &desc.film);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()
         .expect("pool");
-    let integrator = pool.install(|| for_scene(&desc, &scene));
-    let range = SampleRange { start: 0, end: spp };
-    let (image, _) = pool.install(|| render_frame(&scene, &camera, integrator.as_ref(), 8, range));
-    let n = image.pixels.len() as f64;
-    let mut mean = [0.0f64; 3];
-    let mut se = [0.0f64; 3];
-    for c in 0..3 {
-        let v: Vec<f64> = image.pixels.iter().map(|p| p.rgb[c] as f64).collect();
-        mean[c] = v.iter().sum::<f64>() / n;
-        let var = v.iter().map(|x| (x - mean[c]).powi(2)).sum::<f64>() / (n - 1.0);
-        se[c] = (var / n).sqrt();
-    }
+    let integrator = pool.install(|| for_scene(desc, &scene));
+    let range = SampleRange {
+        start: 0,
+        end: desc.integrator.spp,
+    };
+    pool.install(|| render_frame(&scene, &camera, integrator.as_ref(), 8, range))
+        .0
+}
+
+/// Mean of `pixels` per channel, and its standard error from their scatter (the box filter
+/// keeps pixels independent).
+fn mean_and_error(pixels: &[[f32; 3]]) -> ([f64; 3], [f64; 3]) {
+    let n = pixels.len() as f64;
+    let mean = [0, 1, 2].map(|c| pixels.iter().map(|p| p[c] as f64).sum::<f64>() / n);
+    let se = [0, 1, 2].map(|c| {
+        let var = pixels
+            .iter()
+            .map(|p| (p[c] as f64 - mean[c]).powi(2))
+            .sum::<f64>()
+            / (n - 1.0);
+        (var / n).sqrt()
+    });
     (mean, se)
+}
+
+/// Prints `what` per channel against `expected`, and asserts each channel within `rel` of it
+/// plus four standard errors.
+fn assert_within(what: &str, (mean, se): ([f64; 3], [f64; 3]), expected: [f64; 3], rel: f64) {
+    for c in 0..3 {
+        eprintln!(
+            "{what}, channel {c}: {:.4} ± {:.4} (expected {:.4}, ratio {:.4})",
+            mean[c],
+            se[c],
+            expected[c],
+            mean[c] / expected[c]
+        );
+        assert!(
+            (mean[c] - expected[c]).abs() < rel * expected[c] + 4.0 * se[c],
+            "{what}, channel {c}: {} ± {} vs {}",
+            mean[c],
+            se[c],
+            expected[c]
+        );
+    }
+}
+
+/// The block's pixels, by `method`.
+fn block_mean(method: SubsurfaceMethod, spp: u32, half: f32) -> ([f64; 3], [f64; 3]) {
+    let image = render(&block(method, spp, half));
+    let pixels: Vec<[f32; 3]> = image.pixels.iter().map(|p| p.rgb).collect();
+    mean_and_error(&pixels)
 }
 
 /// The dipole model's radiance at the middle of the top face, per channel.
@@ -86,48 +124,18 @@ fn dipole_expectation() -> [f64; 3] {
 
 #[test]
 fn sampled_dipole_gives_the_dipoles_reflectance() {
-    let expected = dipole_expectation();
-    let (mean, se) = mean_and_error(SubsurfaceMethod::Dipole, 64, 100.0);
-    for c in 0..3 {
-        eprintln!(
-            "dipole, channel {c}: {:.4} ± {:.4} (expected {:.4})",
-            mean[c], se[c], expected[c]
-        );
-        // Four standard errors, and 1e-3 for the table's quadrature.
-        assert!(
-            (mean[c] - expected[c]).abs() < 4.0 * se[c] + 1e-3 * expected[c],
-            "channel {c}: {} ± {} vs {}",
-            mean[c],
-            se[c],
-            expected[c]
-        );
-    }
+    // Four standard errors, and 1e-3 for the table's quadrature.
+    let measured = block_mean(SubsurfaceMethod::Dipole, 64, 100.0);
+    assert_within("dipole", measured, dipole_expectation(), 1e-3);
 }
 
 #[test]
 fn random_walk_agrees_with_the_dipole_within_its_error() {
-    let expected = dipole_expectation();
-    let (mean, se) = mean_and_error(SubsurfaceMethod::RandomWalk, 64, 100.0);
-    for c in 0..3 {
-        eprintln!(
-            "random walk, channel {c}: {:.4} ± {:.4} (dipole {:.4}, ratio {:.4})",
-            mean[c],
-            se[c],
-            expected[c],
-            mean[c] / expected[c]
-        );
-        // The dipole's error under diffuse light, measured here: the walk reflects 0.9 % (red),
-        // 1.5 % (green) and 0.9 % (blue) more, ± 0.4 % (at normal incidence on the slab the
-        // walk reflected 0.75 % less: `random_walk` tests). Allowed: 2.5 % and four standard
-        // errors.
-        assert!(
-            (mean[c] - expected[c]).abs() < 0.025 * expected[c] + 4.0 * se[c],
-            "channel {c}: walk {} ± {} vs dipole {}",
-            mean[c],
-            se[c],
-            expected[c]
-        );
-    }
+    // The dipole's error under diffuse light, measured here: the walk reflects 0.9 % (red),
+    // 1.5 % (green) and 0.9 % (blue) more, ± 0.4 % (at normal incidence on the slab the walk
+    // reflected 0.75 % less: `random_walk` tests). Allowed: 2.5 % and four standard errors.
+    let measured = block_mean(SubsurfaceMethod::RandomWalk, 64, 100.0);
+    assert_within("random walk", measured, dipole_expectation(), 0.025);
 }
 
 /// The hierarchical method on a smaller block (60 × 30 × 60 mm: its point cloud is 130 000
@@ -135,27 +143,11 @@ fn random_walk_agrees_with_the_dipole_within_its_error() {
 /// the cloud approximates the same integral as the sampled dipole.
 #[test]
 fn hierarchical_dipole_gives_the_dipoles_reflectance() {
-    let expected = dipole_expectation();
-    let (mean, se) = mean_and_error(SubsurfaceMethod::Hierarchical, 4, 30.0);
-    for c in 0..3 {
-        eprintln!(
-            "hierarchical, channel {c}: {:.4} ± {:.4} (expected {:.4}, ratio {:.4})",
-            mean[c],
-            se[c],
-            expected[c],
-            mean[c] / expected[c]
-        );
-        // Measured −0.6 to −0.8 %: the cloud's points sample Rd's peak under x coarsely (one
-        // point per mean free path squared), and the octree's nodes take Rd at their centre
-        // (−0.1 %). Allowed: 1.5 % and four standard errors.
-        assert!(
-            (mean[c] - expected[c]).abs() < 0.015 * expected[c] + 4.0 * se[c],
-            "channel {c}: {} ± {} vs {}",
-            mean[c],
-            se[c],
-            expected[c]
-        );
-    }
+    // Measured −0.6 to −0.8 %: the cloud's points sample Rd's peak under x coarsely (one point
+    // per mean free path squared), and the octree's nodes take Rd at their centre (−0.16 %).
+    // Allowed: 1.5 % and four standard errors.
+    let measured = block_mean(SubsurfaceMethod::Hierarchical, 4, 30.0);
+    assert_within("hierarchical", measured, dipole_expectation(), 0.015);
 }
 
 /// A white furnace for the random walk: a sphere of a medium that scatters and does not absorb
@@ -175,37 +167,11 @@ fn random_walk_keeps_the_energy_of_a_white_furnace() {
   "shapes": [{ "type": "sphere", "center": [0, 0, 0], "radius": 5, "material": "m" }],
   "lights": [{ "type": "environment", "radiance": 1 }]
 }"#;
-    let dir = std::env::temp_dir().join(format!("tessera-furnace-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    std::fs::write(dir.join("scene.json"), json).expect("write scene");
-    let desc = tessera_scene::load(&dir.join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
-    let scene = Scene::build(&desc);
-    let camera = Camera::new(&desc.camera, &desc.film);
-    let integrator = for_scene(&desc, &scene);
-    let range = SampleRange { start: 0, end: 64 };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .expect("pool");
-    let (image, _) = pool.install(|| render_frame(&scene, &camera, integrator.as_ref(), 8, range));
+    let image = render(&load_json("furnace", json));
+    let pixels = &image.pixels;
     // The middle 16 × 16 pixels see only the sphere.
     let inner: Vec<[f32; 3]> = (8..24)
-        .flat_map(|y| (8..24).map(move |x| (x, y)))
-        .map(|(x, y)| image.pixels[y * 32 + x].rgb)
+        .flat_map(|y| (8..24).map(move |x| pixels[y * 32 + x].rgb))
         .collect();
-    let n = inner.len() as f64;
-    for c in 0..3 {
-        let mean = inner.iter().map(|p| p[c] as f64).sum::<f64>() / n;
-        let var = inner
-            .iter()
-            .map(|p| (p[c] as f64 - mean).powi(2))
-            .sum::<f64>()
-            / (n - 1.0);
-        let se = (var / n).sqrt();
-        eprintln!("furnace, channel {c}: {mean:.4} ± {se:.4}");
-        assert!(
-            (mean - 1.0).abs() < 4.0 * se + 1e-3,
-            "channel {c}: {mean} ± {se}"
-        );
-    }
+    assert_within("furnace", mean_and_error(&inner), [1.0; 3], 1e-3);
 }

@@ -10,12 +10,13 @@
 //! Light inside the object is not sampled toward the lights (it cannot be, through a smooth
 //! interface): walks find light only after leaving. That is what makes this the slow method.
 
-use glam::Vec3A;
+use glam::{Vec2, Vec3A};
 
 use super::{Subsurface, sample_hg};
 use crate::bsdf::fresnel;
 use crate::integrator::RayStats;
 use crate::math::reflect;
+use crate::ray::Ray;
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::{Scene, SurfaceInteraction};
 use crate::spectrum::Spectrum;
@@ -57,7 +58,7 @@ pub fn walk(
                 ratio[c] *= sigma_t[c] * tr / p_hero;
             }
             let p = ray.at(t as f32);
-            ray = crate::ray::Ray::new(p, sample_hg(ray.d, sub.g, glam::Vec2::new(u.y, u.z)));
+            ray = Ray::new(p, sample_hg(ray.d, sub.g, Vec2::new(u.y, u.z)));
             continue;
         }
         // The surface: passed with probability e^(−σt T), which is also f.

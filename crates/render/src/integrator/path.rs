@@ -1,13 +1,12 @@
 //! Path tracing with next-event estimation and MIS (Veach's thesis ch. 9; pbrt-v4 §13.4).
 
-use glam::{Vec2, Vec3A};
-
-use super::{Integrator, RadianceSample, RayStats, consistent, sample_direct};
-use tessera_scene::SubsurfaceMethod;
-
-use crate::bsdf::TransportMode;
 use std::sync::Arc;
 
+use glam::{Vec2, Vec3A};
+use tessera_scene::SubsurfaceMethod;
+
+use super::{Integrator, RadianceSample, RayStats, consistent, sample_direct};
+use crate::bsdf::TransportMode;
 use crate::bssrdf::hierarchical::{self, PointClouds};
 use crate::bssrdf::{Subsurface, probe, walk};
 use crate::integrator::FirstHit;
@@ -284,23 +283,11 @@ impl PathIntegrator {
             }
             SubsurfaceMethod::Dipole => {
                 let (pi, w) = probe::sample_exit(scene, si, sub, sampler.get_4d(), stats)?;
-                let beta = beta * w;
-                let frame = Frame::from_normal(pi.ns);
-                let u = sampler.get_3d();
-                *l += beta * sample_direct(scene, &pi, &sub.exit, &frame, pi.ns, u, true, stats);
-                let u = sampler.get_4d();
-                let mode = TransportMode::Radiance;
-                let bs = sub
-                    .exit
-                    .bsdf
-                    .sample(Vec3A::Z, u.x, Vec2::new(u.y, u.z), mode)?;
-                let wi = frame.to_world(bs.wi);
-                (wi.dot(pi.ng) > 0.0).then(|| Exit {
-                    weight: w * bs.weight(),
-                    specular: false,
-                    pdf: bs.pdf,
-                    ray: pi.spawn(wi),
-                    u_rr: u.w,
+                let (direct, exit) = leave(scene, &pi, sub, sampler, stats);
+                *l += beta * w * direct;
+                exit.map(|e| Exit {
+                    weight: w * e.weight,
+                    ..e
                 })
             }
             SubsurfaceMethod::RandomWalk => {
@@ -318,7 +305,8 @@ impl PathIntegrator {
 }
 
 /// Where a path starts: whether its last scattering was specular, that scattering's density
-/// (for MIS against light sampling), and the scattering events so far.
+/// (for MIS against light sampling), and the scattering events so far (none of them
+/// specular: they count toward both the depth and the diffuse/glossy limit).
 #[derive(Debug, Clone, Copy)]
 struct PathStart {
     specular: bool,
@@ -338,29 +326,49 @@ impl PathIntegrator {
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
     ) -> Spectrum {
-        let frame = Frame::from_normal(si.ns);
-        let u = sampler.get_3d();
-        let direct = sample_direct(scene, si, &sub.exit, &frame, si.ns, u, true, stats);
-        let u = sampler.get_4d();
-        let Some(bs) =
-            sub.exit
-                .bsdf
-                .sample(Vec3A::Z, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
-        else {
+        let (direct, exit) = leave(scene, si, sub, sampler, stats);
+        let Some(exit) = exit else {
             return direct;
         };
-        let wi = frame.to_world(bs.wi);
-        if wi.dot(si.ng) <= 0.0 {
-            return direct;
-        }
         let start = PathStart {
             specular: false,
-            prev_pdf: bs.pdf,
+            prev_pdf: exit.pdf,
             depth: 1,
         };
-        let rest = self.trace_from(scene, si.spawn(wi), sampler, stats, None, start);
-        direct + bs.weight() * rest.l
+        let rest = self.trace_from(scene, exit.ray, sampler, stats, None, start);
+        direct + exit.weight * rest.l
     }
+}
+
+/// At exit point `pi` of translucent `sub` (its frame facing out): the light arriving there
+/// as the exit lobe weighs it, by light sampling (MIS-weighted), and the lobe's sampled
+/// direction to continue along (`None` if it fails or points into the surface).
+fn leave(
+    scene: &Scene,
+    pi: &SurfaceInteraction,
+    sub: &Subsurface,
+    sampler: &mut PixelSampler,
+    stats: &mut RayStats,
+) -> (Spectrum, Option<Exit>) {
+    let frame = Frame::from_normal(pi.ns);
+    let u = sampler.get_3d();
+    let direct = sample_direct(scene, pi, &sub.exit, &frame, pi.ns, u, true, stats);
+    let u = sampler.get_4d();
+    let exit = sub
+        .exit
+        .bsdf
+        .sample(Vec3A::Z, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
+        .and_then(|bs| {
+            let wi = frame.to_world(bs.wi);
+            (wi.dot(pi.ng) > 0.0).then(|| Exit {
+                weight: bs.weight(),
+                specular: false,
+                pdf: bs.pdf,
+                ray: pi.spawn(wi),
+                u_rr: u.w,
+            })
+        });
+    (direct, exit)
 }
 
 /// How a path leaves a translucent object: the throughput factor, whether the direction was
