@@ -164,7 +164,7 @@ fn surfaces(desc: &SceneDesc) -> Vec<Surface> {
             emissive: s.emission.is_some(),
             convex_or_flat: true,
             centre: Vec3A::from(s.center),
-            area: 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2),
+            area: s.area(),
         });
     }
     out

@@ -287,6 +287,13 @@ pub struct SphereDesc {
     pub emission: Option<EmissionDesc>,
 }
 
+impl SphereDesc {
+    /// Surface area, in scene units squared.
+    pub fn area(&self) -> f64 {
+        4.0 * std::f64::consts::PI * (self.radius as f64).powi(2)
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub enum LightDesc {
     /// Intensity already divided by metres-per-unit², so irradiance = intensity / d² with d in

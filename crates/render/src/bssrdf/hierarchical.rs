@@ -170,7 +170,7 @@ fn surface_area(desc: &SceneDesc, m: u32) -> f64 {
         .spheres
         .iter()
         .filter(|s| s.material == m)
-        .map(|s| 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2))
+        .map(|s| s.area())
         .sum();
     meshes + spheres
 }
@@ -220,7 +220,7 @@ fn place(desc: &SceneDesc, m: u32, density: f64) -> Vec<IrradiancePoint> {
         }
     }
     for s in desc.spheres.iter().filter(|s| s.material == m) {
-        let a = 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2);
+        let a = s.area();
         carry += a * density;
         let n = carry.floor() as u64;
         carry -= n as f64;
@@ -345,14 +345,9 @@ fn build(
         (p.x >= mid.x) as usize | ((p.y >= mid.y) as usize) << 1 | ((p.z >= mid.z) as usize) << 2
     };
     points[start..end].sort_by_key(|q| octant(q.p));
-    let mut bounds = [start; 9];
-    for o in 0..8 {
-        bounds[o + 1] = bounds[o]
-            + points[start..end]
-                .iter()
-                .filter(|q| octant(q.p) == o)
-                .count();
-    }
+    // Sorted by octant: each octant's range starts where the smaller ones end.
+    let bounds: [usize; 9] =
+        std::array::from_fn(|o| start + points[start..end].partition_point(|q| octant(q.p) < o));
     let occupied: Vec<usize> = (0..8).filter(|&o| bounds[o + 1] > bounds[o]).collect();
     let first = nodes.len();
     nodes.extend(std::iter::repeat_n(nodes[slot], occupied.len()));

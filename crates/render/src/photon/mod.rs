@@ -116,11 +116,7 @@ impl PhotonSettings {
         let k = d.k.unwrap_or(DEFAULT_K);
         let caustic_k = d.caustic_k.unwrap_or(DEFAULT_CAUSTIC_K);
         let area = (desc.meshes.iter().map(|m| m.area()).sum::<f64>()
-            + desc
-                .spheres
-                .iter()
-                .map(|s| 4.0 * std::f64::consts::PI * (s.radius as f64).powi(2))
-                .sum::<f64>())
+            + desc.spheres.iter().map(|s| s.area()).sum::<f64>())
         .max(f64::MIN_POSITIVE) as f32;
         let radius = d.radius.unwrap_or_else(|| {
             let r = expected_radius(k, photons as f32 * STORED_PER_EMITTED, area);
