@@ -7,6 +7,7 @@
 //!   octree;
 //! - [`probe`]: the sampled BSSRDF of the path tracer — exit points found by probe rays along
 //!   three axes (pbrt-v3 §15.4, after Mertens et al.'s tangent-plane sampling);
+//! - [`single`]: Jensen et al. 2001's single-scattering term, added by both dipole methods;
 //! - [`walk`]: the brute-force reference, a volumetric random walk inside the object;
 //! - [`random_walk`]: the same walk in a semi-infinite slab, the dipole's own test.
 //!
@@ -14,13 +15,16 @@
 //! whose transmitted light, instead of refracting, is carried by the BSSRDF
 //! S(p_o, ω_o; p_i, ω_i) = (1 − Fr(cos θo)) Rd(|p_o − p_i|) Sw(ω_i): the Fresnel
 //! transmittance at entry is the probability of sampling transmission, Rd is the dipole's,
-//! and Sw ([`crate::bsdf::SubsurfaceExit`]) is the directional distribution at exit.
+//! and Sw ([`crate::bsdf::SubsurfaceExit`]) is the directional distribution at exit. The
+//! dipole methods add the single-scattering term S⁽¹⁾ to this diffusion term, as Jensen et
+//! al. 2001 do; the random walk holds every order of scattering by itself.
 
 pub mod dipole;
 pub mod hierarchical;
 pub mod probe;
 pub mod profile;
 pub mod random_walk;
+pub mod single;
 pub mod walk;
 
 use glam::{Vec2, Vec3, Vec3A};
@@ -109,6 +113,14 @@ pub fn hg_cos(g: f64, u: f64) -> f64 {
         let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
         ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
     }
+}
+
+/// The Henyey–Greenstein phase function per steradian at cosine `cos` between the directions
+/// of travel before and after scattering: (1 − g²) / (4π (1 + g² − 2g cos)^(3/2)).
+#[inline]
+pub fn hg(cos: f32, g: f32) -> f32 {
+    let d = 1.0 + g * g - 2.0 * g * cos;
+    (1.0 - g * g) / (4.0 * std::f32::consts::PI * d * d.sqrt())
 }
 
 /// A direction scattered from unit `d` by the Henyey–Greenstein phase function.

@@ -8,7 +8,7 @@ use tessera_scene::SubsurfaceMethod;
 use super::{Integrator, RadianceSample, RayStats, consistent, sample_direct};
 use crate::bsdf::TransportMode;
 use crate::bssrdf::hierarchical::{self, PointClouds};
-use crate::bssrdf::{Subsurface, probe, walk};
+use crate::bssrdf::{Subsurface, probe, single, walk};
 use crate::integrator::FirstHit;
 use crate::math::Frame;
 use crate::ray::Ray;
@@ -258,9 +258,11 @@ impl PathIntegrator {
     }
 
     /// Subsurface transport from `si`, where the path refracted into a translucent object
-    /// along `wi`: the dipole (an exit point by probe rays, direct light there added to `l`
-    /// with the path's throughput `beta`, then a direction from the exit lobe) or the random
-    /// walk (the point and refracted direction it leaves by). `None` ends the path.
+    /// along `wi`: for both dipole methods, single scattering added to `l` with the path's
+    /// throughput `beta`; then the sampled dipole (an exit point by probe rays, direct light
+    /// there added to `l`, then a direction from the exit lobe), the hierarchical sum (the
+    /// path ends), or the random walk (the point and refracted direction it leaves by).
+    /// `None` ends the path.
     #[allow(clippy::too_many_arguments)]
     fn subsurface(
         &self,
@@ -273,6 +275,10 @@ impl PathIntegrator {
         l: &mut Spectrum,
         beta: Spectrum,
     ) -> Option<Exit> {
+        if self.subsurface != SubsurfaceMethod::RandomWalk {
+            // Jensen et al. 2001's BSSRDF: single scattering plus the dipole's diffusion.
+            *l += beta * single::single_scatter(scene, si, wi, sub, sampler, stats);
+        }
         match self.subsurface {
             SubsurfaceMethod::Hierarchical => {
                 // The path ends here: the cloud's irradiance holds all the light that enters.
