@@ -100,6 +100,7 @@ fn class(m: &MaterialKind) -> Class {
         }
         // Light leaves a translucent surface in every direction, as from a diffuse one.
         MaterialKind::Subsurface { .. } => Class::Diffuse,
+        MaterialKind::KubelkaMunk { .. } | MaterialKind::HanrahanKrueger { .. } => Class::Diffuse,
         MaterialKind::Mirror { reflectance } => {
             if black(*reflectance) {
                 Class::Black

@@ -242,6 +242,32 @@ pub enum MaterialKind {
         eta: f32,
         g: f32,
     },
+    /// Kubelka–Munk layers, top first, over an opaque substrate of diffuse reflectance
+    /// `substrate`: a Lambertian surface with the stack's reflectance.
+    KubelkaMunk {
+        layers: Vec<KmLayer>,
+        substrate: Vec3,
+    },
+    /// Hanrahan & Krueger 1993: a smooth coat of relative index `eta` over a layer of a
+    /// scattering medium (σs and σa per mm, `thickness` mm, Henyey–Greenstein `g`), scattered
+    /// to first order, over a Lambertian substrate of reflectance `substrate`.
+    HanrahanKrueger {
+        sigma_s: Vec3,
+        sigma_a: Vec3,
+        thickness: f32,
+        g: f32,
+        eta: f32,
+        substrate: Vec3,
+    },
+}
+
+/// One Kubelka–Munk layer: absorption K and scattering S per mm, thickness in mm (only the
+/// products K·d and S·d matter, so the scene's units do not enter).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KmLayer {
+    pub absorption: Vec3,
+    pub scattering: Vec3,
+    pub thickness: f32,
 }
 
 /// An area emitter's radiance, constant over its surface.

@@ -650,6 +650,47 @@ pub struct SubsurfaceMaterial {
     pub g: Option<f32>,
 }
 
+/// Kubelka–Munk layers over a substrate.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KubelkaMunkMaterial {
+    /// Top first.
+    pub layers: Vec<KmLayerFile>,
+    /// Diffuse reflectance under the last layer (default 0: black).
+    #[serde(default)]
+    pub substrate: Option<Color>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct KmLayerFile {
+    /// Kubelka–Munk absorption K, mm⁻¹.
+    pub absorption_per_mm: NumOrArray<3>,
+    /// Kubelka–Munk scattering S, mm⁻¹.
+    pub scattering_per_mm: NumOrArray<3>,
+    pub thickness_mm: f32,
+}
+
+/// Hanrahan & Krueger's layer: a coated scattering layer over a diffuse substrate.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HanrahanKruegerMaterial {
+    /// Scattering coefficient σs, mm⁻¹.
+    pub sigma_s_per_mm: NumOrArray<3>,
+    /// Absorption coefficient σa, mm⁻¹.
+    pub sigma_a_per_mm: NumOrArray<3>,
+    pub thickness_mm: f32,
+    /// Henyey–Greenstein asymmetry (default 0).
+    #[serde(default)]
+    pub g: Option<f32>,
+    /// Index of refraction of the layer (default 1.4, skin's).
+    #[serde(default)]
+    pub ior: Option<f32>,
+    /// Diffuse reflectance under the layer (default 0: black).
+    #[serde(default)]
+    pub substrate: Option<Color>,
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MirrorMaterial {

@@ -830,6 +830,70 @@ impl Ctx<'_> {
                 let m: SubsurfaceMaterial = self.body(path, t)?;
                 self.subsurface(path, &m, metres_per_unit)
             }
+            "kubelka_munk" => {
+                let m: KubelkaMunkMaterial = self.body(path, t)?;
+                if m.layers.is_empty() {
+                    self.problem(format!("{path}.layers"), "expected at least one layer");
+                }
+                let layers = m
+                    .layers
+                    .iter()
+                    .enumerate()
+                    .map(|(i, l)| {
+                        let at = format!("{path}.layers[{i}]");
+                        KmLayer {
+                            absorption: self.non_negative3(
+                                &format!("{at}.absorption_per_mm"),
+                                l.absorption_per_mm.expand(),
+                            ),
+                            scattering: self.non_negative3(
+                                &format!("{at}.scattering_per_mm"),
+                                l.scattering_per_mm.expand(),
+                            ),
+                            thickness: self.positive(&format!("{at}.thickness_mm"), l.thickness_mm),
+                        }
+                    })
+                    .collect();
+                MaterialKind::KubelkaMunk {
+                    layers,
+                    substrate: self.albedo(
+                        &format!("{path}.substrate"),
+                        m.substrate.unwrap_or(NumOrArray::One(0.0)),
+                    ),
+                }
+            }
+            "hanrahan_krueger" => {
+                let m: HanrahanKruegerMaterial = self.body(path, t)?;
+                MaterialKind::HanrahanKrueger {
+                    sigma_s: self.non_negative3(
+                        &format!("{path}.sigma_s_per_mm"),
+                        m.sigma_s_per_mm.expand(),
+                    ),
+                    sigma_a: self.non_negative3(
+                        &format!("{path}.sigma_a_per_mm"),
+                        m.sigma_a_per_mm.expand(),
+                    ),
+                    thickness: self.positive(&format!("{path}.thickness_mm"), m.thickness_mm),
+                    g: self.range(
+                        &format!("{path}.g"),
+                        m.g.unwrap_or(0.0),
+                        -0.99,
+                        0.99,
+                        "a Henyey–Greenstein asymmetry in [-0.99, 0.99]",
+                    ),
+                    eta: self.range(
+                        &format!("{path}.ior"),
+                        m.ior.unwrap_or(1.4),
+                        1.0,
+                        3.0,
+                        "an index of refraction in [1, 3]",
+                    ),
+                    substrate: self.albedo(
+                        &format!("{path}.substrate"),
+                        m.substrate.unwrap_or(NumOrArray::One(0.0)),
+                    ),
+                }
+            }
             other => {
                 self.unknown_type(
                     path,
@@ -845,6 +909,8 @@ impl Ctx<'_> {
                         "dielectric",
                         "mirror",
                         "subsurface",
+                        "kubelka_munk",
+                        "hanrahan_krueger",
                     ],
                 );
                 return None;

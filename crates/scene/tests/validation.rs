@@ -577,3 +577,75 @@ fn subsurface_presets_units_and_errors() {
     );
     assert!(p[0].2.contains("expected either `preset` or both"), "{p:?}");
 }
+
+#[test]
+fn layered_materials_and_their_errors() {
+    let with = |materials: &str| {
+        scene(QUAD, POINT).replace(
+            r#""materials": { "white": { "type": "diffuse", "albedo": 0.8 } }"#,
+            &format!(
+                r#""materials": {{ "white": {{ "type": "diffuse", "albedo": 0.8 }}, {materials} }}"#
+            ),
+        )
+    };
+    let (_dir, r) = try_load(
+        &with(
+            r#""paint": { "type": "kubelka_munk", "substrate": 0.9, "layers": [
+                { "absorption_per_mm": [1, 2, 3], "scattering_per_mm": 20, "thickness_mm": 0.05 },
+                { "absorption_per_mm": 0, "scattering_per_mm": 5, "thickness_mm": 1 } ] },
+               "skin": { "type": "hanrahan_krueger", "sigma_s_per_mm": 8, "sigma_a_per_mm": [0.2, 0.6, 1.2], "thickness_mm": 0.05, "g": 0.8 }"#,
+        ),
+        &[],
+    );
+    let d = r.expect("valid");
+    let kind = |name: &str| {
+        d.materials
+            .iter()
+            .find(|m| m.name == name)
+            .map(|m| m.kind.clone())
+    };
+    match kind("paint") {
+        Some(MaterialKind::KubelkaMunk { layers, substrate }) => {
+            assert_eq!(layers.len(), 2);
+            assert_eq!(layers[0].absorption, glam::Vec3::new(1.0, 2.0, 3.0));
+            assert_eq!((layers[1].scattering.y, layers[1].thickness), (5.0, 1.0));
+            assert_eq!(substrate, glam::Vec3::splat(0.9));
+        }
+        other => panic!("{other:?}"),
+    }
+    match kind("skin") {
+        Some(MaterialKind::HanrahanKrueger {
+            sigma_a,
+            thickness,
+            g,
+            eta,
+            substrate,
+            ..
+        }) => {
+            assert_eq!((sigma_a.z, thickness, g), (1.2, 0.05, 0.8));
+            // The defaults: skin's index, a black substrate.
+            assert_eq!((eta, substrate), (1.4, glam::Vec3::ZERO));
+        }
+        other => panic!("{other:?}"),
+    }
+
+    let p = problems(
+        &with(
+            r#""paint": { "type": "kubelka_munk", "substrate": 1.5, "layers": [
+                { "absorption_per_mm": -1, "scattering_per_mm": 2, "thickness_mm": 0 } ] },
+               "leaf": { "type": "hanrahan_krueger", "sigma_s_per_mm": 8, "sigma_a_per_mm": 1, "thickness_mm": 0.1, "ior": 0.9 },
+               "bare": { "type": "kubelka_munk", "layers": [] }"#,
+        ),
+        &[],
+    );
+    let paths: Vec<&str> = p.iter().map(|x| x.1.as_str()).collect();
+    for expected in [
+        "materials.paint.layers[0].absorption_per_mm",
+        "materials.paint.layers[0].thickness_mm",
+        "materials.paint.substrate",
+        "materials.leaf.ior",
+        "materials.bare.layers",
+    ] {
+        assert!(paths.contains(&expected), "{expected} not in {p:?}");
+    }
+}

@@ -13,6 +13,8 @@ mod conductor;
 mod dielectric;
 pub mod fresnel;
 mod glossy;
+mod hanrahan_krueger;
+pub mod kubelka_munk;
 mod lambert;
 pub mod microfacet;
 mod mirror;
@@ -34,6 +36,7 @@ pub use blinn_phong::{BlinnPhong, BlinnPhongLobe};
 pub use conductor::Conductor;
 pub use dielectric::SmoothDielectric;
 pub use glossy::{GlossyLobe, WithDiffuse};
+pub use hanrahan_krueger::HanrahanKrueger;
 pub use lambert::Lambert;
 pub use microfacet::Microfacet;
 pub use mirror::Mirror;
@@ -196,6 +199,28 @@ pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
         MaterialKind::Mirror { reflectance } => Box::new(Mirror::new(v(reflectance))),
         // The interface of a translucent object; what enters is the BSSRDF's (`bssrdf`).
         MaterialKind::Subsurface { eta, .. } => Box::new(SmoothDielectric::new(eta)),
+        MaterialKind::KubelkaMunk {
+            ref layers,
+            substrate,
+        } => Box::new(Lambert::new(kubelka_munk::reflectance(
+            layers,
+            v(substrate),
+        ))),
+        MaterialKind::HanrahanKrueger {
+            sigma_s,
+            sigma_a,
+            thickness,
+            g,
+            eta,
+            substrate,
+        } => Box::new(HanrahanKrueger::new(
+            v(sigma_s),
+            v(sigma_a),
+            thickness,
+            g,
+            eta,
+            v(substrate),
+        )),
     }
 }
 
