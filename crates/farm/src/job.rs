@@ -341,6 +341,9 @@ pub enum TaskKind {
     /// Samples `sample_start..sample_end` of every pixel of frame `frame` by BDPT (chunk
     /// `tile_index`; the tile spans the film: see [`crate::bdpt`]).
     Bdpt,
+    /// The irradiance of points `sample_start..sample_end` of the subsurface point cloud (the
+    /// hierarchical method's pass; frame 0).
+    SubsurfacePoints,
 }
 
 impl TaskKind {
@@ -352,6 +355,7 @@ impl TaskKind {
             TaskKind::Records => "records",
             TaskKind::Sppm => "sppm",
             TaskKind::Bdpt => "bdpt",
+            TaskKind::SubsurfacePoints => "subsurface_points",
         }
     }
 
@@ -362,6 +366,7 @@ impl TaskKind {
             "records" => TaskKind::Records,
             "sppm" => TaskKind::Sppm,
             "bdpt" => TaskKind::Bdpt,
+            "subsurface_points" => TaskKind::SubsurfacePoints,
             _ => TaskKind::Tile,
         }
     }
@@ -372,6 +377,7 @@ impl TaskKind {
             TaskKind::Tile | TaskKind::Sppm | TaskKind::Bdpt => None,
             TaskKind::GlobalPhotons | TaskKind::CausticPhotons => Some(PassKind::Photons),
             TaskKind::Records => Some(PassKind::Records),
+            TaskKind::SubsurfacePoints => Some(PassKind::Subsurface),
         }
     }
 }
@@ -384,6 +390,8 @@ pub enum PassKind {
     Photons,
     /// The irradiance cache.
     Records,
+    /// The hierarchical method's point cloud: the irradiance at every point.
+    Subsurface,
 }
 
 impl PassKind {
@@ -391,6 +399,7 @@ impl PassKind {
         match self {
             PassKind::Photons => "photons",
             PassKind::Records => "records",
+            PassKind::Subsurface => "subsurface",
         }
     }
 
@@ -398,6 +407,7 @@ impl PassKind {
         match s {
             "photons" => Some(PassKind::Photons),
             "records" => Some(PassKind::Records),
+            "subsurface" => Some(PassKind::Subsurface),
             _ => None,
         }
     }
@@ -530,8 +540,11 @@ impl Prepared {
             .then(|| PhotonSettings::resolve(&desc, &analysis).0);
         let sppm = (analysis.integrator == IntegratorKind::Sppm)
             .then(|| SppmSettings::resolve(&desc, &analysis));
-        let integrator = (photon.is_none() && !analysis.integrator.whole_frame())
-            .then(|| integrator::prepare(&desc, &scene, &analysis, 1..=1).0);
+        // Photon maps and point clouds come as artifacts.
+        let integrator = (photon.is_none()
+            && !analysis.integrator.whole_frame()
+            && !integrator::needs_point_clouds(&desc))
+        .then(|| integrator::prepare(&desc, &scene, &analysis, 1..=1).0);
         Prepared {
             desc,
             scene,

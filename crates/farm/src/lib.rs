@@ -13,4 +13,5 @@ pub mod progressive;
 pub mod protocol;
 pub mod sppm;
 pub mod store;
+pub mod subsurface;
 pub mod worker;

@@ -130,7 +130,7 @@ impl PassPlan {
     }
 }
 
-fn hex(h: Sha256) -> String {
+pub(crate) fn hex(h: Sha256) -> String {
     h.finalize().iter().map(|b| format!("{b:02x}")).collect()
 }
 
@@ -150,14 +150,26 @@ fn floats(h: &mut Sha256, v: &[glam::Vec3]) {
 pub fn photons_key(desc: &SceneDesc, settings: &PhotonSettings) -> String {
     let mut h = Sha256::new();
     h.update(b"tessera photons v2\0");
+    hash_scene(&mut h, desc);
+    let s = settings;
+    h.update(format!(
+        "{} {} {} {} {:?} {:?}",
+        s.photons, s.caustic_photons, s.max_depth, s.seed, s.sampler, desc.integrator.kind
+    ));
+    hex(h)
+}
+
+/// Feeds what light transport in `desc` depends on, apart from the camera and the
+/// integrator's settings, to `h`: units, materials, geometry, emission, lights.
+pub(crate) fn hash_scene(h: &mut Sha256, desc: &SceneDesc) {
     h.update(desc.metres_per_unit.to_le_bytes());
     for m in &desc.materials {
         h.update(format!("{:?}", m.kind));
     }
     for m in &desc.meshes {
-        floats(&mut h, &m.positions);
+        floats(h, &m.positions);
         match &m.normals {
-            Some(n) => floats(&mut h, n),
+            Some(n) => floats(h, n),
             None => h.update(b"flat"),
         }
         h.update((m.triangles.len() as u64).to_le_bytes());
@@ -185,18 +197,12 @@ pub fn photons_key(desc: &SceneDesc, settings: &PhotonSettings) -> String {
                 if let Some(img) = image {
                     h.update(img.width.to_le_bytes());
                     h.update(img.height.to_le_bytes());
-                    floats(&mut h, &img.texels);
+                    floats(h, &img.texels);
                 }
             }
             other => h.update(format!("{other:?}")),
         }
     }
-    let s = settings;
-    h.update(format!(
-        "{} {} {} {} {:?} {:?}",
-        s.photons, s.caustic_photons, s.max_depth, s.seed, s.sampler, desc.integrator.kind
-    ));
-    hex(h)
 }
 
 /// Hash of what determines the irradiance cache: the photon maps, the gather settings, the
@@ -233,6 +239,8 @@ pub fn records_key(
 pub enum PassOutput {
     Photons(Vec<Photon>),
     Records(Vec<Record>),
+    /// The irradiance of a range of the subsurface point cloud ([`crate::subsurface`]).
+    Irradiance(Vec<tessera_render::spectrum::Spectrum>),
 }
 
 /// Runs a pass task: photons from `prepared`'s scene, records with `maps` (the integrator
@@ -242,6 +250,9 @@ pub fn execute(
     maps: Option<&PhotonIntegrator>,
     task: &TaskSpec,
 ) -> Result<PassOutput, String> {
+    if task.kind == TaskKind::SubsurfacePoints {
+        return crate::subsurface::execute(prepared, task).map(PassOutput::Irradiance);
+    }
     let settings = prepared
         .photon
         .as_ref()
@@ -275,9 +286,9 @@ pub fn execute(
                 &mut RayStats::default(),
             )))
         }
-        TaskKind::Tile | TaskKind::Sppm | TaskKind::Bdpt => {
-            Err(format!("a {} task is not a pass", task.kind.as_str()))
-        }
+        TaskKind::Tile | TaskKind::Sppm | TaskKind::Bdpt | TaskKind::SubsurfacePoints => Err(
+            format!("a {} task is not a photon pass", task.kind.as_str()),
+        ),
     }
 }
 
@@ -469,6 +480,7 @@ pub fn encode_output(out: &PassOutput) -> Vec<u8> {
             b.extend_from_slice(RECORDS_MAGIC);
             put_records(&mut b, r);
         }
+        PassOutput::Irradiance(e) => return crate::subsurface::encode(e),
     }
     b
 }
@@ -491,6 +503,10 @@ pub fn decode_output(bytes: &[u8], task: &TaskSpec) -> Result<PassOutput, String
             let rec = read_records(&mut r)?;
             r.end()?;
             Ok(PassOutput::Records(rec))
+        }
+        TaskKind::SubsurfacePoints => {
+            let n = task.sample_end.saturating_sub(task.sample_start) as usize;
+            crate::subsurface::decode(bytes, Some(n)).map(PassOutput::Irradiance)
         }
         TaskKind::Tile | TaskKind::Sppm | TaskKind::Bdpt => {
             Err(format!("a {} task has no pass output", task.kind.as_str()))

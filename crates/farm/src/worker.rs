@@ -18,6 +18,7 @@ use crate::job::{self, FrameRange, Limits, PassKind, Prepared, TaskKind};
 use crate::passes;
 use crate::protocol::{Failure, Heartbeat, LeaseGrant, LeaseRequest, WorkerInfo};
 use crate::sppm;
+use tessera_render::Integrator;
 use tessera_render::integrator::PhotonIntegrator;
 use tessera_render::integrator::sppm::VisiblePoints;
 use tessera_render::photon::PhotonMaps;
@@ -98,6 +99,8 @@ struct Worker {
     integrators: Cells<(i64, String), Arc<PhotonIntegrator>>,
     /// Decoded photon maps by artifact key.
     maps: Cells<String, Arc<PhotonMaps>>,
+    /// Path tracers with a subsurface point cloud, by (job, artifact key).
+    clouds: Cells<(i64, String), Arc<dyn Integrator>>,
     /// SPPM iterations' camera paths and radii by (job, frame, iteration): traced once per
     /// worker, read by each of the iteration's chunks it runs.
     sppm: Cells<(i64, u32, u32), Arc<SppmInputs>>,
@@ -115,6 +118,8 @@ enum Inputs {
     None,
     /// The photon-mapping integrator built from the job's artifacts.
     Photon(Arc<PhotonIntegrator>),
+    /// The path tracer with the point cloud built from the job's artifact.
+    Clouds(Arc<dyn Integrator>),
     Sppm(Arc<SppmInputs>),
 }
 
@@ -134,6 +139,7 @@ pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
         cache: Mutex::new(Vec::new()),
         integrators: Mutex::new(Vec::new()),
         maps: Mutex::new(Vec::new()),
+        clouds: Mutex::new(Vec::new()),
         sppm: Mutex::new(Vec::new()),
         config,
     });
@@ -200,11 +206,12 @@ fn run_spec(prepared: &Prepared, inputs: &Inputs, spec: &job::TaskSpec) -> Resul
             Ok(crate::bdpt::encode_output(&sums, &stats))
         }
         TaskKind::Tile => {
-            let integrator: &dyn tessera_render::Integrator = match photon {
-                Some(p) => p,
-                None => prepared
+            let integrator: &dyn tessera_render::Integrator = match (photon, inputs) {
+                (Some(p), _) => p,
+                (None, Inputs::Clouds(i)) => i.as_ref(),
+                (None, _) => prepared
                     .integrator()
-                    .ok_or("a photon-mapping tile task without its pass artifacts")?,
+                    .ok_or("a tile task without its pass artifacts")?,
             };
             let camera = prepared.camera(spec.frame);
             Ok(codec::encode(
@@ -345,6 +352,7 @@ impl Worker {
                 match a.kind {
                     PassKind::Photons => maps = Some(self.photon_maps(&a.key).await?),
                     PassKind::Records => records = Some(self.download(&a.key).await?),
+                    PassKind::Subsurface => {}
                 }
             }
             let prepared = prepared.clone();
@@ -359,6 +367,34 @@ impl Worker {
             .await??;
             tracing::info!(job = grant.job_id, artifacts = %id.1, "pass artifacts loaded");
             anyhow::Ok(Arc::new(integ))
+        })
+        .await
+    }
+
+    /// The path tracer of a tile task whose job has a subsurface point-cloud artifact,
+    /// downloaded and built once per worker.
+    async fn cloud_integrator(
+        &self,
+        grant: &LeaseGrant,
+        prepared: &Arc<Prepared>,
+    ) -> anyhow::Result<Arc<dyn Integrator>> {
+        let key = grant
+            .artifacts
+            .iter()
+            .find(|a| a.kind == PassKind::Subsurface)
+            .context("the task names no point-cloud artifact")?
+            .key
+            .clone();
+        cached(&self.clouds, (grant.job_id, key.clone()), || async {
+            let bytes = self.download(&key).await?;
+            let prepared = prepared.clone();
+            let integ = tokio::task::spawn_blocking(move || {
+                crate::subsurface::integrator(&prepared, &bytes)
+            })
+            .await?
+            .map_err(anyhow::Error::msg)?;
+            tracing::info!(job = grant.job_id, artifact = %key, "point cloud loaded");
+            anyhow::Ok(Arc::<dyn Integrator>::from(integ))
         })
         .await
     }
@@ -420,6 +456,17 @@ impl Worker {
                     self.sppm_inputs(&grant, &prepared)
                         .await
                         .context("tracing the sppm iteration's camera paths")?,
+                )
+            } else if spec.kind == TaskKind::Tile
+                && grant
+                    .artifacts
+                    .iter()
+                    .any(|a| a.kind == PassKind::Subsurface)
+            {
+                Inputs::Clouds(
+                    self.cloud_integrator(&grant, &prepared)
+                        .await
+                        .context("loading the point cloud")?,
                 )
             } else if spec.kind == TaskKind::Records
                 || (spec.kind == TaskKind::Tile && !grant.artifacts.is_empty())

@@ -356,19 +356,46 @@ async fn submit_job(
                 });
             }
         }
+        if let Some(plan) = crate::subsurface::plan(&desc) {
+            let cached = if req.settings.reuse.unwrap_or(true) {
+                app2.cached(&plan.key)?
+            } else {
+                None
+            };
+            decisions.push(match &cached {
+                Some(e) => format!(
+                    "subsurface point cloud: reused — artifact {} ({} bytes) built by job {} has the same geometry, materials, lights and irradiance settings",
+                    &e.key[..12], e.bytes, e.job
+                ),
+                None => format!(
+                    "subsurface point cloud: built by this job in {} tasks ({} points)",
+                    plan.tasks().len(),
+                    plan.points
+                ),
+            });
+            new_passes.push(NewPass {
+                kind: PassKind::Subsurface,
+                key: plan.key.clone(),
+                start: if cached.is_some() {
+                    PassStart::Reused
+                } else {
+                    PassStart::Build(plan.tasks())
+                },
+            });
+        }
         // Everything the job will queue: passes, tiles, and every SPPM iteration.
         let mut planned_tasks: u64 = tasks.iter().map(|t| t.len() as u64).sum();
         if analysis.integrator == tessera_scene::IntegratorKind::Sppm {
             planned_tasks *= desc.integrator.spp as u64;
         }
-        if let Some(plan) = passes::plan(&desc, &analysis, frames) {
-            for p in &new_passes {
-                planned_tasks += match (&p.start, p.kind) {
-                    (PassStart::Reused, _) => 0,
-                    (_, PassKind::Photons) => plan.photon_tasks().len() as u64,
-                    (_, PassKind::Records) => plan.record_tasks(&desc).len() as u64,
-                };
-            }
+        for p in &new_passes {
+            planned_tasks += match &p.start {
+                PassStart::Reused => 0,
+                PassStart::Build(tasks) => tasks.len() as u64,
+                // Only the irradiance cache waits (for the photon maps).
+                PassStart::Waiting => passes::plan(&desc, &analysis, frames)
+                    .map_or(0, |plan| plan.record_tasks(&desc).len() as u64),
+            };
         }
         Ok(NewJob {
             name: req.name.clone().unwrap_or_else(|| desc.name.clone()),

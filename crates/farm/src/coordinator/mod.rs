@@ -431,10 +431,6 @@ impl App {
     /// write it under its key, and queue what follows (the next pass, or every frame's tiles).
     fn finish_pass(&self, job: i64, pass: PassKind) -> anyhow::Result<()> {
         let scene = self.job_scene(job)?;
-        let plan = scene
-            .plan
-            .as_ref()
-            .with_context(|| format!("job {job} has a {} pass but no pass plan", pass.as_str()))?;
         let mut outputs = Vec::new();
         for (task, lease, spec) in self.store.pass_results(job, pass)? {
             let path = self.tile_path(job, task, lease);
@@ -443,14 +439,21 @@ impl App {
                 .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
             outputs.push((spec.kind, out));
         }
+        let plan = || {
+            scene
+                .plan
+                .as_ref()
+                .with_context(|| format!("job {job} has a {} pass but no pass plan", pass.as_str()))
+        };
         let (key, bytes) = match pass {
             PassKind::Photons => {
+                let plan = plan()?;
                 let maps = passes::merge_photons(
                     &scene.desc,
                     &plan.settings,
                     outputs.iter().filter_map(|(k, o)| match o {
                         PassOutput::Photons(p) => Some((*k, p.as_slice())),
-                        PassOutput::Records(_) => None,
+                        _ => None,
                     }),
                 );
                 (plan.photons_key.clone(), passes::encode_maps(&maps))
@@ -460,15 +463,29 @@ impl App {
                     .iter()
                     .flat_map(|(_, o)| match o {
                         PassOutput::Records(r) => r.as_slice(),
-                        PassOutput::Photons(_) => &[],
+                        _ => &[],
                     })
                     .copied()
                     .collect();
-                let key = plan
+                let key = plan()?
                     .records_key
                     .clone()
                     .context("a records pass without a records key")?;
                 (key, passes::encode_records(&records))
+            }
+            PassKind::Subsurface => {
+                let e: Vec<_> = outputs
+                    .iter()
+                    .flat_map(|(_, o)| match o {
+                        PassOutput::Irradiance(e) => e.as_slice(),
+                        _ => &[],
+                    })
+                    .copied()
+                    .collect();
+                (
+                    crate::subsurface::key(&scene.desc),
+                    crate::subsurface::encode(&e),
+                )
             }
         };
         let path = self.artifact_path(&key);
@@ -485,7 +502,8 @@ impl App {
             sha256: crate::bundle::hash(&bytes),
             job,
         };
-        let next = if pass == PassKind::Photons && plan.records_key.is_some() {
+        let records = scene.plan.as_ref().filter(|p| p.records_key.is_some());
+        let next = if let (PassKind::Photons, Some(plan)) = (pass, records) {
             NextStage::Pass(PassKind::Records, plan.record_tasks(&scene.desc))
         } else {
             NextStage::Tiles(

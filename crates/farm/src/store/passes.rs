@@ -88,9 +88,10 @@ impl Store {
             TaskKind::GlobalPhotons
             | TaskKind::CausticPhotons
             | TaskKind::Sppm
-            | TaskKind::Bdpt => &[],
+            | TaskKind::Bdpt
+            | TaskKind::SubsurfacePoints => &[],
             TaskKind::Records => &[PassKind::Photons],
-            TaskKind::Tile => &[PassKind::Photons, PassKind::Records],
+            TaskKind::Tile => &[PassKind::Photons, PassKind::Records, PassKind::Subsurface],
         };
         let mut out = Vec::new();
         for &pass in wanted {
@@ -133,6 +134,7 @@ impl Store {
         let kinds: &[TaskKind] = match pass {
             PassKind::Photons => &[TaskKind::GlobalPhotons, TaskKind::CausticPhotons],
             PassKind::Records => &[TaskKind::Records],
+            PassKind::Subsurface => &[TaskKind::SubsurfacePoints],
         };
         let conn = self.conn();
         let mut stmt = conn.prepare(&format!(

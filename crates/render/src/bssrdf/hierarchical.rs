@@ -24,7 +24,7 @@ use crate::integrator::RayStats;
 use crate::math::gamma;
 use crate::sampler::hash::hash;
 use crate::sampler::{PixelSampler, Sampler};
-use crate::scene::{NO_LIGHT, Scene, SurfaceInteraction};
+use crate::scene::{Material, NO_LIGHT, Scene, SurfaceInteraction};
 use crate::spectrum::Spectrum;
 
 /// Largest solid angle of a node used whole (Jensen & Buhler's ε): at 0.02 the sum is within
@@ -81,21 +81,22 @@ pub struct PointClouds {
     pub summary: Vec<String>,
 }
 
-impl PointClouds {
-    /// Points on every translucent surface of `desc` (built as `scene`), their irradiance from
-    /// `irradiance` (deterministic per point: its own sampler stream), and the octrees.
-    pub fn build(
-        desc: &SceneDesc,
-        scene: &Scene,
-        irradiance: &(
-             dyn Fn(&SurfaceInteraction, &Subsurface, &mut PixelSampler, &mut RayStats) -> Spectrum
-                 + Sync
-         ),
-    ) -> PointClouds {
-        let mut out = PointClouds::default();
+/// The points of every translucent material of a scene before their irradiance: where the
+/// pass's work is. Depends on the scene description alone, so a coordinator can count them and
+/// every process places the same ones.
+#[derive(Debug)]
+pub struct Placement {
+    /// (material, its points, points per unit area, its shortest mean free path).
+    clouds: Vec<(u32, Vec<IrradiancePoint>, f64, f32)>,
+}
+
+impl Placement {
+    /// Points on every translucent surface of `desc`, about one per mean free path squared.
+    pub fn new(desc: &SceneDesc) -> Placement {
+        let mut clouds = Vec::new();
         for (m, material) in desc.materials.iter().enumerate() {
             let m = m as u32;
-            let Some(sub) = scene.material(m).subsurface.as_deref() else {
+            let Some(sub) = Material::from_desc(&material.kind).subsurface else {
                 continue;
             };
             let area = surface_area(desc, m);
@@ -104,35 +105,98 @@ impl PointClouds {
             }
             let mfp = sub.mean_free_path();
             let density = (1.0 / (mfp * mfp) as f64).min(MAX_POINTS as f64 / area);
-            let mut points = place(desc, m, density);
-            let seed = hash(&[desc.integrator.seed, 0x5353_5321, m as u64]);
-            points.par_iter_mut().enumerate().for_each_init(
-                || PixelSampler::new(SamplerType::Independent, seed),
-                |sampler, (i, pt)| {
-                    let si = SurfaceInteraction {
-                        p: pt.p,
-                        p_error: pt.p.abs() * gamma(7) + Vec3A::splat(1e-6),
-                        t: 0.0,
-                        ng: pt.n,
-                        ns: pt.n,
-                        material: m,
-                        light: NO_LIGHT,
-                    };
-                    let mut stats = RayStats::default();
-                    let mut e = Spectrum::ZERO;
-                    for s in 0..IRRADIANCE_SAMPLES {
-                        sampler.start_pixel_sample(UVec2::new(i as u32, 0), s);
-                        let v = irradiance(&si, sub, sampler, &mut stats);
-                        if v.is_finite() {
-                            e += v;
+            clouds.push((m, place(desc, m, density), density, mfp));
+        }
+        Placement { clouds }
+    }
+
+    /// Points in all clouds; the pass's indices run over them material by material.
+    pub fn len(&self) -> usize {
+        self.clouds.iter().map(|c| c.1.len()).sum()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// E at the points with indices in `range` (deterministic per point: each material's own
+    /// sampler stream, the point's index within it as the pixel), from `irradiance`.
+    pub fn irradiance(
+        &self,
+        desc: &SceneDesc,
+        scene: &Scene,
+        range: std::ops::Range<usize>,
+        irradiance: &(
+             dyn Fn(&SurfaceInteraction, &Subsurface, &mut PixelSampler, &mut RayStats) -> Spectrum
+                 + Sync
+         ),
+    ) -> Vec<Spectrum> {
+        let mut out = Vec::with_capacity(range.len());
+        let mut first = 0;
+        for (m, points, _, _) in &self.clouds {
+            let (lo, hi) = (range.start.max(first), range.end.min(first + points.len()));
+            first += points.len();
+            if lo >= hi {
+                continue;
+            }
+            let Some(sub) = scene.material(*m).subsurface.as_deref() else {
+                continue;
+            };
+            let seed = hash(&[desc.integrator.seed, 0x5353_5321, *m as u64]);
+            let offset = first - points.len();
+            let e: Vec<Spectrum> = (lo - offset..hi - offset)
+                .into_par_iter()
+                .map_init(
+                    || PixelSampler::new(SamplerType::Independent, seed),
+                    |sampler, i| {
+                        let pt = &points[i];
+                        let si = SurfaceInteraction {
+                            p: pt.p,
+                            p_error: pt.p.abs() * gamma(7) + Vec3A::splat(1e-6),
+                            t: 0.0,
+                            ng: pt.n,
+                            ns: pt.n,
+                            material: *m,
+                            light: NO_LIGHT,
+                        };
+                        let mut stats = RayStats::default();
+                        let mut e = Spectrum::ZERO;
+                        for s in 0..IRRADIANCE_SAMPLES {
+                            sampler.start_pixel_sample(UVec2::new(i as u32, 0), s);
+                            let v = irradiance(&si, sub, sampler, &mut stats);
+                            if v.is_finite() {
+                                e += v;
+                            }
                         }
-                    }
-                    pt.e = e / IRRADIANCE_SAMPLES as f32;
-                },
-            );
+                        e / IRRADIANCE_SAMPLES as f32
+                    },
+                )
+                .collect();
+            out.extend(e);
+        }
+        out
+    }
+
+    /// The clouds with `e`, the irradiance of every point in index order, as octrees.
+    pub fn with_irradiance(self, desc: &SceneDesc, e: &[Spectrum]) -> Result<PointClouds, String> {
+        if e.len() != self.len() {
+            return Err(format!(
+                "{} irradiance values for a point cloud of {} points",
+                e.len(),
+                self.len()
+            ));
+        }
+        let mut out = PointClouds::default();
+        let mut rest = e;
+        for (m, mut points, density, mfp) in self.clouds {
+            let (mine, tail) = rest.split_at(points.len());
+            rest = tail;
+            for (pt, e) in points.iter_mut().zip(mine) {
+                pt.e = *e;
+            }
             out.summary.push(format!(
                 "material {}: {} points, spacing {:.3} (mean free path {:.3}), {} paths each",
-                material.name,
+                desc.materials[m as usize].name,
                 points.len(),
                 (1.0 / density).sqrt(),
                 mfp,
@@ -140,7 +204,26 @@ impl PointClouds {
             ));
             out.trees.push((m, Octree::new(points)));
         }
-        out
+        Ok(out)
+    }
+}
+
+impl PointClouds {
+    /// Points on every translucent surface of `desc` (built as `scene`), their irradiance from
+    /// `irradiance`, and the octrees: the whole pass in this process.
+    pub fn build(
+        desc: &SceneDesc,
+        scene: &Scene,
+        irradiance: &(
+             dyn Fn(&SurfaceInteraction, &Subsurface, &mut PixelSampler, &mut RayStats) -> Spectrum
+                 + Sync
+         ),
+    ) -> PointClouds {
+        let placement = Placement::new(desc);
+        let e = placement.irradiance(desc, scene, 0..placement.len(), irradiance);
+        placement
+            .with_irradiance(desc, &e)
+            .expect("one value per point")
     }
 
     /// The cloud of material `m`.

@@ -21,6 +21,7 @@ use tessera_scene::{IntegratorDesc, IntegratorKind, SceneDesc, SubsurfaceMethod}
 use crate::analysis::Analysis;
 
 use crate::bsdf::TransportMode;
+use crate::bssrdf::hierarchical::{Placement, PointClouds};
 use crate::math::Frame;
 use crate::ray::Ray;
 use crate::sampler::PixelSampler;
@@ -201,9 +202,7 @@ pub fn prepare(
                 kind,
                 ..desc.integrator
             });
-            if desc.integrator.subsurface != SubsurfaceMethod::Hierarchical
-                || desc.translucent_materials().is_empty()
-            {
+            if !needs_point_clouds(desc) {
                 return (Box::new(path), Vec::new());
             }
             let clouds = subsurface_pass(desc, scene);
@@ -216,17 +215,50 @@ pub fn prepare(
     }
 }
 
+/// Whether rendering `desc` takes the hierarchical method's point-cloud pass: translucent
+/// materials rendered by `hierarchical`.
+pub fn needs_point_clouds(desc: &SceneDesc) -> bool {
+    desc.integrator.subsurface == SubsurfaceMethod::Hierarchical
+        && !desc.translucent_materials().is_empty()
+}
+
 /// The hierarchical method's pass: point clouds on the translucent surfaces, their irradiance
 /// path traced (translucent surfaces those paths meet sampled by the dipole). Empty without
 /// translucent materials.
-pub fn subsurface_pass(
+pub fn subsurface_pass(desc: &SceneDesc, scene: &Scene) -> PointClouds {
+    let placement = Placement::new(desc);
+    let e = subsurface_irradiance(desc, scene, &placement, 0..placement.len());
+    placement
+        .with_irradiance(desc, &e)
+        .expect("one value per point")
+}
+
+/// The irradiance of the points of `placement` with indices in `range`, as the pass computes
+/// them (the same values whichever process and range: a farm task's share of the pass).
+pub fn subsurface_irradiance(
     desc: &SceneDesc,
     scene: &Scene,
-) -> crate::bssrdf::hierarchical::PointClouds {
+    placement: &Placement,
+    range: std::ops::Range<usize>,
+) -> Vec<Spectrum> {
     let tracer = PathIntegrator::new(desc.integrator.max_depth, desc.integrator.rr_depth);
-    crate::bssrdf::hierarchical::PointClouds::build(desc, scene, &|si, sub, sampler, stats| {
+    placement.irradiance(desc, scene, range, &|si, sub, sampler, stats| {
         tracer.exit_irradiance(scene, si, sub, sampler, stats)
     })
+}
+
+/// The tile integrator of `desc` (`analysis` resolved `auto`) with point clouds built
+/// elsewhere: a farm worker's, from the pass artifact.
+pub fn with_point_clouds(
+    desc: &SceneDesc,
+    analysis: &Analysis,
+    clouds: PointClouds,
+) -> Box<dyn Integrator> {
+    let path = path_family(&IntegratorDesc {
+        kind: analysis.integrator,
+        ..desc.integrator
+    });
+    Box::new(path.with_clouds(std::sync::Arc::new(clouds)))
 }
 
 /// The integrator for frame 1 of a scene: its own choice, or the one scene analysis makes for
