@@ -85,17 +85,6 @@ pub fn check(desc: &SceneDesc, settings: &RenderSettings) -> Result<(), String> 
             return Err("integrator: mlt supports pinhole cameras only; use pssmlt or bdpt".into());
         }
     }
-    use tessera_scene::LightDesc;
-    if desc.lights.iter().any(|l| {
-        matches!(
-            l,
-            LightDesc::Directional { .. } | LightDesc::Environment { .. }
-        )
-    }) {
-        return Err(format!(
-            "integrator: {name} does not support lights at infinity (environment, directional) yet; use path"
-        ));
-    }
     Ok(())
 }
 

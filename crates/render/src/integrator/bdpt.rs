@@ -57,6 +57,11 @@ pub(super) struct Vertex {
     pub(super) pdf_fwd: f32,
     /// Density of this vertex sampled from the next one (the other direction), per unit area.
     pub(super) pdf_rev: f32,
+    /// A light at infinity (environment, directional): `p` stands one unit from its
+    /// neighbour along the direction to the light, so directions to it are exact; its own
+    /// densities are per unit solid angle, and the neighbour's from it per unit area of the
+    /// disk it emits from, projected.
+    pub(super) infinite: bool,
 }
 
 impl Vertex {
@@ -80,7 +85,22 @@ impl Vertex {
             delta: false,
             pdf_fwd: pdf,
             pdf_rev: 0.0,
+            infinite: false,
         }
+    }
+
+    /// A light at infinity seen from `from` in direction `wi`.
+    fn at_infinity(light: u32, from: Vec3A, wi: Vec3A, beta: Spectrum) -> Self {
+        let mut v = Vertex::point(
+            Kind::Light(light),
+            from + wi,
+            Vec3A::ZERO,
+            Vec3A::ZERO,
+            beta,
+            0.0,
+        );
+        v.infinite = true;
+        v
     }
 
     /// The vertex of a ray's hit, arrived at from direction `wo`.
@@ -101,7 +121,20 @@ impl Vertex {
     }
 
     /// A per-solid-angle density `pdf` of sampling `next` from here, per unit area at `next`.
+    /// Toward a light at infinity the density stays per solid angle; from one, `pdf` is per
+    /// unit area of its disk, projected onto `next`.
     fn convert_density(&self, pdf: f32, next: &Vertex) -> f32 {
+        if next.infinite {
+            return pdf;
+        }
+        if self.infinite {
+            let w = (next.p - self.p).normalize_or_zero();
+            return if next.on_surface() {
+                pdf * next.ng.dot(w).abs()
+            } else {
+                pdf
+            };
+        }
         let w = next.p - self.p;
         let d2 = w.length_squared();
         if d2 == 0.0 {
@@ -142,14 +175,18 @@ pub(super) struct Ctx<'a> {
 
 impl<'a> Ctx<'a> {
     /// The context of `integrator` (named in the error) over `scene` seen by `camera`;
-    /// refuses lights at infinity, whose bidirectional densities are not implemented.
+    /// without `at_infinity`, refuses lights at infinity (path-space MLT's mutations do not
+    /// handle them).
     pub(super) fn new(
         integrator: &str,
         scene: &'a Scene,
         camera: &'a Camera,
         rr_depth: u32,
+        at_infinity: bool,
     ) -> Result<Self, String> {
-        if (0..scene.lights.len() as u32).any(|i| scene.lights.get(i).bounds().is_none()) {
+        if !at_infinity
+            && (0..scene.lights.len() as u32).any(|i| scene.lights.get(i).bounds().is_none())
+        {
             return Err(format!(
                 "{integrator}: lights at infinity (environment, directional) are not supported yet; use the path integrator"
             ));
@@ -279,11 +316,28 @@ impl<'a> Ctx<'a> {
 
     /// Densities of the light at `v` emitting from `v` toward `to`: of choosing the light
     /// and the point `v` on it (per unit area), and of the direction, per unit area at `to`.
+    /// For a light at infinity: of choosing it and the direction (per solid angle; an
+    /// environment as every environment light together, as a path escaping sees them), and
+    /// of the point on its disk, per unit area at `to`.
     fn pdf_le(&self, v: &Vertex, to: &Vertex) -> (f32, f32) {
         let Some((i, light)) = self.light_of(v) else {
             return (0.0, 0.0);
         };
         let w = (to.p - v.p).normalize_or_zero();
+        if v.infinite {
+            let (disk, _) = light.pdf_le(w, w, self.bounds);
+            let origin = match light {
+                Light::Environment(_) => self
+                    .scene
+                    .lights
+                    .environment()
+                    .map(|(j, l)| self.scene.lights.pmf(j) * l.pdf_li_direction(-w))
+                    .sum(),
+                // A delta in direction.
+                _ => 0.0,
+            };
+            return (origin, v.convert_density(disk, to));
+        }
         let (pdf_pos, pdf_dir) = light.pdf_le(v.ng, w, self.bounds);
         (
             self.scene.lights.pmf(i) * pdf_pos,
@@ -291,19 +345,30 @@ impl<'a> Ctx<'a> {
         )
     }
 
-    /// Radiance an emitter vertex sends toward `to`.
+    /// Radiance an emitter vertex sends toward `to` (from a light at infinity: every
+    /// environment light's along that direction).
     fn le(&self, v: &Vertex, to: &Vertex) -> Spectrum {
         let Some((_, light)) = self.light_of(v) else {
             return Spectrum::ZERO;
         };
-        light.le_surface(v.ng, (to.p - v.p).normalize_or_zero())
+        let w = (to.p - v.p).normalize_or_zero();
+        if v.infinite {
+            return self
+                .scene
+                .lights
+                .environment()
+                .map(|(_, l)| l.le_direction(-w))
+                .sum();
+        }
+        light.le_surface(v.ng, w)
     }
 
-    /// Whether a light vertex is a delta in position (a point light).
+    /// Whether a light vertex is a delta in position (a point light) or direction (a
+    /// directional light): no path can hit it.
     pub(super) fn is_delta_light(&self, v: &Vertex) -> bool {
         matches!(
             self.light_of(v),
-            Some((_, Light::Point(_) | Light::Spot(_)))
+            Some((_, Light::Point(_) | Light::Spot(_) | Light::Directional(_)))
         )
     }
 
@@ -326,6 +391,15 @@ impl<'a> Ctx<'a> {
         while path.len() < max && !is_black(beta) {
             stats.rays += 1;
             let Some(si) = self.scene.intersect(&ray) else {
+                // A camera path that escapes sees the environment: a light vertex at infinity.
+                if mode == TransportMode::Radiance
+                    && let Some((env, _)) = self.scene.lights.environment().next()
+                {
+                    let prev = path.len() - 1;
+                    let mut v = Vertex::at_infinity(env, ray.o, ray.d, beta);
+                    v.pdf_fwd = path[prev].convert_density(pdf_fwd, &v);
+                    path.push(v);
+                }
                 break;
             };
             let wo = -ray.d;
@@ -434,6 +508,15 @@ impl<'a> Ctx<'a> {
         let u_dir = sampler.get_2d();
         let (li, pmf) = self.scene.lights.choose(u.x)?;
         let light = self.scene.lights.get(li);
+        if light.bounds().is_none() {
+            // From the disk across the scene: the vertex is the direction (its density per
+            // solid angle), the disk's density the next vertex's.
+            let aim = Aim::Disk(self.bounds);
+            let e = light.sample_le(&aim, Vec2::new(u.y, u.z), u_dir, u.w)?;
+            let mut v = Vertex::at_infinity(li, e.ray.o, -e.ray.d, e.le);
+            v.pdf_fwd = pmf * e.pdf_dir;
+            return Some((v, e, pmf));
+        }
         let e = light.sample_le(&Aim::Everywhere, Vec2::new(u.y, u.z), u_dir, u.w)?;
         let v = Vertex::point(
             Kind::Light(li),
@@ -459,13 +542,16 @@ impl<'a> Ctx<'a> {
         let Some((v, e, pmf)) = self.light_start(sampler) else {
             return;
         };
+        // The first step's density: per solid angle from a point, per unit disk area from
+        // infinity.
+        let pdf = if v.infinite { e.pdf_pos } else { e.pdf_dir };
         path.push(v);
         let max = max.min(MAX_VERTICES);
         self.random_walk(
             path,
             e.ray,
             e.flux / pmf,
-            e.pdf_dir,
+            pdf,
             max,
             TransportMode::Importance,
             sampler,
@@ -702,13 +788,16 @@ impl<'a> Ctx<'a> {
             let Some(ls) = light.sample_li(pt.p, Vec2::new(u.y, u.z)) else {
                 return (Spectrum::ZERO, 0.0, None);
             };
-            let ShadowTarget::Point { p, p_error, n } = ls.target else {
-                return (Spectrum::ZERO, 0.0, None);
-            };
             if ls.pdf <= 0.0 {
                 return (Spectrum::ZERO, 0.0, None);
             }
-            let mut v = Vertex::point(Kind::Light(li), p, p_error, n, ls.li / (ls.pdf * pmf), 0.0);
+            let beta = ls.li / (ls.pdf * pmf);
+            let mut v = match ls.target {
+                ShadowTarget::Point { p, p_error, n } => {
+                    Vertex::point(Kind::Light(li), p, p_error, n, beta, 0.0)
+                }
+                ShadowTarget::Infinite => Vertex::at_infinity(li, pt.p, ls.wi, beta),
+            };
             v.pdf_fwd = self.pdf_le(&v, &pt).0;
             let mut l = pt.beta * self.f(&pt, &v, TransportMode::Radiance) * v.beta;
             if pt.on_surface() {
@@ -718,7 +807,11 @@ impl<'a> Ctx<'a> {
                 return (Spectrum::ZERO, 0.0, None);
             }
             stats.rays += 1;
-            if !self.scene.unoccluded_between(pt.end(), v.end()) {
+            let visible = match (&pt.si, v.infinite) {
+                (Some(si), true) => self.scene.unoccluded(si, &ls),
+                _ => self.scene.unoccluded_between(pt.end(), v.end()),
+            };
+            if !visible {
                 return (Spectrum::ZERO, 0.0, None);
             }
             sampled = Some(v);
@@ -757,8 +850,11 @@ impl<'a> Ctx<'a> {
     }
 
     /// Whether a vertex can be joined to another: a surface with a smooth lobe, any light
-    /// (area or point), the lens.
+    /// (area or point) not at infinity, the lens.
     pub(super) fn connectible(&self, v: &Vertex) -> bool {
+        if v.infinite {
+            return false;
+        }
         match v.kind {
             Kind::Surface => {
                 v.si.is_some_and(|si| self.scene.material(si.material).flags.smooth)
@@ -1040,7 +1136,6 @@ impl Bdpt {
 
     /// Renders samples `range` of every pixel of the frame seen by `camera` on the rayon
     /// pool: the camera-side estimates in the film's sums plus the light-tracing splats.
-    /// Refuses lights at infinity (not implemented).
     pub fn render_range(
         &self,
         scene: &Scene,
@@ -1048,7 +1143,7 @@ impl Bdpt {
         range: SampleRange,
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<(BdptSums, RayStats), String> {
-        let ctx = Ctx::new("bdpt", scene, camera, self.rr_depth)?;
+        let ctx = Ctx::new("bdpt", scene, camera, self.rr_depth, true)?;
         let (w, h) = (scene.film.width, scene.film.height);
         let splats = Splats::new(w, h);
         let results: Vec<(TileSums, RayStats)> = tiles(w, h, 16)
@@ -1091,7 +1186,7 @@ impl Bdpt {
         range: SampleRange,
         depth: u32,
     ) -> Result<Vec<StrategyImage>, String> {
-        let ctx = Ctx::new("bdpt", scene, camera, self.rr_depth)?;
+        let ctx = Ctx::new("bdpt", scene, camera, self.rr_depth, true)?;
         let (w, h) = (scene.film.width, scene.film.height);
         let depth = depth.min(self.max_depth) as usize;
         let strategies: Vec<(usize, usize)> = (0..=depth)

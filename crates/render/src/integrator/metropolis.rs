@@ -51,7 +51,7 @@ pub(super) trait Chains: Sync {
     /// The context the chains run in (no roulette: chains fix the path length); refuses what
     /// the renderer does not support.
     fn ctx<'a>(&self, scene: &'a Scene, camera: &'a Camera) -> Result<Ctx<'a>, String> {
-        Ctx::new(self.settings().name, scene, camera, u32::MAX)
+        Ctx::new(self.settings().name, scene, camera, u32::MAX, true)
     }
 
     /// Bootstrap path `i`'s weight (and what tracing it cost).
@@ -286,7 +286,7 @@ impl Metropolis {
     }
 
     /// Renders with `mutations` per pixel (every group) on the rayon pool; `progress` counts
-    /// mutations. Refuses lights at infinity, as BDPT does.
+    /// mutations. Path-space MLT refuses lights at infinity.
     pub fn render(
         &self,
         scene: &Scene,

@@ -257,7 +257,7 @@ impl Chains for Mlt {
 
     /// Only pinhole cameras and area lights, besides BDPT's refusals.
     fn ctx<'a>(&self, scene: &'a Scene, camera: &'a Camera) -> Result<Ctx<'a>, String> {
-        let ctx = Ctx::new("mlt", scene, camera, u32::MAX)?;
+        let ctx = Ctx::new("mlt", scene, camera, u32::MAX, false)?;
         if camera.has_aperture() {
             return Err("mlt: only pinhole cameras are supported (its lens mutations assume one); use pssmlt or bdpt".into());
         }

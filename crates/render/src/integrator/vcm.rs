@@ -64,7 +64,7 @@ impl Vcm {
         self.radius * ((k + 1) as f32).powf((self.alpha - 1.0) / 2.0)
     }
 
-    /// Renders iterations `range` of the frame on the rayon pool. Refuses lights at infinity.
+    /// Renders iterations `range` of the frame on the rayon pool.
     pub fn render_range(
         &self,
         scene: &Scene,
@@ -72,7 +72,7 @@ impl Vcm {
         range: SampleRange,
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<(BdptSums, RayStats), String> {
-        let ctx = Ctx::new("vcm", scene, camera, self.rr_depth)?;
+        let ctx = Ctx::new("vcm", scene, camera, self.rr_depth, true)?;
         let (w, h) = (scene.film.width, scene.film.height);
         let splats = Splats::new(w, h);
         let mut film: Vec<TileSums> = tiles(w, h, 16)
