@@ -75,10 +75,14 @@ pub fn check(desc: &SceneDesc, settings: &RenderSettings) -> Result<(), String> 
         ));
     }
     if desc.integrator.kind == IntegratorKind::Mlt {
-        // Lights in the scene's light list are points, spots and lights at infinity; area
-        // lights are emissive shapes.
-        if !desc.lights.is_empty() {
-            return Err("integrator: mlt supports area lights (emissive meshes and spheres) only; use pssmlt or bdpt".into());
+        use tessera_scene::LightDesc;
+        if desc.lights.iter().any(|l| {
+            matches!(
+                l,
+                LightDesc::Directional { .. } | LightDesc::Environment { .. }
+            )
+        }) {
+            return Err("integrator: mlt does not support lights at infinity (environment, directional); use pssmlt or bdpt".into());
         }
         if matches!(desc.camera.lens, tessera_scene::Lens::Thin { aperture_radius, .. } if aperture_radius > 0.0)
         {

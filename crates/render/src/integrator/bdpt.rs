@@ -1245,7 +1245,9 @@ impl Bdpt {
                 ctx.light_subpath(d + 1, &mut sampler, &mut stats, &mut lig);
                 let mut l = Spectrum::ZERO;
                 for t in 1..=cam.len() {
-                    for s in 0..=lig.len() {
+                    // s = 1 samples its own light point: it runs even when the light subpath
+                    // could not start (a spot light's emission outside its cone).
+                    for s in 0..=lig.len().max(1) {
                         let depth = s as i64 + t as i64 - 2;
                         if (s == 1 && t == 1)
                             || depth < self.min_depth as i64

@@ -36,7 +36,9 @@
 //! for the farm). The chains (1000, seeded (seed, chain)) start from paths resampled from a
 //! bootstrap of independent BDPT paths (one strategy and depth each, weight f / Σ_s p_s) in
 //! proportion to their weight, which removes start-up bias as the bootstrap grows (Veach
-//! §11.3.3). Pinhole cameras and area lights only.
+//! §11.3.3). Pinhole cameras only; area, point and spot lights (a point light's vertex is a
+//! delta in position: density 1 in the discrete measure, intensity for radiance, no cosine,
+//! never hit from the eye side), not lights at infinity.
 
 use glam::{Vec2, Vec3A};
 use rayon::prelude::*;
@@ -50,7 +52,6 @@ use super::pssmlt::{
 };
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
-use crate::light::Light;
 use crate::math::{Frame, offset_ray_origin};
 use crate::ray::Ray;
 use crate::sampler::Sampler;
@@ -255,16 +256,11 @@ impl Chains for Mlt {
         }
     }
 
-    /// Only pinhole cameras and area lights, besides BDPT's refusals.
+    /// Only pinhole cameras, and no lights at infinity.
     fn ctx<'a>(&self, scene: &'a Scene, camera: &'a Camera) -> Result<Ctx<'a>, String> {
         let ctx = Ctx::new("mlt", scene, camera, u32::MAX, false)?;
         if camera.has_aperture() {
             return Err("mlt: only pinhole cameras are supported (its lens mutations assume one); use pssmlt or bdpt".into());
-        }
-        if (0..scene.lights.len() as u32)
-            .any(|i| !matches!(scene.lights.get(i), Light::Triangle(_) | Light::Sphere(_)))
-        {
-            return Err("mlt: only area lights (emissive meshes and spheres) are supported; use pssmlt or bdpt".into());
         }
         Ok(ctx)
     }
@@ -761,8 +757,16 @@ impl Mlt {
             return false;
         };
         let w01 = dir(&x[0], &x[1]);
-        let le = light.le_surface(x[0].ng, w01);
+        // A point or spot light: a delta in position (its density 1 in the discrete
+        // measure), intensity instead of radiance, no cosine, never hit from the eye side.
+        let point = ctx.is_delta_light(&x[0]);
+        let le = if point {
+            light.intensity(w01)
+        } else {
+            light.le_surface(x[0].ng, w01)
+        };
         let (pos, pdf_dir) = light.pdf_le(x[0].ng, w01, ctx.bounds);
+        let pos = if point { 1.0 } else { pos };
         e.pa_fwd[0] = (ctx.scene.lights.pmf(li) * pos) as f64;
         e.sel_fwd[0] = pdf_dir as f64;
         // Edges: G and the per-area conversions toward each end.
@@ -773,7 +777,11 @@ impl Mlt {
                 return false;
             }
             let wn = d / d2.sqrt();
-            let ca = x[i].ng.dot(wn).abs() as f64;
+            let ca = if i == 0 && point {
+                1.0
+            } else {
+                x[i].ng.dot(wn).abs() as f64
+            };
             let cb = if i + 1 == k {
                 cos_cam as f64
             } else {
@@ -782,7 +790,7 @@ impl Mlt {
             let d2 = d2 as f64;
             e.g[i] = ca * cb / d2;
             e.conv_fwd[i] = cb / d2;
-            e.conv_rev[i] = ca / d2;
+            e.conv_rev[i] = if i == 0 && point { 0.0 } else { ca / d2 };
         }
         e.pa_fwd[1] = e.sel_fwd[0] * e.conv_fwd[0];
         e.pa_rev[k - 1] = pdf_cam * e.conv_rev[k - 1];

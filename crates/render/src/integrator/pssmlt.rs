@@ -285,7 +285,8 @@ impl Pssmlt {
         if s > 0 {
             ctx.light_subpath(s, sampler, stats, &mut paths.light);
         }
-        if paths.light.len() != s {
+        // s = 1 samples its own light point, whether or not the subpath started.
+        if s >= 2 && paths.light.len() != s {
             return (Spectrum::ZERO, p_raster);
         }
         sampler.start_stream(CONNECT_STREAM);
@@ -375,7 +376,7 @@ pub(super) fn brightness(
     ctx.light_subpath(d + 1, sampler, stats, &mut paths.light);
     let mut y = 0.0f64;
     for t in 1..=paths.camera.len() {
-        for s in 0..=paths.light.len() {
+        for s in 0..=paths.light.len().max(1) {
             let depth = s + t;
             if depth < MIN_DEPTH as usize + 2 || depth > d + 2 {
                 continue;

@@ -202,8 +202,9 @@ impl CameraPass<'_> {
             let lig = self.paths[(pixel.y * w + pixel.x) as usize];
             let mut l = Spectrum::ZERO;
             for t in 2..=cam.len() {
-                // Connections to this pixel's light subpath (light tracing was the light pass's).
-                for s in 0..=lig.len() {
+                // Connections to this pixel's light subpath (light tracing was the light pass's;
+                // s = 1 samples its own light point, whether or not the subpath started).
+                for s in 0..=lig.len().max(1) {
                     if s + t - 2 > d {
                         continue;
                     }

@@ -211,6 +211,15 @@ impl Light {
         }
     }
 
+    /// Radiant intensity of a point or spot light toward unit direction `w`.
+    pub fn intensity(&self, w: Vec3A) -> Spectrum {
+        match self {
+            Light::Point(l) => l.intensity(),
+            Light::Spot(l) => l.intensity(w),
+            _ => Spectrum::ZERO,
+        }
+    }
+
     /// Radiance leaving an area light's surface with front normal `n` in direction `w`.
     pub fn le_surface(&self, n: Vec3A, w: Vec3A) -> Spectrum {
         match self {

@@ -22,6 +22,11 @@ impl PointLight {
         }
     }
 
+    /// Radiant intensity (the same in every direction).
+    pub fn intensity(&self) -> Spectrum {
+        self.intensity
+    }
+
     pub fn sample_li(&self, p: Vec3A) -> Option<LightSample> {
         from_point(self.position, p, |_| self.intensity)
     }

@@ -46,6 +46,11 @@ impl SpotLight {
         t * t * (3.0 - 2.0 * t)
     }
 
+    /// Radiant intensity toward unit direction `w`.
+    pub fn intensity(&self, w: Vec3A) -> Spectrum {
+        self.intensity * self.falloff(self.direction.dot(w))
+    }
+
     pub fn sample_li(&self, p: Vec3A) -> Option<LightSample> {
         from_point(self.position, p, |w| {
             self.intensity * self.falloff(self.direction.dot(w))
