@@ -209,23 +209,6 @@ impl Placement {
 }
 
 impl PointClouds {
-    /// Points on every translucent surface of `desc` (built as `scene`), their irradiance from
-    /// `irradiance`, and the octrees: the whole pass in this process.
-    pub fn build(
-        desc: &SceneDesc,
-        scene: &Scene,
-        irradiance: &(
-             dyn Fn(&SurfaceInteraction, &Subsurface, &mut PixelSampler, &mut RayStats) -> Spectrum
-                 + Sync
-         ),
-    ) -> PointClouds {
-        let placement = Placement::new(desc);
-        let e = placement.irradiance(desc, scene, 0..placement.len(), irradiance);
-        placement
-            .with_irradiance(desc, &e)
-            .expect("one value per point")
-    }
-
     /// The cloud of material `m`.
     pub fn get(&self, m: u32) -> Option<&Octree> {
         self.trees.iter().find(|(i, _)| *i == m).map(|(_, t)| t)

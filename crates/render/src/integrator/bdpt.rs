@@ -807,9 +807,11 @@ impl<'a> Ctx<'a> {
                 return (Spectrum::ZERO, 0.0, None);
             }
             stats.rays += 1;
-            let visible = match (&pt.si, v.infinite) {
-                (Some(si), true) => self.scene.unoccluded(si, &ls),
-                _ => self.scene.unoccluded_between(pt.end(), v.end()),
+            // Toward a light at infinity by direction (`pt` is a surface: t ≥ 2 here).
+            let visible = if v.infinite {
+                pt.si.is_some_and(|si| self.scene.unoccluded(&si, &ls))
+            } else {
+                self.scene.unoccluded_between(pt.end(), v.end())
             };
             if !visible {
                 return (Spectrum::ZERO, 0.0, None);
