@@ -349,12 +349,12 @@ impl Octree {
             let inside = x.cmpge(node.lo).all() && x.cmple(node.hi).all();
             let d2 = (x - node.centre).length_squared();
             if !inside && node.area < epsilon * d2 {
-                sum += sub.rd_lookup(d2.sqrt()) * node.power;
+                sum += sub.rd_lookup_sq(d2) * node.power;
                 continue;
             }
             if node.leaf {
                 for q in &self.points[node.first as usize..(node.first + node.count) as usize] {
-                    sum += sub.rd_lookup((x - q.p).length()) * q.e * q.area;
+                    sum += sub.rd_lookup_sq((x - q.p).length_squared()) * q.e * q.area;
                 }
                 continue;
             }

@@ -83,11 +83,11 @@ impl Subsurface {
         Spectrum::new(a, b, c)
     }
 
-    /// Rd(r) from a table (within 0.5 %; zero past the longest channel's reach): for sums
-    /// over many points.
+    /// Rd at squared distance `r2` from a table (within 0.5 %; zero past the longest
+    /// channel's reach): for sums over many points.
     #[inline]
-    pub fn rd_lookup(&self, r: f32) -> Spectrum {
-        Spectrum::from(self.lookup.rd(r))
+    pub fn rd_lookup_sq(&self, r2: f32) -> Spectrum {
+        Spectrum::from(self.lookup.rd_sq(r2))
     }
 
     /// The shortest mean free path 1/σt′ over the channels, scene units.
