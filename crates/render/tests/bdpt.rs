@@ -8,7 +8,10 @@
 
 mod common;
 
-use common::{assert_falls, error_against, pool, scene_and_reference};
+use common::{
+    assert_falls, assert_strategies_agree, depth1_unweighted, error_against, image_mean, pool,
+    scene_and_reference,
+};
 use tessera_render::Scene;
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
@@ -99,36 +102,10 @@ fn each_strategy_alone_estimates_the_same_light_and_so_do_the_weighted_ones_toge
                 .expect("renders")
         })
         .collect();
-    let mean = |img: &tessera_render::Image| {
-        img.pixels
-            .iter()
-            .map(|p| p.rgb.iter().sum::<f32>() as f64)
-            .sum::<f64>()
-            / (3 * img.pixels.len()) as f64
-    };
-    // Per depth-1 strategy: mean over batches and its standard error.
-    let stats: Vec<(u32, f64, f64)> = (0..batches[0].len())
-        .filter(|&i| batches[0][i].s + batches[0][i].t == 3)
-        .map(|i| {
-            let m: Vec<f64> = batches.iter().map(|b| mean(&b[i].unweighted)).collect();
-            let avg = m.iter().sum::<f64>() / m.len() as f64;
-            let var = m.iter().map(|x| (x - avg).powi(2)).sum::<f64>() / (m.len() - 1) as f64;
-            (batches[0][i].s, avg, (var / m.len() as f64).sqrt())
-        })
-        .collect();
+    let stats = depth1_unweighted(&batches);
     eprintln!("depth 1, unweighted (s, mean, standard error): {stats:?}");
     assert_eq!(stats.len(), 3);
-    for a in &stats {
-        for b in &stats {
-            let tol = 4.0 * (a.2 * a.2 + b.2 * b.2).sqrt();
-            assert!(
-                (a.1 - b.1).abs() <= tol,
-                "strategies s = {} and s = {} disagree: {stats:?}",
-                a.0,
-                b.0
-            );
-        }
-    }
+    assert_strategies_agree(&stats);
     // MIS weights sum to one over a path's strategies, so the weighted depth-1 images add up
     // to one more estimate of the same light.
     let sums: Vec<f64> = batches
@@ -136,7 +113,7 @@ fn each_strategy_alone_estimates_the_same_light_and_so_do_the_weighted_ones_toge
         .map(|b| {
             b.iter()
                 .filter(|s| s.s + s.t == 3)
-                .map(|s| mean(&s.weighted))
+                .map(|s| image_mean(&s.weighted))
                 .sum()
         })
         .collect();

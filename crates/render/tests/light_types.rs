@@ -18,7 +18,7 @@
 
 mod common;
 
-use common::{assert_falls, pool};
+use common::{assert_falls, assert_strategies_agree, depth1_unweighted, load_json, pool};
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::integrator::bdpt::Bdpt;
@@ -49,15 +49,10 @@ fn sky(name: &str, ball: &str, lights: &str) -> SceneDesc {
   "lights": [{lights}]
 }}"#
     );
-    let dir = std::env::temp_dir().join(format!("tessera-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
     // The sky map of `scenes/material-spheres`, for scenes that name it.
     let sky = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../scenes/material-spheres/sky.exr");
-    std::fs::copy(sky, dir.join("sky.exr")).expect("copy the sky map");
-    let path = dir.join("scene.json");
-    std::fs::write(&path, json).expect("write scene");
-    tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
+    load_json(name, &json, &[("sky.exr", &sky)])
 }
 
 const SKY: &str = r#"{ "type": "environment", "radiance": 0.5 }"#;
@@ -78,6 +73,27 @@ fn path_traced(desc: &SceneDesc, spp: u32) -> Image {
             tessera_render::render::render_frame(&scene, &camera, integrator.as_ref(), 8, range)
         })
         .0
+}
+
+/// Asserts BDPT's relMSE on `desc` against `reference` falls from 64 to 1024 spp and its mean
+/// ends within 1 %.
+fn assert_bdpt_converges(what: &str, desc: &SceneDesc, reference: &Image) {
+    let scene = Scene::build(desc);
+    let camera = Camera::new(&desc.camera, &desc.film);
+    let bdpt = Bdpt::new(desc);
+    let budgets = [64, 1024];
+    let errors: Vec<(f64, f64)> = budgets
+        .iter()
+        .map(|&spp| {
+            let range = SampleRange { start: 0, end: spp };
+            let (image, _) = pool()
+                .install(|| bdpt.render(&scene, &camera, range, &|_| {}))
+                .expect("renders");
+            error(&image, reference)
+        })
+        .collect();
+    let labels: Vec<String> = budgets.iter().map(|s| format!("{s} spp")).collect();
+    assert_falls(&format!("{what}: bdpt"), &labels, &errors, 0.01);
 }
 
 /// relMSE and mean ratio of `image` against `reference`.
@@ -103,23 +119,7 @@ fn bdpt_converges_to_the_path_tracer_under_sky_and_sun() {
         ("sky-map", "ball", SKY_MAP),
     ] {
         let desc = sky(name, ball, lights);
-        let reference = path_traced(&desc, 8192);
-        let scene = Scene::build(&desc);
-        let camera = Camera::new(&desc.camera, &desc.film);
-        let bdpt = Bdpt::new(&desc);
-        let budgets = [64, 1024];
-        let errors: Vec<(f64, f64)> = budgets
-            .iter()
-            .map(|&spp| {
-                let range = SampleRange { start: 0, end: spp };
-                let (image, _) = pool()
-                    .install(|| bdpt.render(&scene, &camera, range, &|_| {}))
-                    .expect("renders lights at infinity");
-                error(&image, &reference)
-            })
-            .collect();
-        let labels: Vec<String> = budgets.iter().map(|s| format!("{s} spp")).collect();
-        assert_falls(&format!("{name}: bdpt"), &labels, &errors, 0.01);
+        assert_bdpt_converges(name, &desc, &path_traced(&desc, 8192));
     }
 }
 
@@ -173,35 +173,10 @@ fn each_strategy_of_direct_light_from_the_sky_estimates_the_same_light() {
                 .expect("renders")
         })
         .collect();
-    let mean = |img: &Image| {
-        img.pixels
-            .iter()
-            .map(|p| p.rgb.iter().sum::<f32>() as f64)
-            .sum::<f64>()
-            / (3 * img.pixels.len()) as f64
-    };
-    let stats: Vec<(u32, f64, f64)> = (0..batches[0].len())
-        .filter(|&i| batches[0][i].s + batches[0][i].t == 3)
-        .map(|i| {
-            let m: Vec<f64> = batches.iter().map(|b| mean(&b[i].unweighted)).collect();
-            let avg = m.iter().sum::<f64>() / m.len() as f64;
-            let var = m.iter().map(|x| (x - avg).powi(2)).sum::<f64>() / (m.len() - 1) as f64;
-            (batches[0][i].s, avg, (var / m.len() as f64).sqrt())
-        })
-        .collect();
+    let stats = depth1_unweighted(&batches);
     eprintln!("sky, depth 1, unweighted (s, mean, standard error): {stats:?}");
     assert_eq!(stats.len(), 3);
-    for a in &stats {
-        for b in &stats {
-            let tol = 4.0 * (a.2 * a.2 + b.2 * b.2).sqrt();
-            assert!(
-                (a.1 - b.1).abs() <= tol,
-                "strategies s = {} and s = {} disagree: {stats:?}",
-                a.0,
-                b.0
-            );
-        }
-    }
+    assert_strategies_agree(&stats);
 }
 
 /// A closed grey room with a ball, lit by a point light and a spot light.
@@ -225,11 +200,7 @@ fn room() -> SceneDesc {
       "falloff_start_deg": 20, "intensity": 20 }
   ]
 }"#;
-    let dir = std::env::temp_dir().join(format!("tessera-room-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    let path = dir.join("scene.json");
-    std::fs::write(&path, json).expect("write scene");
-    tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
+    load_json("room", json, &[])
 }
 
 #[test]
@@ -239,22 +210,9 @@ fn bidirectional_renderers_converge_under_point_and_spot_lights() {
     // pixel) 1.0044 and 1.0050, relMSE 1.3e-2 and 1.1e-2.
     let desc = room();
     let reference = path_traced(&desc, 4096);
+    assert_bdpt_converges("point and spot", &desc, &reference);
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let bdpt = Bdpt::new(&desc);
-    let budgets = [64, 1024];
-    let errors: Vec<(f64, f64)> = budgets
-        .iter()
-        .map(|&spp| {
-            let range = SampleRange { start: 0, end: spp };
-            let (image, _) = pool()
-                .install(|| bdpt.render(&scene, &camera, range, &|_| {}))
-                .expect("renders");
-            error(&image, &reference)
-        })
-        .collect();
-    let labels: Vec<String> = budgets.iter().map(|s| format!("{s} spp")).collect();
-    assert_falls("point and spot: bdpt", &labels, &errors, 0.01);
     let vcm = Vcm::new(&desc, &scene);
     let (sums, _) = pool()
         .install(|| vcm.render_range(&scene, &camera, SampleRange { start: 0, end: 256 }, &|_| {}))

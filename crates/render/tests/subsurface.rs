@@ -13,6 +13,9 @@
 //! The hierarchical method (a point cloud with its irradiance, summed through an octree)
 //! approximates the same integral as the sampled dipole, within its quadrature error.
 
+mod common;
+
+use common::load_json;
 use tessera_render::Scene;
 use tessera_render::bssrdf::dipole::{Dipole, Medium};
 use tessera_render::bssrdf::profile::RadialTable;
@@ -21,15 +24,6 @@ use tessera_render::film::SampleRange;
 use tessera_render::integrator::for_scene;
 use tessera_render::render::render_frame;
 use tessera_scene::SubsurfaceMethod;
-
-/// Writes `json` as a scene file in a fresh temporary folder and loads it.
-fn load_json(name: &str, json: &str) -> tessera_scene::SceneDesc {
-    let dir = std::env::temp_dir().join(format!("tessera-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    let path = dir.join("scene.json");
-    std::fs::write(&path, json).expect("write scene");
-    tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
-}
 
 /// The block, `half` mm to each side of the middle of its top face and `half` deep.
 fn block(method: SubsurfaceMethod, spp: u32, half: f32) -> tessera_scene::SceneDesc {
@@ -50,7 +44,7 @@ fn block(method: SubsurfaceMethod, spp: u32, half: f32) -> tessera_scene::SceneD
   "lights": [{{ "type": "environment", "radiance": 1 }}]
 }}"#
     );
-    load_json(&format!("subsurface-{method}"), &json)
+    load_json(&format!("subsurface-{method}"), &json, &[])
 }
 
 /// `desc` rendered at its spp on two threads, with the integrator it asks for (and its pass).
@@ -191,7 +185,7 @@ fn random_walk_keeps_the_energy_of_a_white_furnace() {
   "shapes": [{ "type": "sphere", "center": [0, 0, 0], "radius": 5, "material": "m" }],
   "lights": [{ "type": "environment", "radiance": 1 }]
 }"#;
-    let image = render(&load_json("furnace", json));
+    let image = render(&load_json("furnace", json, &[]));
     let pixels = &image.pixels;
     // The middle 16 × 16 pixels see only the sphere.
     let inner: Vec<[f32; 3]> = (8..24)

@@ -306,12 +306,12 @@ async fn submit_job(
             ));
         }
         let mut new_passes = Vec::new();
+        let reuse = req.settings.reuse.unwrap_or(true);
+        let cached = |key: &str| -> AppResult<Option<CacheEntry>> {
+            Ok(if reuse { app2.cached(key)? } else { None })
+        };
         if let Some(plan) = passes::plan(&desc, &analysis, frames) {
             decisions.extend(plan.decisions.iter().cloned());
-            let reuse = req.settings.reuse.unwrap_or(true);
-            let cached = |key: &str| -> AppResult<Option<CacheEntry>> {
-                Ok(if reuse { app2.cached(key)? } else { None })
-            };
             let photons = cached(&plan.photons_key)?;
             decisions.push(match &photons {
                 Some(e) => format!(
@@ -357,11 +357,7 @@ async fn submit_job(
             }
         }
         if let Some(plan) = crate::subsurface::plan(&desc) {
-            let cached = if req.settings.reuse.unwrap_or(true) {
-                app2.cached(&plan.key)?
-            } else {
-                None
-            };
+            let cached = cached(&plan.key)?;
             decisions.push(match &cached {
                 Some(e) => format!(
                     "subsurface point cloud: reused — artifact {} ({} bytes) built by job {} has the same geometry, materials, lights and irradiance settings",

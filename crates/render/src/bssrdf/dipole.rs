@@ -18,6 +18,23 @@ pub struct Medium {
 }
 
 impl Medium {
+    /// A medium of reduced scattering σs′ and absorption σa per channel (per unit length) and
+    /// relative index `eta`.
+    pub fn new(sigma_s_prime: glam::Vec3, sigma_a: glam::Vec3, eta: f32) -> Self {
+        Medium {
+            sigma_s_prime: sigma_s_prime.to_array().map(f64::from),
+            sigma_a: sigma_a.to_array().map(f64::from),
+            eta: eta as f64,
+        }
+    }
+
+    /// The shortest reduced mean free path 1/σt′ over the channels (the dipole's z_r).
+    pub fn mean_free_path(&self) -> f32 {
+        (0..3)
+            .map(|c| 1.0 / (self.sigma_s_prime[c] + self.sigma_a[c]))
+            .fold(f64::INFINITY, f64::min) as f32
+    }
+
     /// A measured medium of Jensen et al. 2001 (`tessera_scene::media`), per millimetre.
     pub fn measured(m: &tessera_scene::media::MeasuredMedium) -> Self {
         Medium {

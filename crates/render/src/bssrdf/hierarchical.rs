@@ -17,14 +17,15 @@
 
 use glam::{UVec2, Vec3A};
 use rayon::prelude::*;
-use tessera_scene::{SamplerType, SceneDesc};
+use tessera_scene::{MaterialKind, SamplerType, SceneDesc};
 
 use super::Subsurface;
+use super::dipole::Medium;
 use crate::integrator::RayStats;
 use crate::math::gamma;
 use crate::sampler::hash::hash;
 use crate::sampler::{PixelSampler, Sampler};
-use crate::scene::{Material, NO_LIGHT, Scene, SurfaceInteraction};
+use crate::scene::{NO_LIGHT, Scene, SurfaceInteraction};
 use crate::spectrum::Spectrum;
 
 /// Largest solid angle of a node used whole (Jensen & Buhler's ε): at 0.02 the sum is within
@@ -96,14 +97,20 @@ impl Placement {
         let mut clouds = Vec::new();
         for (m, material) in desc.materials.iter().enumerate() {
             let m = m as u32;
-            let Some(sub) = Material::from_desc(&material.kind).subsurface else {
+            let MaterialKind::Subsurface {
+                sigma_s_prime,
+                sigma_a,
+                eta,
+                ..
+            } = material.kind
+            else {
                 continue;
             };
             let area = surface_area(desc, m);
             if area <= 0.0 {
                 continue;
             }
-            let mfp = sub.mean_free_path();
+            let mfp = Medium::new(sigma_s_prime, sigma_a, eta).mean_free_path();
             let density = (1.0 / (mfp * mfp) as f64).min(MAX_POINTS as f64 / area);
             clouds.push((m, place(desc, m, density), density, mfp));
         }

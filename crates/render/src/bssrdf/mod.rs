@@ -56,11 +56,7 @@ pub struct Subsurface {
 
 impl Subsurface {
     pub fn new(sigma_s_prime: Vec3, sigma_a: Vec3, eta: f32, g: f32) -> Self {
-        let medium = Medium {
-            sigma_s_prime: sigma_s_prime.to_array().map(f64::from),
-            sigma_a: sigma_a.to_array().map(f64::from),
-            eta: eta as f64,
-        };
+        let medium = Medium::new(sigma_s_prime, sigma_a, eta);
         let dipoles = [0, 1, 2].map(|c| Dipole::new(&medium, c));
         let exit = SubsurfaceExit::new(eta);
         let tables = dipoles.map(|d| RadialTable::new(&d));
@@ -88,14 +84,6 @@ impl Subsurface {
     #[inline]
     pub fn rd_lookup_sq(&self, r2: f32) -> Spectrum {
         Spectrum::from(self.lookup.rd_sq(r2))
-    }
-
-    /// The shortest mean free path 1/σt′ over the channels, scene units.
-    pub fn mean_free_path(&self) -> f32 {
-        self.dipoles
-            .iter()
-            .map(|d| d.z_r)
-            .fold(f64::INFINITY, f64::min) as f32
     }
 
     /// The sampling table of channel `c`.

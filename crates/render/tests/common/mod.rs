@@ -118,3 +118,63 @@ pub fn assert_metropolis_converges_deterministically(kind: tessera_scene::Integr
         m.name()
     );
 }
+
+/// Writes `json` as `scene.json` in a fresh temporary folder named after `name`, with `files`
+/// (name, source path) copied beside it, and loads it.
+#[allow(dead_code, reason = "not every test binary writes scenes")]
+pub fn load_json(name: &str, json: &str, files: &[(&str, &Path)]) -> tessera_scene::SceneDesc {
+    let dir = std::env::temp_dir().join(format!("tessera-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    for (file, from) in files {
+        std::fs::copy(from, dir.join(file)).expect("copy a scene file");
+    }
+    let path = dir.join("scene.json");
+    std::fs::write(&path, json).expect("write scene");
+    tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Per direct-light (depth-1) strategy of BDPT, from its images in independent `batches`:
+/// (s, mean of the unweighted image over batches, standard error of that mean).
+#[allow(dead_code, reason = "used by the BDPT tests only")]
+pub fn depth1_unweighted(
+    batches: &[Vec<tessera_render::integrator::bdpt::StrategyImage>],
+) -> Vec<(u32, f64, f64)> {
+    (0..batches[0].len())
+        .filter(|&i| batches[0][i].s + batches[0][i].t == 3)
+        .map(|i| {
+            let m: Vec<f64> = batches
+                .iter()
+                .map(|b| image_mean(&b[i].unweighted))
+                .collect();
+            let avg = m.iter().sum::<f64>() / m.len() as f64;
+            let var = m.iter().map(|x| (x - avg).powi(2)).sum::<f64>() / (m.len() - 1) as f64;
+            (batches[0][i].s, avg, (var / m.len() as f64).sqrt())
+        })
+        .collect()
+}
+
+/// Asserts every two of `stats` (s, mean, standard error) agree within four standard errors.
+#[allow(dead_code, reason = "used by the BDPT tests only")]
+pub fn assert_strategies_agree(stats: &[(u32, f64, f64)]) {
+    for a in stats {
+        for b in stats {
+            let tol = 4.0 * (a.2 * a.2 + b.2 * b.2).sqrt();
+            assert!(
+                (a.1 - b.1).abs() <= tol,
+                "strategies s = {} and s = {} disagree: {stats:?}",
+                a.0,
+                b.0
+            );
+        }
+    }
+}
+
+/// The mean of an image over its pixels and channels.
+#[allow(dead_code, reason = "used by the BDPT tests only")]
+pub fn image_mean(img: &tessera_render::Image) -> f64 {
+    img.pixels
+        .iter()
+        .map(|p| p.rgb.iter().sum::<f32>() as f64)
+        .sum::<f64>()
+        / (3 * img.pixels.len()) as f64
+}
