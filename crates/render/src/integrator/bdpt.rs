@@ -18,6 +18,7 @@ use std::sync::atomic::{AtomicI64, Ordering::Relaxed};
 use glam::{Vec2, Vec3A};
 use rayon::prelude::*;
 
+use super::vcm::FIRST_MERGE;
 use super::{RayStats, consistent};
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
@@ -123,7 +124,7 @@ impl Vertex {
     /// A per-solid-angle density `pdf` of sampling `next` from here, per unit area at `next`.
     /// Toward a light at infinity the density stays per solid angle; from one, `pdf` is per
     /// unit area of its disk, projected onto `next`.
-    fn convert_density(&self, pdf: f32, next: &Vertex) -> f32 {
+    pub(super) fn convert_density(&self, pdf: f32, next: &Vertex) -> f32 {
         if next.infinite {
             return pdf;
         }
@@ -579,9 +580,10 @@ impl<'a> Ctx<'a> {
 
     /// Σ over the other strategies j of the path made by (s, t) of (p_j / p_{s,t})²: the
     /// connections, and with `merge` = η π r² > 0 (light paths per iteration × the merging
-    /// disc) also vertex merging at each interior non-specular vertex (Georgiev et al. 2012;
-    /// p_merge at z = p of the connection that samples z from one side × the density of z from
-    /// the other × η π r²). (A merge's own weight is VCM's `merge_weight`.)
+    /// disc) also vertex merging at each non-specular vertex from the light's second on
+    /// ([`FIRST_MERGE`]; Georgiev et al. 2012; p_merge at z = p of the connection that samples
+    /// z from one side × the density of z from the other × η π r²). (A merge's own weight is
+    /// VCM's, from sums kept along the subpaths.)
     fn mis_sums(
         &self,
         light: &[Vertex],
@@ -658,7 +660,7 @@ impl<'a> Ctx<'a> {
                 sum += ri;
             }
             // Not at the emitter a camera path hit (s = 0: the path's first vertex).
-            if merge > 0.0 && !delta && !(s == 0 && i == t - 1) {
+            if merge > 0.0 && !delta && s + t - 1 - i >= FIRST_MERGE {
                 sum += merged(before, ri, rev, fwd);
             }
         }
@@ -684,7 +686,7 @@ impl<'a> Ctx<'a> {
             let (rev, fwd, delta) = lig(i);
             let before = ri;
             ri *= remap(rev) / remap(fwd);
-            if merge > 0.0 && i >= 1 && !delta {
+            if merge > 0.0 && i >= FIRST_MERGE && !delta {
                 sum += merged(before, ri, rev, fwd);
             }
             let delta_light = if i > 0 {

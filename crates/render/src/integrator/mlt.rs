@@ -1090,8 +1090,8 @@ mod tests {
                 "bootstrap path {i}, s = {s}, t = {t}: BDPT {bdpt:e}, here {ours:e}"
             );
             if s != 1 && on_film {
-                // BDPT's weight (merge = 0) and VCM's (merges at every non-specular interior
-                // vertex, η π r² = 10⁻² … 10⁴ scene units²) are the power heuristic over
+                // BDPT's weight (merge = 0) and VCM's (merges at the non-specular vertices
+                // from the light's second on, η π r² = 10⁻² … 10⁴ scene units²) are the power heuristic over
                 // this module's densities.
                 for merge in [0.0, 1e-2, 1.0, 1e2, 1e4] {
                     let mut sampler = MltSampler::independent(i);
@@ -1137,7 +1137,8 @@ mod tests {
 
     /// The power-heuristic weight of strategy s for path `x`, from the densities per unit
     /// area `e` holds: p_s = Π_{i<s} p→(x_i) Π_{s≤i<k} p←(x_i) over the strategies that can
-    /// join at s, and a merge at each non-specular interior vertex x_i (p_{i+1} p←(x_i) η π r²).
+    /// join at s, and a merge at each non-specular vertex x_i, i ≥ VCM's `FIRST_MERGE` and
+    /// i < k (p_{i+1} p←(x_i) η π r²).
     /// BDPT's camera samples the film, not the extended film: `ext` (film area over extended
     /// film area) takes it back out of p←(x_{k−1}).
     fn power_heuristic(x: &[Vertex], e: &PathEval, ext: f64, s: usize, merge: f64) -> f64 {
@@ -1152,7 +1153,7 @@ mod tests {
         let joinable = |j: usize| (j <= 1 || !x[j - 1].delta) && (j == k || !x[j].delta);
         let mut sum: f64 = (0..=k).filter(|&j| joinable(j)).map(|j| term(lp(j))).sum();
         if merge > 0.0 {
-            sum += (1..k)
+            sum += (super::super::vcm::FIRST_MERGE..k)
                 .filter(|&i| !x[i].delta)
                 .map(|i| term(lp(i + 1) + (rev[i] * merge).ln()))
                 .sum::<f64>();

@@ -9,6 +9,7 @@
 //! - [`PhotonSettings`]: Mental Ray's knobs (photon count, accuracy k, radius), resolved from
 //!   the scene where the scene leaves them out.
 
+pub mod hashgrid;
 pub mod kdtree;
 pub mod shoot;
 
