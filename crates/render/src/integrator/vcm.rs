@@ -323,20 +323,7 @@ impl CameraPass<'_> {
         let material = ctx.scene.material(si.material);
         let frame = material.frame(si, x.wo);
         let wo_l = frame.to_local(x.wo);
-        // The camera side of the sum: e0 + e1 p², p x's density of sampling cam[t − 2] given y's
-        // direction.
-        let r2 = sq(1.0 / (one(x.pdf_fwd) * m));
-        let (e0, e1) = if t == 2 {
-            (r2, 0.0)
-        } else {
-            let c = &cam[t - 2];
-            let h = x.convert_density(1.0, c);
-            let merge_c = if c.delta { 0.0 } else { sq(m) };
-            (
-                if c.delta { 0.0 } else { r2 },
-                r2 * h * h * (merge_c + toward_eye / sq(one(c.pdf_fwd))),
-            )
-        };
+        let eye = EyeSums::new(cam, t, toward_eye, m);
         let mut l = Spectrum::ZERO;
         self.grid.within(x.p, self.r2, &mut |y| {
             if y.depth as usize + t - 2 > d {
@@ -353,13 +340,48 @@ impl CameraPass<'_> {
             }
             let to_light = material.bsdf.pdf(wo_l, wi_l, TransportMode::Radiance);
             let to_eye = material.bsdf.pdf(wi_l, wo_l, TransportMode::Radiance);
-            let sum = 1.0 + y.a + y.b * sq(to_light) + e0 + e1 * sq(to_eye);
+            let sum = merge_sum(y, &eye, to_light, to_eye);
             if sum.is_finite() {
                 l += f * y.beta * (1.0 / sum);
             }
         });
         l * x.beta * (1.0 / m)
     }
+}
+
+/// The camera side's share of a merge's MIS sum at x = `cam[t − 1]`, `e0 + e1 p²` (p x's BSDF
+/// density of sampling the direction to `cam[t − 2]` given the light vertex's), given W_{t−3}
+/// = `toward_eye` ([`eye_sum`]): with r = 1 / (p→(x) M), c = `cam[t − 2]` and h the
+/// conversion to area at c, e0 = r² [c not specular] (the connection joining y and c) and
+/// e1 = r² h² ([c not specular] M² + W_{t−3} / p←(c)²) (the merge at c and on toward the eye);
+/// for t = 2 (c the lens) e0 = r² (light tracing), e1 = 0.
+struct EyeSums {
+    e0: f32,
+    e1: f32,
+}
+
+impl EyeSums {
+    fn new(cam: &[Vertex], t: usize, toward_eye: f32, m: f32) -> Self {
+        let x = &cam[t - 1];
+        let r2 = sq(1.0 / (one(x.pdf_fwd) * m));
+        if t == 2 {
+            return EyeSums { e0: r2, e1: 0.0 };
+        }
+        let c = &cam[t - 2];
+        let h = x.convert_density(1.0, c);
+        let merge_c = if c.delta { 0.0 } else { sq(m) };
+        EyeSums {
+            e0: if c.delta { 0.0 } else { r2 },
+            e1: r2 * h * h * (merge_c + toward_eye / sq(one(c.pdf_fwd))),
+        }
+    }
+}
+
+/// Σ_k (P_k / P_merge)² of merging light vertex `y` at a camera vertex whose BSDF samples y's
+/// incoming direction with density `to_light` and, given it, the direction back toward the
+/// eye with `to_eye` (solid angle): the merge itself, the light side, the camera side.
+fn merge_sum(y: &LightRef, eye: &EyeSums, to_light: f32, to_eye: f32) -> f32 {
+    1.0 + y.a + y.b * sq(to_light) + eye.e0 + eye.e1 * sq(to_eye)
 }
 
 /// A density as MIS weighs it: zero (a film edge, a neighbour behind a surface) counts as 1,
@@ -442,4 +464,149 @@ fn eye_sum(cam: &[Vertex], k: usize, prev: f32, merge: f32) -> f32 {
     let (fwd, rev) = (one(v.pdf_rev), one(v.pdf_fwd));
     let merge_v = if v.delta { 0.0 } else { sq(fwd * merge) };
     f32::from(!next.delta && !v.delta) + merge_v + sq(fwd / rev) * prev
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{NO_LIGHT, SurfaceInteraction};
+
+    /// A small xorshift generator: the test's paths are the same on every run.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> f32 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+
+        fn density(&mut self) -> f32 {
+            0.05 + 20.0 * self.next() * self.next()
+        }
+
+        fn point(&mut self) -> Vec3A {
+            Vec3A::new(self.next(), self.next(), self.next()) * 10.0
+        }
+
+        fn surface(&mut self, delta: bool) -> Vertex {
+            let ng = (self.point() - 5.0).normalize();
+            let si = SurfaceInteraction {
+                p: self.point(),
+                p_error: Vec3A::ZERO,
+                t: 1.0,
+                ng,
+                ns: ng,
+                material: 0,
+                light: NO_LIGHT,
+            };
+            let mut v = Vertex::surface(si, (self.point() - 5.0).normalize());
+            v.pdf_fwd = self.density();
+            v.pdf_rev = self.density();
+            v.delta = delta;
+            v
+        }
+    }
+
+    /// The O(1) merge weight — sums kept along the light subpath ([`push_light_refs`]) and the
+    /// camera subpath ([`eye_sum`], [`EyeSums`]) — equals the power heuristic written out:
+    /// P_merge² / Σ_k P_k² over every connection and merge of the path, each P_k the product of
+    /// the path's densities (f64), for random densities, specular flags, depths and M.
+    #[test]
+    fn merge_weights_are_the_power_heuristic_over_every_strategy() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+        let desc = tessera_scene::load(&root.join("cornell-box/scene.json")).expect("scene");
+        let scene = Scene::build(&desc);
+        let camera = Camera::new(&desc.camera, &desc.film);
+        let ctx = Ctx::new("vcm", &scene, &camera, 5, true).expect("a context");
+        assert!(scene.material(0).flags.smooth, "material 0 is diffuse");
+        let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+        let mut specular = 0;
+        for trial in 0..4000 {
+            let i = 2 + (rng.next() * 5.0) as usize;
+            let t = 2 + (rng.next() * 5.0) as usize;
+            let m = 10f32.powf(rng.next() * 5.0 - 2.0);
+            let mut light = vec![Vertex::point(
+                Kind::Light(0),
+                rng.point(),
+                Vec3A::ZERO,
+                Vec3A::Y,
+                Spectrum::ONE,
+                rng.density(),
+            )];
+            light[0].pdf_rev = rng.density();
+            for j in 1..=i {
+                let delta = j < i && rng.next() < 0.3;
+                light.push(rng.surface(delta));
+            }
+            let mut cam = vec![Vertex::point(
+                Kind::Camera,
+                rng.point(),
+                Vec3A::ZERO,
+                Vec3A::ZERO,
+                Spectrum::ONE,
+                0.0,
+            )];
+            for k in 1..t {
+                let delta = k < t - 1 && rng.next() < 0.3;
+                cam.push(rng.surface(delta));
+            }
+            specular += light.iter().chain(&cam).any(|v| v.delta) as u32;
+            let mut refs = Vec::new();
+            push_light_refs(&ctx, &light, m, &mut refs);
+            let y = refs.last().expect("y is mergeable");
+            assert_eq!(y.depth as usize, i);
+            let toward_eye = (0..t.saturating_sub(2)).fold(0.0, |w, k| eye_sum(&cam, k, w, m));
+            let eye = EyeSums::new(&cam, t, toward_eye, m);
+            let (to_light, to_eye) = (rng.density(), rng.density());
+            let ours = 1.0 / merge_sum(y, &eye, to_light, to_eye) as f64;
+
+            // The merged path z_0 … z_n: light[..i], x standing for y, cam[t − 2] … cam[0].
+            let n = i + t - 1;
+            let x = &cam[t - 1];
+            let g = light[i].convert_density(1.0, &light[i - 1]) as f64;
+            let h = x.convert_density(1.0, &cam[t - 2]) as f64;
+            let (mut fwd, mut rev, mut delta) = (vec![0.0f64; n], vec![0.0f64; n], vec![false; n]);
+            for j in 0..n {
+                (fwd[j], rev[j], delta[j]) = if j < i {
+                    let v = &light[j];
+                    let r = if j + 1 == i {
+                        to_light as f64 * g
+                    } else {
+                        v.pdf_rev as f64
+                    };
+                    (v.pdf_fwd as f64, r, v.delta)
+                } else if j == i {
+                    (light[i].pdf_fwd as f64, x.pdf_fwd as f64, false)
+                } else {
+                    let v = &cam[n - j];
+                    let f = if j == i + 1 {
+                        to_eye as f64 * h
+                    } else {
+                        v.pdf_rev as f64
+                    };
+                    (f, v.pdf_fwd as f64, v.delta)
+                };
+            }
+            let p = |s: usize| fwd[..s].iter().product::<f64>() * rev[s..].iter().product::<f64>();
+            let joins = |s: usize| (s == 0 || !delta[s - 1]) && (s == n || !delta[s]);
+            let merge = |j: usize| p(j + 1) * rev[j] * m as f64;
+            let own = merge(i);
+            let total = (0..=n)
+                .filter(|&s| joins(s))
+                .map(|s| (p(s) / own).powi(2))
+                .sum::<f64>()
+                + (FIRST_MERGE..n)
+                    .filter(|&j| !delta[j])
+                    .map(|j| (merge(j) / own).powi(2))
+                    .sum::<f64>();
+            let want = 1.0 / total;
+            assert!(
+                (ours - want).abs() <= 1e-4 * want + 1e-9,
+                "trial {trial}: i = {i}, t = {t}, M = {m}: O(1) weight {ours:e}, power heuristic {want:e}"
+            );
+        }
+        assert!(specular > 1000, "{specular} paths with specular vertices");
+    }
 }
