@@ -218,6 +218,33 @@ impl<'a> Ctx<'a> {
         self.f_dir(v, (next.p - v.p).normalize_or_zero(), mode)
     }
 
+    /// f at a surface vertex toward `next` as [`Self::f`], with the densities (solid angle,
+    /// as [`Self::pdf`] takes them) of sampling the direction to `next` from the vertex's own
+    /// `wo` and of sampling `wo` from the direction to `next`, from one frame. (Where f is not
+    /// zero both directions lie on one side of the shading normal, so the frame is the one
+    /// `pdf` would turn to either.)
+    fn f_and_pdfs(&self, v: &Vertex, next: &Vertex, mode: TransportMode) -> (Spectrum, f32, f32) {
+        let Some(si) = &v.si else {
+            return (Spectrum::ZERO, 0.0, 0.0);
+        };
+        let wi = (next.p - v.p).normalize_or_zero();
+        let material = self.scene.material(si.material);
+        let frame = material.frame(si, v.wo);
+        let (wo_l, wi_l) = (frame.to_local(v.wo), frame.to_local(wi));
+        if !consistent(si, v.wo, wi, wo_l, wi_l) {
+            return (Spectrum::ZERO, 0.0, 0.0);
+        }
+        let f = material.bsdf.eval(wo_l, wi_l, mode) * shading_correction(si, v.wo, wi, mode);
+        if is_black(f) {
+            return (f, 0.0, 0.0);
+        }
+        (
+            f,
+            material.bsdf.pdf(wo_l, wi_l, TransportMode::Radiance),
+            material.bsdf.pdf(wi_l, wo_l, TransportMode::Radiance),
+        )
+    }
+
     /// f at a surface vertex for light leaving toward its `wo` and arriving from `wi`.
     pub(super) fn f_dir(&self, v: &Vertex, wi: Vec3A, mode: TransportMode) -> Spectrum {
         let Some(si) = &v.si else {
@@ -563,6 +590,7 @@ impl<'a> Ctx<'a> {
     /// The power-heuristic weight of the strategy (s, t), with the connection's endpoints
     /// replaced by `sampled` where it made them (s = 1: a light point; t = 1: the lens), and
     /// vertex merging among the strategies when `merge` > 0 (see [`Self::mis_sums`]).
+    #[allow(clippy::too_many_arguments)]
     fn mis_weight(
         &self,
         light: &[Vertex],
@@ -571,11 +599,12 @@ impl<'a> Ctx<'a> {
         s: usize,
         t: usize,
         merge: f32,
+        joined: Option<&Joined>,
     ) -> f32 {
         if s + t == 2 {
             return 1.0;
         }
-        1.0 / (1.0 + self.mis_sums(light, camera, sampled, s, t, merge))
+        1.0 / (1.0 + self.mis_sums(light, camera, sampled, s, t, merge, joined))
     }
 
     /// Σ over the other strategies j of the path made by (s, t) of (p_j / p_{s,t})²: the
@@ -584,6 +613,7 @@ impl<'a> Ctx<'a> {
     /// ([`FIRST_MERGE`]; Georgiev et al. 2012; p_merge at z = p of the connection that samples
     /// z from one side × the density of z from the other × η π r²). (A merge's own weight is
     /// VCM's, from sums kept along the subpaths.)
+    #[allow(clippy::too_many_arguments)]
     fn mis_sums(
         &self,
         light: &[Vertex],
@@ -592,37 +622,48 @@ impl<'a> Ctx<'a> {
         s: usize,
         t: usize,
         merge: f32,
+        joined: Option<&Joined>,
     ) -> f32 {
         // The four vertices whose reverse densities the connection changes, and the two
         // endpoints, which a connection never treats as specular.
         let qs = match (s, sampled) {
             (0, _) => None,
-            (1, Some(v)) => Some(*v),
-            _ => Some(light[s - 1]),
+            (1, Some(v)) => Some(v),
+            _ => Some(&light[s - 1]),
         };
         let pt = match (t, sampled) {
-            (1, Some(v)) => *v,
-            _ => camera[t - 1],
+            (1, Some(v)) => v,
+            _ => &camera[t - 1],
         };
-        let qs_minus = (s >= 2).then(|| light[s - 2]);
-        let pt_minus = (t >= 2).then(|| camera[t - 2]);
+        let qs_minus = (s >= 2).then(|| &light[s - 2]);
+        let pt_minus = (t >= 2).then(|| &camera[t - 2]);
         // s = 0: pt is an emitter the camera path hit; as a light subpath would have made it.
-        let emitted = match (&qs, &pt_minus) {
-            (None, Some(m)) => self.pdf_le(&pt, m),
+        let emitted = match (qs, pt_minus) {
+            (None, Some(m)) => self.pdf_le(pt, m),
             _ => (0.0, 0.0),
         };
-        let pt_rev = match &qs {
-            Some(q) => self.pdf(q, qs_minus.as_ref(), &pt),
-            None => emitted.0,
-        };
-        let pt_minus_rev = pt_minus.map(|m| match &qs {
-            Some(q) => self.pdf(&pt, Some(q), &m),
-            None => emitted.1,
-        });
-        let qs_rev = qs.map(|q| self.pdf(&pt, pt_minus.as_ref(), &q));
-        let qs_minus_rev = match (&qs, &qs_minus) {
-            (Some(q), Some(m)) => Some(self.pdf(q, Some(&pt), m)),
-            _ => None,
+        let (pt_rev, pt_minus_rev, qs_rev, qs_minus_rev) = match joined {
+            Some(j) => (
+                j.pt_rev,
+                Some(j.pt_minus_rev),
+                Some(j.qs_rev),
+                Some(j.qs_minus_rev),
+            ),
+            None => (
+                match qs {
+                    Some(q) => self.pdf(q, qs_minus, pt),
+                    None => emitted.0,
+                },
+                pt_minus.map(|m| match qs {
+                    Some(q) => self.pdf(pt, Some(q), m),
+                    None => emitted.1,
+                }),
+                qs.map(|q| self.pdf(pt, pt_minus, q)),
+                match (qs, qs_minus) {
+                    (Some(q), Some(m)) => Some(self.pdf(q, Some(pt), m)),
+                    _ => None,
+                },
+            ),
         };
         let remap = |p: f32| if p != 0.0 { p * p } else { 1.0 };
         // Merging at a vertex whose density from the other side is `rev` (ratio `before`
@@ -640,7 +681,7 @@ impl<'a> Ctx<'a> {
 
         // Camera side: strategies with fewer camera vertices.
         let cam = |i: usize| -> (f32, f32, bool) {
-            let v = if i == t - 1 { &pt } else { &camera[i] };
+            let v = if i == t - 1 { pt } else { &camera[i] };
             let rev = if i == t - 1 {
                 pt_rev
             } else if i + 2 == t {
@@ -733,19 +774,20 @@ impl<'a> Ctx<'a> {
         sampler: &mut impl Sampler,
         stats: &mut RayStats,
     ) -> (Spectrum, f32, Option<Vec2>) {
-        let pt = camera[t - 1];
+        let pt = &camera[t - 1];
         let mut raster = None;
         let mut sampled = None;
+        let mut joined = None;
         let l = if s == 0 {
             // The camera subpath hit an emitter.
-            if t < 2 || self.light_of(&pt).is_none() {
+            if t < 2 || self.light_of(pt).is_none() {
                 return (Spectrum::ZERO, 0.0, None);
             }
-            pt.beta * self.le(&pt, &camera[t - 2])
+            pt.beta * self.le(pt, &camera[t - 2])
         } else if t == 1 {
             // Light tracing: the light subpath's vertex seen through the lens.
-            let qs = light[s - 1];
-            if !self.connectible(&qs) {
+            let qs = &light[s - 1];
+            if !self.connectible(qs) {
                 return (Spectrum::ZERO, 0.0, None);
             }
             let u = sampler.get_2d();
@@ -763,7 +805,7 @@ impl<'a> Ctx<'a> {
                 Spectrum::splat(is.we / is.pdf),
                 0.0,
             );
-            let mut l = qs.beta * self.f(&qs, &cam, TransportMode::Importance) * cam.beta;
+            let mut l = qs.beta * self.f(qs, &cam, TransportMode::Importance) * cam.beta;
             if qs.on_surface() {
                 l *= is.wi.dot(qs.ns).abs();
             }
@@ -779,7 +821,7 @@ impl<'a> Ctx<'a> {
             l
         } else if s == 1 {
             // Next-event estimation: a fresh point on a light for the camera path's end.
-            if !self.connectible(&pt) {
+            if !self.connectible(pt) {
                 return (Spectrum::ZERO, 0.0, None);
             }
             let u = sampler.get_3d();
@@ -800,8 +842,8 @@ impl<'a> Ctx<'a> {
                 }
                 ShadowTarget::Infinite => Vertex::at_infinity(li, pt.p, ls.wi, beta),
             };
-            v.pdf_fwd = self.pdf_le(&v, &pt).0;
-            let mut l = pt.beta * self.f(&pt, &v, TransportMode::Radiance) * v.beta;
+            v.pdf_fwd = self.pdf_le(&v, pt).0;
+            let mut l = pt.beta * self.f(pt, &v, TransportMode::Radiance) * v.beta;
             if pt.on_surface() {
                 l *= ls.wi.dot(pt.ns).abs();
             }
@@ -821,18 +863,24 @@ impl<'a> Ctx<'a> {
             sampled = Some(v);
             l
         } else {
-            // Both subpaths joined by a shadow ray.
-            let qs = light[s - 1];
-            if !self.connectible(&qs) || !self.connectible(&pt) {
+            // Both subpaths joined by a shadow ray; the densities the join changes come with
+            // the two f's.
+            let qs = &light[s - 1];
+            if !self.connectible(qs) || !self.connectible(pt) {
                 return (Spectrum::ZERO, 0.0, None);
             }
-            let l = qs.beta
-                * self.f(&qs, &pt, TransportMode::Importance)
-                * self.f(&pt, &qs, TransportMode::Radiance)
-                * pt.beta;
+            let (f_q, to_pt, to_q_minus) = self.f_and_pdfs(qs, pt, TransportMode::Importance);
+            let (f_p, to_q, to_p_minus) = self.f_and_pdfs(pt, qs, TransportMode::Radiance);
+            let l = qs.beta * f_q * f_p * pt.beta;
             if is_black(l) {
                 return (Spectrum::ZERO, 0.0, None);
             }
+            joined = Some(Joined {
+                pt_rev: qs.convert_density(to_pt, pt),
+                pt_minus_rev: pt.convert_density(to_p_minus, &camera[t - 2]),
+                qs_rev: pt.convert_density(to_q, qs),
+                qs_minus_rev: qs.convert_density(to_q_minus, &light[s - 2]),
+            });
             let w = pt.p - qs.p;
             let d2 = w.length_squared();
             if d2 == 0.0 {
@@ -849,7 +897,15 @@ impl<'a> Ctx<'a> {
         if is_black(l) {
             return (Spectrum::ZERO, 0.0, None);
         }
-        let w = self.mis_weight(light, camera, sampled.as_ref(), s, t, merge);
+        let w = self.mis_weight(
+            light,
+            camera,
+            sampled.as_ref(),
+            s,
+            t,
+            merge,
+            joined.as_ref(),
+        );
         (l, w, raster)
     }
 
@@ -866,6 +922,16 @@ impl<'a> Ctx<'a> {
             _ => true,
         }
     }
+}
+
+/// The densities per unit area that joining light vertex q_s to camera vertex p_t gives their
+/// neighbours (each sampled from the other side): p_t and q_s sampled across the join, p_{t−1}
+/// from p_t and q_{s−1} from q_s.
+struct Joined {
+    pt_rev: f32,
+    pt_minus_rev: f32,
+    qs_rev: f32,
+    qs_minus_rev: f32,
 }
 
 /// A specular vertex's lobe seen from both ends ([`Ctx::delta_lobe`]).
