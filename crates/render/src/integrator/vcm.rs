@@ -9,7 +9,8 @@
 //! β_camera(x) f(x) β_light(y) / (η π r²), η the light subpaths of the iteration. Merging is
 //! how specular–diffuse–specular paths (a caustic seen through glass) are found, which no
 //! connection can make. Merging starts at the light subpath's second vertex after the
-//! emitter ([`FIRST_MERGE`]). One power-heuristic MIS weighs connections and merges: a merge at
+//! emitter ([`FIRST_MERGE`]), and only with light vertices on surfaces facing like x's
+//! ([`MERGE_COS`]). One power-heuristic MIS weighs connections and merges: a merge at
 //! vertex z has density p(connection sampling z from one side) × p(z from the other side) ×
 //! η π r² (`Ctx::mis_sums` for connections; for merges, sums kept along each subpath, see
 //! [`push_light_refs`]). The radius shrinks as r_k = r₀ k^((α−1)/2) over iterations k, so the
@@ -47,6 +48,14 @@ use crate::spectrum::{Spectrum, is_black};
 /// 2.02e-2 to 1.16e-2 at 8 iterations (in all 2.69e-2 → 1.89e-2; 5.5e-3 → 4.3e-3 at 32), and
 /// 1.3–1.4× on the door, 2.5–2.8× on the indirect room (8 and 32 iterations).
 pub(super) const FIRST_MERGE: usize = 2;
+
+/// Merging takes only light vertices whose surface is within 60° of the camera vertex's
+/// (|cos| of the geometric normals at least this): the merging disc lies in x's tangent plane,
+/// and without the test a disc near a corner took light arriving on the other wall (on the
+/// indirect room, mean/ref 1.014 → 0.998 and relMSE 2.15e-2 → 1.19e-2 at 128 iterations; door
+/// 1.12e-1 → 1.08e-1, cornell-glass unchanged). As r → 0 a disc meets another surface only
+/// ever closer to an edge, a vanishing area, so the estimate stays consistent.
+const MERGE_COS: f32 = 0.5;
 
 /// The settings VCM runs with.
 #[derive(Debug, Clone, Copy)]
@@ -235,6 +244,8 @@ struct LightRef {
     /// Toward the previous vertex of its subpath: the direction light arrives from.
     wo: Vec3A,
     beta: Spectrum,
+    /// Geometric normal of its surface.
+    ng: Vec3A,
     a: f32,
     b: f32,
 }
@@ -327,6 +338,9 @@ impl CameraPass<'_> {
         let mut l = Spectrum::ZERO;
         self.grid.within(x.p, self.r2, &mut |y| {
             if y.depth as usize + t - 2 > d {
+                return;
+            }
+            if x.ng.dot(y.ng).abs() < MERGE_COS {
                 return;
             }
             // (f is zero for light arriving on the other side of x's surface.)
@@ -441,6 +455,7 @@ fn push_light_refs(ctx: &Ctx, path: &[Vertex], merge: f32, refs: &mut Vec<LightR
                 depth: i as u32,
                 wo: y.wo,
                 beta: y.beta,
+                ng: y.ng,
                 a: if z.delta { 0.0 } else { r2 },
                 b: r2 * g * g * (merge_z + toward_light / sq(one(z.pdf_fwd))),
             });
