@@ -700,7 +700,8 @@ impl<'a> Ctx<'a> {
             if !delta && !cam(i - 1).2 {
                 sum += ri;
             }
-            // Not at the emitter a camera path hit (s = 0: the path's first vertex).
+            // Merges from the light's second vertex on (never at the emitter a camera path
+            // hit, nor where the light subpath's first hit would be).
             if merge > 0.0 && !delta && s + t - 1 - i >= FIRST_MERGE {
                 sum += merged(before, ri, rev, fwd);
             }
