@@ -164,12 +164,10 @@ impl Vcm {
             },
         );
         let mut stats = RayStats::default();
-        let mut refs = Vec::with_capacity(light.chunks.iter().map(|c| c.refs.len()).sum());
         for chunk in &light.chunks {
             stats.add(&chunk.stats);
-            refs.extend_from_slice(&chunk.refs);
         }
-        let grid = HashGrid::build(&refs, r);
+        let grid = HashGrid::build(light.chunks.iter().flat_map(|c| &c.refs), r);
         let pass = CameraPass {
             ctx,
             vcm: self,

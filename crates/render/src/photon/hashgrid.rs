@@ -20,14 +20,18 @@ pub struct HashGrid<T> {
 }
 
 impl<T: Positioned + Copy> HashGrid<T> {
-    /// The grid of `items` for searches within `radius` (> 0).
-    pub fn build(items: &[T], radius: f32) -> Self {
-        let points: Vec<Vec3A> = items.iter().map(|t| t.position().into()).collect();
+    /// The grid of `items` (read twice, in the same order) for searches within `radius` (> 0).
+    pub fn build<'a>(items: impl Iterator<Item = &'a T> + Clone, radius: f32) -> Self
+    where
+        T: 'a,
+    {
+        let points: Vec<Vec3A> = items.clone().map(|t| t.position().into()).collect();
         let origin = points.iter().fold(Vec3A::INFINITY, |a, &p| a.min(p));
-        let buckets = items.len().next_power_of_two().max(1) as u32;
+        let n = points.len();
+        let buckets = n.next_power_of_two().max(1) as u32;
         let mut grid = HashGrid {
-            items: Vec::with_capacity(items.len()),
-            points: Vec::with_capacity(items.len()),
+            items: Vec::new(),
+            points: vec![Vec3A::ZERO; n],
             starts: vec![0; buckets as usize + 1],
             origin,
             inv_cell: 0.5 / radius,
@@ -40,15 +44,17 @@ impl<T: Positioned + Copy> HashGrid<T> {
         for b in 0..buckets as usize {
             grid.starts[b + 1] += grid.starts[b];
         }
+        // Each item scattered to its place in bucket order.
         let mut next = grid.starts.clone();
-        let mut order = vec![0u32; items.len()];
-        for (i, &k) in keys.iter().enumerate() {
-            order[next[k as usize] as usize] = i as u32;
-            next[k as usize] += 1;
+        if let Some(&first) = items.clone().next() {
+            grid.items = vec![first; n];
         }
-        grid.items.extend(order.iter().map(|&i| items[i as usize]));
-        grid.points
-            .extend(order.iter().map(|&i| points[i as usize]));
+        for ((&k, &p), item) in keys.iter().zip(&points).zip(items) {
+            let at = next[k as usize] as usize;
+            next[k as usize] += 1;
+            grid.items[at] = *item;
+            grid.points[at] = p;
+        }
         grid
     }
 
@@ -129,7 +135,7 @@ mod tests {
             })
             .collect();
         for r in [0.01f32, 0.05, 0.2] {
-            let grid = HashGrid::build(&pts, r);
+            let grid = HashGrid::build(pts.iter(), r);
             assert_eq!(grid.len(), pts.len());
             for q in 0..200 {
                 let q = Vec3A::new(u() * 3.0 - 1.0, if q % 2 == 0 { 0.25 } else { u() }, u());
@@ -148,7 +154,7 @@ mod tests {
 
     #[test]
     fn an_empty_grid_finds_nothing() {
-        let grid = HashGrid::<P>::build(&[], 0.1);
+        let grid = HashGrid::<P>::build([].iter(), 0.1);
         assert!(grid.is_empty());
         grid.within(Vec3A::ZERO, 1.0, &mut |_| panic!("nothing to find"));
     }
