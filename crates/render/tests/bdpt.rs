@@ -10,7 +10,7 @@ mod common;
 
 use common::{
     assert_falls, assert_strategies_agree, depth1_unweighted, error_against, image_mean, pool,
-    scene_and_reference,
+    scene_and_reference, strategy_batches,
 };
 use tessera_render::Scene;
 use tessera_render::camera::Camera;
@@ -88,20 +88,7 @@ fn each_strategy_alone_estimates_the_same_light_and_so_do_the_weighted_ones_toge
     // their noise, estimated from 8 independent batches of samples. Direct light (depth 1):
     // s = 0 (a camera path hits the light), s = 1 (light sampling), s = 2 (light tracing).
     let (desc, _) = scene_and_reference("cornell-box");
-    let scene = Scene::build(&desc);
-    let camera = Camera::new(&desc.camera, &desc.film);
-    let bdpt = Bdpt::new(&desc);
-    let batches: Vec<Vec<tessera_render::integrator::bdpt::StrategyImage>> = (0..8)
-        .map(|b| {
-            let range = SampleRange {
-                start: 32 * b,
-                end: 32 * (b + 1),
-            };
-            pool()
-                .install(|| bdpt.render_strategies(&scene, &camera, range, 1))
-                .expect("renders")
-        })
-        .collect();
+    let batches = strategy_batches(&desc, 32);
     let stats = depth1_unweighted(&batches);
     eprintln!("depth 1, unweighted (s, mean, standard error): {stats:?}");
     assert_eq!(stats.len(), 3);

@@ -18,12 +18,14 @@
 
 mod common;
 
-use common::{assert_falls, assert_strategies_agree, depth1_unweighted, load_json, pool};
+use common::{
+    assert_falls, assert_strategies_agree, depth1_unweighted, load_json, pool, strategy_batches,
+    vcm_image,
+};
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::integrator::bdpt::Bdpt;
 use tessera_render::integrator::metropolis::Metropolis;
-use tessera_render::integrator::vcm::Vcm;
 use tessera_render::metrics::compare;
 use tessera_render::{Image, Scene};
 use tessera_scene::{IntegratorKind, SceneDesc};
@@ -127,16 +129,12 @@ fn bdpt_converges_to_the_path_tracer_under_sky_and_sun() {
 fn vcm_and_pssmlt_agree_with_the_path_tracer_under_sky_and_sun() {
     let desc = sky("sky-and-sun-vcm", "ball", SKY_AND_SUN);
     let reference = path_traced(&desc, 8192);
-    let scene = Scene::build(&desc);
-    let camera = Camera::new(&desc.camera, &desc.film);
-    let vcm = Vcm::new(&desc, &scene);
-    let (sums, _) = pool()
-        .install(|| vcm.render_range(&scene, &camera, SampleRange { start: 0, end: 256 }, &|_| {}))
-        .expect("renders lights at infinity");
-    let (rel, mean) = error(&sums.image(camera.exposure), &reference);
+    let (rel, mean) = error(&vcm_image(&desc, 256, 2), &reference);
     eprintln!("vcm, 256 iterations: relMSE {rel:.3e}, mean/ref {mean:.4}");
     // Measured 7.1e-4, 0.9977; PSSMLT 1.8e-3, 0.9998.
     assert!((mean - 1.0).abs() < 0.01 && rel < 2e-3, "vcm {rel} {mean}");
+    let scene = Scene::build(&desc);
+    let camera = Camera::new(&desc.camera, &desc.film);
     let pssmlt = Metropolis::new(IntegratorKind::Pssmlt, &desc).expect("pssmlt");
     let (image, _) = pool()
         .install(|| pssmlt.render(&scene, &camera, 256, &|_| {}))
@@ -159,20 +157,7 @@ fn each_strategy_of_direct_light_from_the_sky_estimates_the_same_light() {
     // (a uniform sky can be hit, sampled and traced from): escaping (s = 0), light sampling
     // (s = 1), light tracing from the disk (s = 2). Means over 8 batches and their errors.
     let desc = sky("sky-strategies", "ball", SKY);
-    let scene = Scene::build(&desc);
-    let camera = Camera::new(&desc.camera, &desc.film);
-    let bdpt = Bdpt::new(&desc);
-    let batches: Vec<Vec<tessera_render::integrator::bdpt::StrategyImage>> = (0..8)
-        .map(|b| {
-            let range = SampleRange {
-                start: 64 * b,
-                end: 64 * (b + 1),
-            };
-            pool()
-                .install(|| bdpt.render_strategies(&scene, &camera, range, 1))
-                .expect("renders")
-        })
-        .collect();
+    let batches = strategy_batches(&desc, 64);
     let stats = depth1_unweighted(&batches);
     eprintln!("sky, depth 1, unweighted (s, mean, standard error): {stats:?}");
     assert_eq!(stats.len(), 3);
@@ -211,15 +196,11 @@ fn bidirectional_renderers_converge_under_point_and_spot_lights() {
     let desc = room();
     let reference = path_traced(&desc, 4096);
     assert_bdpt_converges("point and spot", &desc, &reference);
-    let scene = Scene::build(&desc);
-    let camera = Camera::new(&desc.camera, &desc.film);
-    let vcm = Vcm::new(&desc, &scene);
-    let (sums, _) = pool()
-        .install(|| vcm.render_range(&scene, &camera, SampleRange { start: 0, end: 256 }, &|_| {}))
-        .expect("renders");
-    let (rel, mean) = error(&sums.image(camera.exposure), &reference);
+    let (rel, mean) = error(&vcm_image(&desc, 256, 2), &reference);
     eprintln!("point and spot: vcm, 256 iterations: relMSE {rel:.3e}, mean/ref {mean:.4}");
     assert!((mean - 1.0).abs() < 0.02, "vcm {rel} {mean}");
+    let scene = Scene::build(&desc);
+    let camera = Camera::new(&desc.camera, &desc.film);
     for kind in [IntegratorKind::Pssmlt, IntegratorKind::Mlt] {
         let m = Metropolis::new(kind, &desc).expect("a Metropolis renderer");
         let (image, _) = pool()

@@ -4,29 +4,10 @@
 
 mod common;
 
-use common::{assert_falls, error_against, pool, scene_and_reference};
-use tessera_render::Scene;
-use tessera_render::camera::Camera;
-use tessera_render::film::SampleRange;
-use tessera_render::integrator::vcm::Vcm;
+use common::{assert_falls, error_against, scene_and_reference, vcm_image};
 
-fn vcm_image(name: &str, iterations: u32, threads: usize) -> tessera_render::Image {
-    let (desc, _) = scene_and_reference(name);
-    let scene = Scene::build(&desc);
-    let camera = Camera::new(&desc.camera, &desc.film);
-    let vcm = Vcm::new(&desc, &scene);
-    let range = SampleRange {
-        start: 0,
-        end: iterations,
-    };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .expect("a pool");
-    let (sums, _) = pool
-        .install(|| vcm.render_range(&scene, &camera, range, &|_| {}))
-        .expect("renders");
-    sums.image(camera.exposure)
+fn vcm_of(name: &str, iterations: u32, threads: usize) -> tessera_render::Image {
+    vcm_image(&scene_and_reference(name).0, iterations, threads)
 }
 
 #[test]
@@ -37,18 +18,14 @@ fn vcm_converges_to_the_path_traced_reference() {
         let (_, reference) = scene_and_reference(name);
         let errors: Vec<(f64, f64)> = budgets
             .iter()
-            .map(|&n| error_against(&vcm_image(name, n, 2), &reference))
+            .map(|&n| error_against(&vcm_of(name, n, 2), &reference))
             .collect();
         assert_falls(&format!("{name}: vcm"), &labels, &errors, 0.01);
     }
-    let _ = pool;
 }
 
 #[test]
 fn vcm_is_the_same_on_one_thread_and_on_two() {
-    let (a, b) = (
-        vcm_image("cornell-glass", 3, 1),
-        vcm_image("cornell-glass", 3, 2),
-    );
+    let (a, b) = (vcm_of("cornell-glass", 3, 1), vcm_of("cornell-glass", 3, 2));
     assert!(a.pixels.iter().zip(&b.pixels).all(|(p, q)| p.rgb == q.rgb));
 }

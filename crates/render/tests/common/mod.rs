@@ -178,3 +178,50 @@ pub fn image_mean(img: &tessera_render::Image) -> f64 {
         .sum::<f64>()
         / (3 * img.pixels.len()) as f64
 }
+
+/// BDPT's per-strategy images (depth ≤ 1) of `desc` in 8 independent batches of `per_batch`
+/// samples each.
+#[allow(dead_code, reason = "used by the BDPT tests only")]
+pub fn strategy_batches(
+    desc: &tessera_scene::SceneDesc,
+    per_batch: u32,
+) -> Vec<Vec<tessera_render::integrator::bdpt::StrategyImage>> {
+    let scene = tessera_render::Scene::build(desc);
+    let camera = tessera_render::camera::Camera::new(&desc.camera, &desc.film);
+    let bdpt = tessera_render::integrator::bdpt::Bdpt::new(desc);
+    (0..8)
+        .map(|b| {
+            let range = tessera_render::film::SampleRange {
+                start: per_batch * b,
+                end: per_batch * (b + 1),
+            };
+            pool()
+                .install(|| bdpt.render_strategies(&scene, &camera, range, 1))
+                .expect("renders")
+        })
+        .collect()
+}
+
+/// VCM's image of `desc` after `iterations`, on `threads` threads.
+#[allow(dead_code, reason = "used by the VCM tests only")]
+pub fn vcm_image(
+    desc: &tessera_scene::SceneDesc,
+    iterations: u32,
+    threads: usize,
+) -> tessera_render::Image {
+    let scene = tessera_render::Scene::build(desc);
+    let camera = tessera_render::camera::Camera::new(&desc.camera, &desc.film);
+    let vcm = tessera_render::integrator::vcm::Vcm::new(desc, &scene);
+    let range = tessera_render::film::SampleRange {
+        start: 0,
+        end: iterations,
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a pool");
+    let (sums, _) = pool
+        .install(|| vcm.render_range(&scene, &camera, range, &|_| {}))
+        .expect("renders");
+    sums.image(camera.exposure)
+}
