@@ -78,7 +78,13 @@ impl Filter {
     /// the same; the shares sum to 1 on average over where a splat lands, not at every point
     /// (a narrow Gaussian is no partition of unity).
     pub fn splat_weight(&self, d: Vec2) -> f32 {
-        self.eval_1d(d.x) * self.eval_1d(d.y) / (self.integral * self.integral)
+        self.splat_weight_1d(d.x) * self.splat_weight_1d(d.y)
+    }
+
+    /// [`Self::splat_weight`] along one axis (the filter is separable): the weight of pixel
+    /// (x, y) is the product of the factors at its column's and its row's offsets.
+    pub fn splat_weight_1d(&self, d: f32) -> f32 {
+        self.eval_1d(d) / self.integral
     }
 
     /// ∫ f along one axis (midpoint rule, 1024 steps; exact for the box).

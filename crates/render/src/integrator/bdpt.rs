@@ -63,6 +63,10 @@ pub(super) struct Vertex {
     /// densities are per unit solid angle, and the neighbour's from it per unit area of the
     /// disk it emits from, projected.
     pub(super) infinite: bool,
+    /// On a light subpath's emitter vertex: [`Ctx::nee_ratio`] toward the path's next vertex
+    /// (1 elsewhere): how much likelier light sampling (s = 1) makes this point than the
+    /// light subpath's start did.
+    pub(super) nee: f32,
 }
 
 impl Vertex {
@@ -87,6 +91,7 @@ impl Vertex {
             pdf_fwd: pdf,
             pdf_rev: 0.0,
             infinite: false,
+            nee: 1.0,
         }
     }
 
@@ -373,6 +378,28 @@ impl<'a> Ctx<'a> {
         )
     }
 
+    /// How much likelier light sampling (strategy s = 1) makes emitter vertex `v` from `from`
+    /// than a light subpath starting there: the ratio of the two densities of `v` per unit
+    /// area (the light's choice, the same in both, cancels). A sphere is sampled by the cone
+    /// it subtends (from 30 radii away the ratio is ≈ 4 cos θ at the light); a triangle by
+    /// area (1); delta lights and lights at infinity start light subpaths as light sampling
+    /// picks them (1). MIS weighs s = 1 by this density, as SmallVCM does; pbrt's BDPT takes
+    /// the subpath's start for it, which undervalues a sphere's light sampling against light
+    /// tracing and merging.
+    pub(super) fn nee_ratio(&self, v: &Vertex, from: &Vertex) -> f32 {
+        if v.infinite {
+            return 1.0;
+        }
+        let Some((_, light)) = self.light_of(v) else {
+            return 1.0;
+        };
+        let w = (from.p - v.p).normalize_or_zero();
+        let (pos, _) = light.pdf_le(v.ng, w, self.bounds);
+        let nee = from.convert_density(light.pdf_li_surface(from.p, v.p, v.ng), v);
+        let k = nee / pos;
+        if k > 0.0 && k.is_finite() { k } else { 1.0 }
+    }
+
     /// Radiance an emitter vertex sends toward `to` (from a light at infinity: every
     /// environment light's along that direction).
     fn le(&self, v: &Vertex, to: &Vertex) -> Spectrum {
@@ -585,6 +612,9 @@ impl<'a> Ctx<'a> {
             sampler,
             stats,
         );
+        if let [z0, z1, ..] = &mut path[..] {
+            z0.nee = self.nee_ratio(z0, z1);
+        }
     }
 
     /// The power-heuristic weight of the strategy (s, t), with the connection's endpoints
@@ -692,13 +722,19 @@ impl<'a> Ctx<'a> {
             let delta = if i == t - 1 { false } else { v.delta };
             (rev, v.pdf_fwd, delta)
         };
+        // Strategy s = 1 samples the light point by light sampling, not as a light subpath
+        // starts ([`Self::nee_ratio`]): its term, and with s = 1 the own density, take k².
+        let k2 = |v: &Vertex| v.nee * v.nee;
         let mut ri = 1.0f32;
         for i in (1..t).rev() {
             let (rev, fwd, delta) = cam(i);
             let before = ri;
             ri *= remap(rev) / remap(fwd);
             if !delta && !cam(i - 1).2 {
-                sum += ri;
+                sum += match (s, pt_minus) {
+                    (0, Some(m)) if i == t - 1 => ri * self.nee_ratio(pt, m).powi(2),
+                    _ => ri,
+                };
             }
             // Merges from the light's second vertex on (never at the emitter a camera path
             // hit, nor where the light subpath's first hit would be).
@@ -741,10 +777,13 @@ impl<'a> Ctx<'a> {
                 self.is_delta_light(first)
             };
             if !delta && !delta_light {
-                sum += ri;
+                sum += if i == 1 { ri * k2(&light[0]) } else { ri };
             }
         }
-        sum
+        match (s, qs) {
+            (1, Some(v)) => sum / k2(v),
+            _ => sum,
+        }
     }
 
     /// The contribution of strategy (s, t), MIS-weighted; for t = 1 also where it lands.
@@ -844,6 +883,7 @@ impl<'a> Ctx<'a> {
                 ShadowTarget::Infinite => Vertex::at_infinity(li, pt.p, ls.wi, beta),
             };
             v.pdf_fwd = self.pdf_le(&v, pt).0;
+            v.nee = self.nee_ratio(&v, pt);
             let mut l = pt.beta * self.f(pt, &v, TransportMode::Radiance) * v.beta;
             if pt.on_surface() {
                 l *= ls.wi.dot(pt.ns).abs();
@@ -1005,29 +1045,64 @@ impl Splats {
 
     /// Adds `l` arriving at raster position `at`, shared among the pixels under the filter.
     pub(super) fn add(&self, scene: &Scene, at: Vec2, l: Spectrum) {
+        Self::footprint(scene, self.width, self.height, at, l, |i, v| {
+            for (a, v) in self.rgb[i].iter().zip(v) {
+                a.fetch_add(v, Relaxed);
+            }
+        });
+    }
+
+    /// [`Self::add`] with exclusive access: plain adds, no atomic operations.
+    pub(super) fn add_mut(&mut self, scene: &Scene, at: Vec2, l: Spectrum) {
+        let (width, height) = (self.width, self.height);
+        let rgb = &mut self.rgb;
+        Self::footprint(scene, width, height, at, l, |i, v| {
+            for (a, v) in rgb[i].iter_mut().zip(v) {
+                let a = a.get_mut();
+                *a = a.wrapping_add(v);
+            }
+        });
+    }
+
+    /// Calls `add(pixel index, fixed-point share)` for each pixel under the filter centred at
+    /// `at`. The filter is separable: one factor per column and per row.
+    fn footprint(
+        scene: &Scene,
+        width: u32,
+        height: u32,
+        at: Vec2,
+        l: Spectrum,
+        mut add: impl FnMut(usize, [i64; 3]),
+    ) {
         if !l.is_finite() {
             return;
         }
         let r = scene.filter.radius();
-        let (x0, x1) = (
-            (at.x - r - 0.5).ceil() as i64,
-            (at.x + r - 0.5).floor() as i64,
-        );
-        let (y0, y1) = (
-            (at.y - r - 0.5).ceil() as i64,
-            (at.y + r - 0.5).floor() as i64,
-        );
-        for y in y0.max(0)..=y1.min(self.height as i64 - 1) {
-            for x in x0.max(0)..=x1.min(self.width as i64 - 1) {
-                let centre = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let w = scene.filter.splat_weight(at - centre);
+        let x0 = ((at.x - r - 0.5).ceil() as i64).max(0);
+        let x1 = ((at.x + r - 0.5).floor() as i64).min(width as i64 - 1);
+        let y0 = ((at.y - r - 0.5).ceil() as i64).max(0);
+        let y1 = ((at.y + r - 0.5).floor() as i64).min(height as i64 - 1);
+        // Column factors, computed once (a wide filter's extra columns computed per row).
+        let mut wx = [0.0f32; 8];
+        for (k, x) in (x0..=x1).take(wx.len()).enumerate() {
+            wx[k] = scene.filter.splat_weight_1d(at.x - (x as f32 + 0.5));
+        }
+        for y in y0..=y1 {
+            let wy = scene.filter.splat_weight_1d(at.y - (y as f32 + 0.5));
+            if wy == 0.0 {
+                continue;
+            }
+            for (k, x) in (x0..=x1).enumerate() {
+                let fx = match wx.get(k) {
+                    Some(&f) => f,
+                    None => scene.filter.splat_weight_1d(at.x - (x as f32 + 0.5)),
+                };
+                let w = fx * wy;
                 if w == 0.0 {
                     continue;
                 }
-                let px = &self.rgb[(y * self.width as i64 + x) as usize];
-                for c in 0..3 {
-                    px[c].fetch_add(fixed_splat(l[c] as f64 * w as f64), Relaxed);
-                }
+                let v = [0, 1, 2].map(|c| fixed_splat(l[c] as f64 * w as f64));
+                add((y * width as i64 + x) as usize, v);
             }
         }
     }

@@ -1104,7 +1104,7 @@ mod tests {
                         &mut sampler,
                         &mut RayStats::default(),
                     );
-                    let expected = power_heuristic(&work.x, &work.ex, ext, s, merge as f64);
+                    let expected = power_heuristic(&ctx, &work.x, &work.ex, ext, s, merge as f64);
                     // BDPT multiplies its ratios in f32: a few long paths with grazing
                     // cosines drift by up to 2 % (46 of 16 540 weights here); the rest
                     // agree to 1e-3.
@@ -1141,13 +1141,23 @@ mod tests {
     /// i < k (p_{i+1} p←(x_i) η π r²).
     /// BDPT's camera samples the film, not the extended film: `ext` (film area over extended
     /// film area) takes it back out of p←(x_{k−1}).
-    fn power_heuristic(x: &[Vertex], e: &PathEval, ext: f64, s: usize, merge: f64) -> f64 {
+    fn power_heuristic(
+        ctx: &Ctx,
+        x: &[Vertex],
+        e: &PathEval,
+        ext: f64,
+        s: usize,
+        merge: f64,
+    ) -> f64 {
         let k = x.len() - 1;
         let mut rev = e.pa_rev.clone();
         rev[k - 1] /= ext;
         // In logarithms: a path of 60 vertices under- or overflows even f64.
         let ln = |v: &[f64]| v.iter().map(|p| p.ln()).sum::<f64>();
-        let lp = |s: usize| ln(&e.pa_fwd[..s]) + ln(&rev[s..k]);
+        // Strategy s = 1 picks x_0 by light sampling (BDPT's `nee_ratio` times the density of
+        // a light subpath's start).
+        let nee = ctx.nee_ratio(&x[0], &x[1]).ln() as f64;
+        let lp = |s: usize| ln(&e.pa_fwd[..s]) + ln(&rev[s..k]) + if s == 1 { nee } else { 0.0 };
         let own = lp(s);
         let term = |l: f64| (2.0 * (l - own)).exp();
         let joinable = |j: usize| (j <= 1 || !x[j - 1].delta) && (j == k || !x[j].delta);

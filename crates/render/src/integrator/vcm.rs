@@ -21,7 +21,7 @@
 //! depends only on its index, so ranges of iterations merge exactly like BDPT's sample
 //! ranges — in any order, on any number of threads or workers.
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use super::bdpt::{BdptSums, Ctx, Kind, Splats, Vertex};
@@ -97,7 +97,7 @@ impl Vcm {
     ) -> Result<(BdptSums, RayStats), String> {
         let ctx = Ctx::new("vcm", scene, camera, self.rr_depth, true)?;
         let (w, h) = (scene.film.width, scene.film.height);
-        let splats = Splats::new(w, h);
+        let mut splats = Splats::new(w, h);
         let mut film: Vec<TileSums> = tiles(w, h, 16)
             .into_iter()
             .map(|t| TileSums::new(t, range))
@@ -105,7 +105,7 @@ impl Vcm {
         let mut stats = RayStats::default();
         let mut light = LightPaths::new(w * h);
         for k in range.start..range.end {
-            stats.add(&self.iteration(&ctx, k, &mut light, &mut film, &splats));
+            stats.add(&self.iteration(&ctx, k, &mut light, &mut film, &mut splats));
             progress(w as u64 * h as u64);
         }
         Ok((BdptSums::gather(w, h, range, &film, &splats), stats))
@@ -119,7 +119,7 @@ impl Vcm {
         k: u32,
         light: &mut LightPaths,
         film: &mut [TileSums],
-        splats: &Splats,
+        splats: &mut Splats,
     ) -> RayStats {
         let scene = ctx.scene;
         let (w, h) = (scene.film.width, scene.film.height);
@@ -152,8 +152,10 @@ impl Vcm {
                     for s in 2..=path.len() {
                         let (c, raster) =
                             ctx.connect(path, &lens, s, 1, merge, sampler, &mut chunk.stats);
-                        if let Some(at) = raster {
-                            splats.add(scene, at, c);
+                        if let Some(at) = raster
+                            && !is_black(c)
+                        {
+                            chunk.splats.push((at, c));
                         }
                     }
                     push_light_refs(ctx, path, merge, &mut chunk.refs);
@@ -167,18 +169,31 @@ impl Vcm {
         for chunk in &light.chunks {
             stats.add(&chunk.stats);
         }
-        let grid = HashGrid::build(light.chunks.iter().flat_map(|c| &c.refs), r);
-        let pass = CameraPass {
-            ctx,
-            vcm: self,
-            k,
-            r2: r * r,
-            merge,
-            grid: &grid,
-            light,
-            splats,
-        };
-        let per_tile: Vec<RayStats> = film.par_iter_mut().map(|t| pass.tile(t)).collect();
+        // The light-tracing splats go in on one thread (plain adds, no atomics) while the
+        // others build the merge grid and run the camera pass, which reads neither.
+        let light = &*light;
+        let ((), per_tile) = rayon::join(
+            || {
+                for &(at, c) in light.chunks.iter().flat_map(|c| &c.splats) {
+                    splats.add_mut(scene, at, c);
+                }
+            },
+            || {
+                let grid = HashGrid::build(light.chunks.iter().flat_map(|c| &c.refs), r);
+                let pass = CameraPass {
+                    ctx,
+                    vcm: self,
+                    k,
+                    r2: r * r,
+                    merge,
+                    grid: &grid,
+                    light,
+                };
+                film.par_iter_mut()
+                    .map(|t| pass.tile(t))
+                    .collect::<Vec<RayStats>>()
+            },
+        );
         for st in &per_tile {
             stats.add(st);
         }
@@ -201,6 +216,8 @@ struct LightChunk {
     vertices: Vec<Vertex>,
     spans: Vec<(u32, u32)>,
     refs: Vec<LightRef>,
+    /// Light tracing's splats: where on the film, what.
+    splats: Vec<(Vec2, Spectrum)>,
     stats: RayStats,
 }
 
@@ -209,6 +226,7 @@ impl LightChunk {
         self.vertices.clear();
         self.spans.clear();
         self.refs.clear();
+        self.splats.clear();
         self.stats = RayStats::default();
     }
 }
@@ -263,7 +281,6 @@ struct CameraPass<'a> {
     merge: f32,
     grid: &'a HashGrid<LightRef>,
     light: &'a LightPaths,
-    splats: &'a Splats,
 }
 
 impl CameraPass<'_> {
@@ -290,12 +307,9 @@ impl CameraPass<'_> {
                     if s + t - 2 > d {
                         continue;
                     }
-                    let (c, raster) =
-                        ctx.connect(lig, &cam, s, t, self.merge, &mut sampler, &mut stats);
-                    match raster {
-                        Some(at) => self.splats.add(scene, at, c),
-                        None => l += c,
-                    }
+                    // (Only light tracing, t = 1, lands elsewhere on the film.)
+                    let (c, _) = ctx.connect(lig, &cam, s, t, self.merge, &mut sampler, &mut stats);
+                    l += c;
                 }
                 if t >= 3 {
                     toward_eye = eye_sum(&cam, t - 3, toward_eye, self.merge);
@@ -422,8 +436,10 @@ fn sq(v: f32) -> f32 {
 ///               b = r_i² ([i ≥ 3, z_{i−1} not specular] M² + T_{i−1} / p→(z_{i−1})²),
 ///
 /// T_j the sum from connection j on toward the light with ratio 1:
-/// T_0 = [the light is not a delta light], T_j = [z_{j−1}, z_j not specular] + [j ≥ 3, z_{j−1}
-/// not specular] (p←(z_{j−1}) M)² + (p←(z_{j−1}) / p→(z_{j−1}))² T_{j−1}. Here q = p g with p the
+/// T_0 = [the light is not a delta light], T_j = [z_{j−1}, z_j not specular] k_j + [j ≥ 3,
+/// z_{j−1} not specular] (p←(z_{j−1}) M)² + (p←(z_{j−1}) / p→(z_{j−1}))² T_{j−1}, with k_1 the
+/// square of z_0's [`Ctx::nee_ratio`] (light sampling's density of z_0 in P_1) and k_j = 1
+/// after. Here q = p g with p the
 /// camera vertex's BSDF density (solid angle) of y's incoming direction and g the conversion
 /// to area at z_{i−1}, known now, so b holds g². Specular vertices carry the delta
 /// convention of [`super::bdpt::Ctx::delta_lobe`], so the chain S D S of a caustic seen
@@ -459,8 +475,8 @@ fn push_light_refs(ctx: &Ctx, path: &[Vertex], merge: f32, refs: &mut Vec<LightR
             });
         }
         let (fwd, rev) = (one(z.pdf_fwd), one(z.pdf_rev));
-        toward_light =
-            f32::from(!z.delta && !y.delta) + merge_z * sq(rev) + sq(rev / fwd) * toward_light;
+        let join = f32::from(!z.delta && !y.delta) * if i == 1 { sq(z.nee) } else { 1.0 };
+        toward_light = join + merge_z * sq(rev) + sq(rev / fwd) * toward_light;
     }
 }
 
@@ -549,6 +565,8 @@ mod tests {
                 rng.density(),
             )];
             light[0].pdf_rev = rng.density();
+            // Light sampling's density of z_0 over the light subpath's (a sphere's cone).
+            light[0].nee = 0.25 + 4.0 * rng.next();
             for j in 1..=i {
                 let delta = j < i && rng.next() < 0.3;
                 light.push(rng.surface(delta));
@@ -602,7 +620,10 @@ mod tests {
                     (f, v.pdf_fwd as f64, v.delta)
                 };
             }
-            let p = |s: usize| fwd[..s].iter().product::<f64>() * rev[s..].iter().product::<f64>();
+            let nee = |s: usize| if s == 1 { light[0].nee as f64 } else { 1.0 };
+            let p = |s: usize| {
+                nee(s) * fwd[..s].iter().product::<f64>() * rev[s..].iter().product::<f64>()
+            };
             let joins = |s: usize| (s == 0 || !delta[s - 1]) && (s == n || !delta[s]);
             let merge = |j: usize| p(j + 1) * rev[j] * m as f64;
             let own = merge(i);
