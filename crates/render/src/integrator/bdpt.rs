@@ -621,7 +621,7 @@ impl<'a> Ctx<'a> {
     /// replaced by `sampled` where it made them (s = 1: a light point; t = 1: the lens), and
     /// vertex merging among the strategies when `merge` > 0 (see [`Self::mis_sums`]).
     #[allow(clippy::too_many_arguments)]
-    fn mis_weight(
+    pub(super) fn mis_weight(
         &self,
         light: &[Vertex],
         camera: &[Vertex],
@@ -968,7 +968,7 @@ impl<'a> Ctx<'a> {
 /// The densities per unit area that joining light vertex q_s to camera vertex p_t gives their
 /// neighbours (each sampled from the other side): p_t and q_s sampled across the join, p_{t−1}
 /// from p_t and q_{s−1} from q_s.
-struct Joined {
+pub(super) struct Joined {
     pt_rev: f32,
     pt_minus_rev: f32,
     qs_rev: f32,

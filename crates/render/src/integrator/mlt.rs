@@ -1089,21 +1089,29 @@ mod tests {
                 (bdpt - ours).abs() <= 1e-3 * bdpt.max(ours),
                 "bootstrap path {i}, s = {s}, t = {t}: BDPT {bdpt:e}, here {ours:e}"
             );
-            if s != 1 && on_film {
+            if on_film {
                 // BDPT's weight (merge = 0) and VCM's (merges at the non-specular vertices
                 // from the light's second on, η π r² = 10⁻² … 10⁴ scene units²) are the power heuristic over
-                // this module's densities.
+                // this module's densities. For s = 1 (BDPT samples its light point anew) the
+                // weight of this path's light point, as light sampling would have made it.
                 for merge in [0.0, 1e-2, 1.0, 1e2, 1e4] {
-                    let mut sampler = MltSampler::independent(i);
-                    let (_, w, _) = ctx.connect_unweighted(
-                        &work.y,
-                        &work.eye,
-                        s,
-                        t,
-                        merge,
-                        &mut sampler,
-                        &mut RayStats::default(),
-                    );
+                    let w = if s == 1 {
+                        let mut v = work.y[0];
+                        v.nee = ctx.nee_ratio(&v, &work.eye[t - 1]);
+                        ctx.mis_weight(&work.y, &work.eye, Some(&v), s, t, merge, None)
+                    } else {
+                        let mut sampler = MltSampler::independent(i);
+                        let (_, w, _) = ctx.connect_unweighted(
+                            &work.y,
+                            &work.eye,
+                            s,
+                            t,
+                            merge,
+                            &mut sampler,
+                            &mut RayStats::default(),
+                        );
+                        w
+                    };
                     let expected = power_heuristic(&ctx, &work.x, &work.ex, ext, s, merge as f64);
                     // BDPT multiplies its ratios in f32: a few long paths with grazing
                     // cosines drift by up to 2 % (46 of 16 540 weights here); the rest
