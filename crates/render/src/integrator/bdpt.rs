@@ -218,17 +218,17 @@ impl<'a> Ctx<'a> {
     }
 
     /// f at a surface vertex for light leaving toward `wo` (the vertex's own) and arriving
-    /// from `next`, with the shading-normal correction of importance transport (Veach §5.3).
-    fn f(&self, v: &Vertex, next: &Vertex, mode: TransportMode) -> Spectrum {
-        self.f_dir(v, (next.p - v.p).normalize_or_zero(), mode)
-    }
-
-    /// f at a surface vertex toward `next` as [`Self::f`], with the densities (solid angle,
-    /// as [`Self::pdf`] takes them) of sampling the direction to `next` from the vertex's own
-    /// `wo` and of sampling `wo` from the direction to `next`, from one frame. (Where f is not
+    /// from `next`, with the shading-normal correction of importance transport (Veach §5.3);
+    /// and the densities (solid angle, as [`Self::pdf`] takes them) of sampling the direction
+    /// to `next` from `wo` and of sampling `wo` from the direction to `next`, from one frame. (Where f is not
     /// zero both directions lie on one side of the shading normal, so the frame is the one
     /// `pdf` would turn to either.)
-    fn f_and_pdfs(&self, v: &Vertex, next: &Vertex, mode: TransportMode) -> (Spectrum, f32, f32) {
+    pub(super) fn f_and_pdfs(
+        &self,
+        v: &Vertex,
+        next: &Vertex,
+        mode: TransportMode,
+    ) -> (Spectrum, f32, f32) {
         let Some(si) = &v.si else {
             return (Spectrum::ZERO, 0.0, 0.0);
         };
@@ -248,20 +248,6 @@ impl<'a> Ctx<'a> {
             material.bsdf.pdf(wo_l, wi_l, TransportMode::Radiance),
             material.bsdf.pdf(wi_l, wo_l, TransportMode::Radiance),
         )
-    }
-
-    /// f at a surface vertex for light leaving toward its `wo` and arriving from `wi`.
-    pub(super) fn f_dir(&self, v: &Vertex, wi: Vec3A, mode: TransportMode) -> Spectrum {
-        let Some(si) = &v.si else {
-            return Spectrum::ZERO;
-        };
-        let material = self.scene.material(si.material);
-        let frame = material.frame(si, v.wo);
-        let (wo_l, wi_l) = (frame.to_local(v.wo), frame.to_local(wi));
-        if !consistent(si, v.wo, wi, wo_l, wi_l) {
-            return Spectrum::ZERO;
-        }
-        material.bsdf.eval(wo_l, wi_l, mode) * shading_correction(si, v.wo, wi, mode)
     }
 
     /// Density per unit area at `next` of sampling it from `v` (whose subpath came from
@@ -845,9 +831,19 @@ impl<'a> Ctx<'a> {
                 Spectrum::splat(is.we / is.pdf),
                 0.0,
             );
-            let mut l = qs.beta * self.f(qs, &cam, TransportMode::Importance) * cam.beta;
+            let (f, to_cam, to_q_minus) = self.f_and_pdfs(qs, &cam, TransportMode::Importance);
+            let mut l = qs.beta * f * cam.beta;
             if qs.on_surface() {
                 l *= is.wi.dot(qs.ns).abs();
+            }
+            // (s = 1: f is zero at the light point, no weight needed.)
+            if s >= 2 {
+                joined = Some(Joined {
+                    pt_rev: qs.convert_density(to_cam, &cam),
+                    pt_minus_rev: 0.0,
+                    qs_rev: self.pdf(&cam, None, qs),
+                    qs_minus_rev: qs.convert_density(to_q_minus, &light[s - 2]),
+                });
             }
             if is_black(l) {
                 return (Spectrum::ZERO, 0.0, None);
@@ -884,10 +880,17 @@ impl<'a> Ctx<'a> {
             };
             v.pdf_fwd = self.pdf_le(&v, pt).0;
             v.nee = self.nee_ratio(&v, pt);
-            let mut l = pt.beta * self.f(pt, &v, TransportMode::Radiance) * v.beta;
+            let (f, to_v, to_p_minus) = self.f_and_pdfs(pt, &v, TransportMode::Radiance);
+            let mut l = pt.beta * f * v.beta;
             if pt.on_surface() {
                 l *= ls.wi.dot(pt.ns).abs();
             }
+            joined = Some(Joined {
+                pt_rev: self.pdf(&v, None, pt),
+                pt_minus_rev: pt.convert_density(to_p_minus, &camera[t - 2]),
+                qs_rev: pt.convert_density(to_v, &v),
+                qs_minus_rev: 0.0,
+            });
             if is_black(l) {
                 return (Spectrum::ZERO, 0.0, None);
             }
@@ -967,7 +970,8 @@ impl<'a> Ctx<'a> {
 
 /// The densities per unit area that joining light vertex q_s to camera vertex p_t gives their
 /// neighbours (each sampled from the other side): p_t and q_s sampled across the join, p_{t−1}
-/// from p_t and q_{s−1} from q_s.
+/// from p_t and q_{s−1} from q_s — from the f's frames, not evaluated again. (Light sampling
+/// has no q_{s−1}, light tracing no p_{t−1}: 0 there, never read.)
 pub(super) struct Joined {
     pt_rev: f32,
     pt_minus_rev: f32,

@@ -1066,7 +1066,7 @@ mod tests {
                     _ => unreachable!("a light subpath starts on a light"),
                 });
                 let l = pt.beta
-                    * ctx.f_dir(pt, wi, TransportMode::Radiance)
+                    * ctx.f_and_pdfs(pt, light, TransportMode::Radiance).0
                     * le.le_surface(light.ng, -wi)
                     * (wi.dot(pt.ns).abs() * wi.dot(light.ng).abs()
                         / (d.length_squared() * light.pdf_fwd));
