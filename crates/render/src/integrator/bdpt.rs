@@ -220,9 +220,9 @@ impl<'a> Ctx<'a> {
     /// f at a surface vertex for light leaving toward `wo` (the vertex's own) and arriving
     /// from `next`, with the shading-normal correction of importance transport (Veach §5.3);
     /// and the densities (solid angle, as [`Self::pdf`] takes them) of sampling the direction
-    /// to `next` from `wo` and of sampling `wo` from the direction to `next`, from one frame. (Where f is not
-    /// zero both directions lie on one side of the shading normal, so the frame is the one
-    /// `pdf` would turn to either.)
+    /// to `next` from `wo` and of sampling `wo` from the direction to `next`, from one frame.
+    /// (Where f is not zero both directions lie on one side of the shading normal, so the
+    /// frame is the one `pdf` would turn to either.)
     pub(super) fn f_and_pdfs(
         &self,
         v: &Vertex,

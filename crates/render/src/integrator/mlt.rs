@@ -1164,7 +1164,7 @@ mod tests {
         let ln = |v: &[f64]| v.iter().map(|p| p.ln()).sum::<f64>();
         // Strategy s = 1 picks x_0 by light sampling (BDPT's `nee_ratio` times the density of
         // a light subpath's start).
-        let nee = ctx.nee_ratio(&x[0], &x[1]).ln() as f64;
+        let nee = (ctx.nee_ratio(&x[0], &x[1]) as f64).ln();
         let lp = |s: usize| ln(&e.pa_fwd[..s]) + ln(&rev[s..k]) + if s == 1 { nee } else { 0.0 };
         let own = lp(s);
         let term = |l: f64| (2.0 * (l - own)).exp();

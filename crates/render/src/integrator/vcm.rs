@@ -16,10 +16,11 @@
 //! [`push_light_refs`]). The radius shrinks as r_k = r₀ k^((α−1)/2) over iterations k, so the
 //! merging bias vanishes (α = 0.75, as the paper).
 //!
-//! Light tracing (t = 1) splats during the light pass; the camera pass fills each pixel's
-//! film sums. The output is BDPT's ([`BdptSums`], iterations as samples), and an iteration
-//! depends only on its index, so ranges of iterations merge exactly like BDPT's sample
-//! ranges — in any order, on any number of threads or workers.
+//! Light tracing (t = 1) is done in the light pass, its splats added to the film (without
+//! atomics) while the camera pass fills each pixel's film sums. The output is BDPT's
+//! ([`BdptSums`], iterations as samples), and an iteration depends only on its index, so
+//! ranges of iterations merge exactly like BDPT's sample ranges — in any order, on any number
+//! of threads or workers.
 
 use glam::{Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
@@ -438,10 +439,9 @@ fn sq(v: f32) -> f32 {
 /// T_j the sum from connection j on toward the light with ratio 1:
 /// T_0 = [the light is not a delta light], T_j = [z_{j−1}, z_j not specular] k_j + [j ≥ 3,
 /// z_{j−1} not specular] (p←(z_{j−1}) M)² + (p←(z_{j−1}) / p→(z_{j−1}))² T_{j−1}, with k_1 the
-/// square of z_0's [`Ctx::nee_ratio`] (light sampling's density of z_0 in P_1) and k_j = 1
-/// after. Here q = p g with p the
-/// camera vertex's BSDF density (solid angle) of y's incoming direction and g the conversion
-/// to area at z_{i−1}, known now, so b holds g². Specular vertices carry the delta
+/// square of z_0's [`Ctx::nee_ratio`] (P_1 picks z_0 by light sampling) and k_j = 1 after.
+/// Here q = p g with p the camera vertex's BSDF density (solid angle) of y's incoming
+/// direction and g the conversion to area at z_{i−1}, known now, so b holds g². Specular vertices carry the delta
 /// convention of [`super::bdpt::Ctx::delta_lobe`], so the chain S D S of a caustic seen
 /// through glass weighs right.
 fn push_light_refs(ctx: &Ctx, path: &[Vertex], merge: f32, refs: &mut Vec<LightRef>) {
