@@ -382,8 +382,7 @@ impl<'a> Ctx<'a> {
         let w = (from.p - v.p).normalize_or_zero();
         let (pos, _) = light.pdf_le(v.ng, w, self.bounds);
         let nee = from.convert_density(light.pdf_li_surface(from.p, v.p, v.ng), v);
-        let k = nee / pos;
-        if k > 0.0 && k.is_finite() { k } else { 1.0 }
+        nee_over_start(nee, pos)
     }
 
     /// Radiance an emitter vertex sends toward `to` (from a light at infinity: every
@@ -711,16 +710,18 @@ impl<'a> Ctx<'a> {
         // Strategy s = 1 samples the light point by light sampling, not as a light subpath
         // starts ([`Self::nee_ratio`]): its term, and with s = 1 the own density, take k².
         let k2 = |v: &Vertex| v.nee * v.nee;
+        // (s = 0: the emitter the camera path hit; its s = 1 term is the first below.)
+        let hit_k2 = match (s, pt_minus) {
+            (0, Some(m)) => self.nee_ratio(pt, m).powi(2),
+            _ => 1.0,
+        };
         let mut ri = 1.0f32;
         for i in (1..t).rev() {
             let (rev, fwd, delta) = cam(i);
             let before = ri;
             ri *= remap(rev) / remap(fwd);
             if !delta && !cam(i - 1).2 {
-                sum += match (s, pt_minus) {
-                    (0, Some(m)) if i == t - 1 => ri * self.nee_ratio(pt, m).powi(2),
-                    _ => ri,
-                };
+                sum += if i == t - 1 { ri * hit_k2 } else { ri };
             }
             // Merges from the light's second vertex on (never at the emitter a camera path
             // hit, nor where the light subpath's first hit would be).
@@ -879,7 +880,12 @@ impl<'a> Ctx<'a> {
                 ShadowTarget::Infinite => Vertex::at_infinity(li, pt.p, ls.wi, beta),
             };
             v.pdf_fwd = self.pdf_le(&v, pt).0;
-            v.nee = self.nee_ratio(&v, pt);
+            // [`Self::nee_ratio`] from the densities at hand (both with the light's choice).
+            v.nee = if v.infinite {
+                1.0
+            } else {
+                nee_over_start(pt.convert_density(ls.pdf * pmf, &v), v.pdf_fwd)
+            };
             let (f, to_v, to_p_minus) = self.f_and_pdfs(pt, &v, TransportMode::Radiance);
             let mut l = pt.beta * f * v.beta;
             if pt.on_surface() {
@@ -966,6 +972,13 @@ impl<'a> Ctx<'a> {
             _ => true,
         }
     }
+}
+
+/// [`Ctx::nee_ratio`] from light sampling's and a light subpath start's densities of one
+/// emitter point (per unit area); 1 where either is not a density (a delta light's point).
+fn nee_over_start(nee: f32, start: f32) -> f32 {
+    let k = nee / start;
+    if k > 0.0 && k.is_finite() { k } else { 1.0 }
 }
 
 /// The densities per unit area that joining light vertex q_s to camera vertex p_t gives their
