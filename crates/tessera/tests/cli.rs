@@ -216,27 +216,85 @@ fn compare_reports_errors_and_refuses_mismatched_sizes() {
     );
 }
 
-#[test]
-fn bench_writes_a_speed_against_error_report() {
+/// `tessera bench` of the Cornell box against `reference` (in its scene folder) with `args`:
+/// the report folder (kept while the returned temporary directory lives) and report.json.
+fn bench_cornell(
+    reference: &str,
+    args: &[&str],
+) -> (tempfile::TempDir, PathBuf, serde_json::Value) {
     let dir = tempfile::tempdir().expect("temp dir");
     let out = dir.path().join("report");
-    let reference = repo().join("scenes/cornell-box/reference.exr");
-    let o = tessera(&[
+    let reference = repo().join("scenes/cornell-box").join(reference);
+    let mut all = vec![
         "bench",
-        &cornell(),
         "--reference",
         reference.to_str().expect("utf-8"),
-        "--budgets",
-        "2,4",
-        "--integrators",
-        "path,direct",
         "-o",
         out.to_str().expect("utf-8"),
-    ]);
+    ];
+    all.extend_from_slice(args);
+    let scene = cornell();
+    all.push(&scene);
+    let o = tessera(&all);
     assert!(o.status.success(), "{}", stderr(&o));
-    let json: serde_json::Value =
+    let json =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).expect("report.json"))
             .expect("JSON");
+    (dir, out, json)
+}
+
+#[test]
+fn bench_with_seeds_renders_each_seed_and_reports_when_half_reached_an_error() {
+    let (_dir, out, json) = bench_cornell(
+        "reference-32.exr",
+        &[
+            "--budgets",
+            "1,16,256",
+            "--integrators",
+            "path",
+            "--seeds",
+            "3",
+        ],
+    );
+    let seed = |v: &serde_json::Value| v["seed"].as_u64().expect("seed");
+    let runs = json["runs"].as_array().expect("runs");
+    assert_eq!(runs.len(), 9);
+    let seeds: Vec<u64> = runs.iter().map(seed).collect();
+    assert_eq!(seeds, [0, 0, 0, 1, 1, 1, 2, 2, 2], "{runs:?}");
+    assert_eq!(json["seeds"], serde_json::json!([0, 1, 2]));
+    // Each seed is its own render: the same budget, a different error.
+    let err = |i: usize| runs[i]["rel_mse"].as_f64().unwrap_or(f64::NAN);
+    assert!(err(0) != err(3) && err(3) != err(6), "{runs:?}");
+    // The reported time is the second smallest of the three seeds' times (every seed
+    // reaches 1e-2 by 256 spp).
+    let times = json["time_to_error"].as_array().expect("time_to_error");
+    assert!(
+        times[0]["rel_mse"] == 1e-2
+            && times[0]["per_seed"]
+                .as_array()
+                .is_some_and(|s| s.iter().all(|v| v.is_f64())),
+        "{times:?}"
+    );
+    for t in times {
+        let per_seed = t["per_seed"].as_array().expect("per_seed");
+        assert_eq!(per_seed.len(), 3);
+        let mut reached: Vec<f64> = per_seed.iter().filter_map(|v| v.as_f64()).collect();
+        reached.sort_by(f64::total_cmp);
+        assert_eq!(t["wall_s"].as_f64(), reached.get(1).copied(), "{t}");
+    }
+    let md = std::fs::read_to_string(out.join("report.md")).expect("md");
+    assert!(
+        md.contains("half of the 3 seeds") && md.contains("| path | 1e-2 |"),
+        "{md}"
+    );
+}
+
+#[test]
+fn bench_writes_a_speed_against_error_report() {
+    let (_dir, out, json) = bench_cornell(
+        "reference.exr",
+        &["--budgets", "2,4", "--integrators", "path,direct"],
+    );
     let runs = json["runs"].as_array().expect("runs");
     assert_eq!(runs.len(), 4);
     for r in runs {
@@ -259,7 +317,7 @@ fn bench_writes_a_speed_against_error_report() {
     assert_eq!(csv.lines().count(), 5);
     let md = std::fs::read_to_string(out.join("report.md")).expect("md");
     assert!(
-        md.contains("| path | 4 spp | 4 |") && md.contains("Wall seconds to reach"),
+        md.contains("| path | 0 | 4 spp | 4 |") && md.contains("Wall seconds to reach"),
         "{md}"
     );
     let png = std::fs::read(out.join("report.png")).expect("png");

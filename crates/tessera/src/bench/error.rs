@@ -39,6 +39,11 @@ pub struct ErrorArgs {
     /// Worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Renders each integrator with this many seeds (the scene's `integrator.seed`, then the
+    /// next ones). A time to an error is then the time by which half of the seeds had reached
+    /// it: one seed's time can hang on a single pixel (a highlight only a few samples find).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub seeds: u32,
     /// Where report.json, report.csv, report.md and report.png go.
     #[arg(short, long, default_value = "bench-report")]
     pub output: PathBuf,
@@ -92,6 +97,7 @@ fn integrator_kind(name: &str) -> anyhow::Result<(IntegratorKind, Option<Subsurf
 #[derive(Debug, Clone, Serialize)]
 pub struct Run {
     pub integrator: String,
+    pub seed: u64,
     pub budget: String,
     pub spp: u32,
     pub wall_s: f64,
@@ -105,12 +111,15 @@ pub struct Run {
 }
 
 /// Wall seconds an integrator needed to reach an error level (log-log interpolation between
-/// checkpoints); `None` if it never did within the budgets.
+/// checkpoints; the first time it did): with each seed, and the time by which half of the
+/// seeds had (the lower median; `None` if fewer than half ever did within the budgets).
 #[derive(Debug, Clone, Serialize)]
 pub struct TimeToError {
     pub integrator: String,
     pub rel_mse: f64,
     pub wall_s: Option<f64>,
+    /// In the order of [`Report::seeds`].
+    pub per_seed: Vec<Option<f64>>,
 }
 
 #[derive(Debug, Serialize)]
@@ -122,6 +131,7 @@ struct Report {
     threads: usize,
     /// In the order given.
     integrators: Vec<String>,
+    seeds: Vec<u64>,
     runs: Vec<Run>,
     time_to_error: Vec<TimeToError>,
 }
@@ -160,10 +170,16 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         .num_threads(threads)
         .build()?;
 
+    let seeds: Vec<u64> = (0..u64::from(args.seeds))
+        .map(|i| base.integrator.seed.wrapping_add(i))
+        .collect();
     let mut runs = Vec::new();
-    for (name, (kind, method)) in &kinds {
+    for ((name, (kind, method)), &seed) in
+        kinds.iter().flat_map(|k| seeds.iter().map(move |s| (k, s)))
+    {
         let mut desc = base.clone();
         desc.integrator.kind = *kind;
+        desc.integrator.seed = seed;
         if let Some(m) = method {
             desc.integrator.subsurface = *m;
         }
@@ -242,6 +258,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
             let e = metrics::compare(&rgb, &reference);
             let run = Run {
                 integrator: name.clone(),
+                seed,
                 budget: match budget {
                     Budget::Samples(n) => format!("{n} spp"),
                     Budget::Seconds(s) => format!("{s} s"),
@@ -256,8 +273,13 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                     .then(|| metrics::estimated_rel_mse(&image)),
             };
             crate::print(&format!(
-                "{:>8} {:>6} spp  {:8.2} s wall  relMSE {:.3e} (estimated {})  RMSE {:.3e}  mean/ref {:.4}\n",
+                "{:>8}{} {:>6} spp  {:8.2} s wall  relMSE {:.3e} (estimated {})  RMSE {:.3e}  mean/ref {:.4}\n",
                 run.integrator,
+                if seeds.len() > 1 {
+                    format!(" seed {seed}")
+                } else {
+                    String::new()
+                },
                 run.spp,
                 run.wall_s,
                 run.rel_mse,
@@ -268,7 +290,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
             runs.push(run);
         }
     }
-    let time_to_error = time_to_error(&kinds, &runs);
+    let time_to_error = time_to_error(&kinds, &seeds, &runs);
     let report = Report {
         scene: scene_path.display().to_string(),
         reference: reference_path.display().to_string(),
@@ -276,6 +298,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         height: base.film.height,
         threads,
         integrators: kinds.iter().map(|(n, _)| n.clone()).collect(),
+        seeds,
         runs,
         time_to_error,
     };
@@ -355,34 +378,53 @@ fn estimate(e: Option<f64>) -> String {
     e.map_or_else(|| "–".into(), |e| format!("{e:.3e}"))
 }
 
-fn time_to_error<T>(kinds: &[(String, T)], runs: &[Run]) -> Vec<TimeToError> {
+fn time_to_error<T>(kinds: &[(String, T)], seeds: &[u64], runs: &[Run]) -> Vec<TimeToError> {
     let mut out = Vec::new();
     for (name, _) in kinds {
-        let points: Vec<&Run> = runs.iter().filter(|r| &r.integrator == name).collect();
         for &level in &LEVELS {
-            let mut wall_s = None;
-            for (i, r) in points.iter().enumerate() {
-                if r.rel_mse <= level {
-                    wall_s = Some(match i.checked_sub(1).map(|j| points[j]) {
-                        // Interpolate log error against log time between the two checkpoints.
-                        Some(p) if p.rel_mse > level && p.wall_s > 0.0 => {
-                            let f =
-                                (level.ln() - p.rel_mse.ln()) / (r.rel_mse.ln() - p.rel_mse.ln());
-                            (p.wall_s.ln() + f * (r.wall_s.ln() - p.wall_s.ln())).exp()
-                        }
-                        _ => r.wall_s,
-                    });
-                    break;
-                }
-            }
+            let per_seed: Vec<Option<f64>> = seeds
+                .iter()
+                .map(|&seed| {
+                    let points: Vec<&Run> = runs
+                        .iter()
+                        .filter(|r| &r.integrator == name && r.seed == seed)
+                        .collect();
+                    first_reached(&points, level)
+                })
+                .collect();
             out.push(TimeToError {
                 integrator: name.clone(),
                 rel_mse: level,
-                wall_s,
+                wall_s: half_reached(&per_seed),
+                per_seed,
             });
         }
     }
     out
+}
+
+/// The first time `points` (one render's checkpoints) reached `level`, interpolating log error
+/// against log time between the checkpoints either side.
+fn first_reached(points: &[&Run], level: f64) -> Option<f64> {
+    let i = points.iter().position(|r| r.rel_mse <= level)?;
+    let r = points[i];
+    Some(match i.checked_sub(1).map(|j| points[j]) {
+        Some(p) if p.rel_mse > level && p.wall_s > 0.0 => {
+            let f = (level.ln() - p.rel_mse.ln()) / (r.rel_mse.ln() - p.rel_mse.ln());
+            (p.wall_s.ln() + f * (r.wall_s.ln() - p.wall_s.ln())).exp()
+        }
+        _ => r.wall_s,
+    })
+}
+
+/// The time by which half of the seeds (rounded up) had reached a level: the ⌈n/2⌉-th
+/// smallest of their times, a seed that never did counting as later than any.
+fn half_reached(times: &[Option<f64>]) -> Option<f64> {
+    let mut reached: Vec<f64> = times.iter().flatten().copied().collect();
+    reached.sort_by(f64::total_cmp);
+    reached
+        .get(times.len().div_ceil(2).checked_sub(1)?)
+        .copied()
 }
 
 fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
@@ -397,13 +439,14 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
     )?;
 
     let mut csv = String::from(
-        "integrator,budget,spp,wall_s,cpu_s,rel_mse,rmse,mean_ratio,estimated_rel_mse\n",
+        "integrator,seed,budget,spp,wall_s,cpu_s,rel_mse,rmse,mean_ratio,estimated_rel_mse\n",
     );
     for r in &report.runs {
         let _ = writeln!(
             csv,
-            "{},{},{},{:.4},{},{:.6e},{:.6e},{:.6},{}",
+            "{},{},{},{},{:.4},{},{:.6e},{:.6e},{:.6},{}",
             r.integrator,
+            r.seed,
             r.budget,
             r.spp,
             r.wall_s,
@@ -422,12 +465,13 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
         "# Speed against error: {}\n\nReference `{}`, {}×{}, {} threads. relMSE = mean of (x − r)² / (r² + 0.01).\n\n",
         report.scene, report.reference, report.width, report.height, report.threads
     );
-    md += "| integrator | budget | spp | wall s | CPU s | relMSE | estimated relMSE | RMSE | mean / ref |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
+    md += "| integrator | seed | budget | spp | wall s | CPU s | relMSE | estimated relMSE | RMSE | mean / ref |\n|---|---:|---|---:|---:|---:|---:|---:|---:|---:|\n";
     for r in &report.runs {
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.2} | {} | {:.3e} | {} | {:.3e} | {:.4} |",
+            "| {} | {} | {} | {} | {:.2} | {} | {:.3e} | {} | {:.3e} | {:.4} |",
             r.integrator,
+            r.seed,
             r.budget,
             r.spp,
             r.wall_s,
@@ -440,7 +484,14 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
             r.mean_ratio
         );
     }
-    md += "\nWall seconds to reach a relMSE (interpolated in log-log between checkpoints; – not reached):\n\n| integrator |";
+    let n = report.seeds.len();
+    md += &if n > 1 {
+        format!(
+            "\nWall seconds by which half of the {n} seeds had reached a relMSE (each seed's first time, interpolated in log-log between checkpoints; – fewer than half did):\n\n| integrator |"
+        )
+    } else {
+        "\nWall seconds to reach a relMSE (interpolated in log-log between checkpoints; – not reached):\n\n| integrator |".to_string()
+    };
     for l in LEVELS {
         let _ = write!(md, " {l:.0e} |");
     }
@@ -463,24 +514,94 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
         }
         md += "\n";
     }
+    if n > 1 {
+        md += "\nEach seed's wall seconds (– not reached):\n\n| integrator | relMSE |";
+        for s in &report.seeds {
+            let _ = write!(md, " seed {s} |");
+        }
+        md += "\n|---|---:|";
+        md += &"---:|".repeat(n);
+        md += "\n";
+        for t in &report.time_to_error {
+            let _ = write!(md, "| {} | {:.0e} |", t.integrator, t.rel_mse);
+            for s in &t.per_seed {
+                match s {
+                    Some(s) => {
+                        let _ = write!(md, " {s:.2} |");
+                    }
+                    None => md += " – |",
+                }
+            }
+            md += "\n";
+        }
+    }
     md += "\n![relMSE against wall time](report.png)\n";
     write("report.md", md.as_bytes())?;
 
-    let series: Vec<(String, Vec<(f64, f64)>)> = {
-        report
-            .integrators
-            .iter()
-            .map(|n| {
-                let pts = report
-                    .runs
-                    .iter()
-                    .filter(|r| &r.integrator == n)
-                    .map(|r| (r.wall_s, r.rel_mse))
-                    .collect();
-                (n.clone(), pts)
-            })
-            .collect()
-    };
+    // One line per integrator and seed, one colour per integrator.
+    let series: Vec<(String, Vec<(f64, f64)>)> = report
+        .integrators
+        .iter()
+        .flat_map(|n| report.seeds.iter().map(move |s| (n, s)))
+        .map(|(n, &seed)| {
+            let pts = report
+                .runs
+                .iter()
+                .filter(|r| &r.integrator == n && r.seed == seed)
+                .map(|r| (r.wall_s, r.rel_mse))
+                .collect();
+            (n.clone(), pts)
+        })
+        .collect();
     let png = super::plot::log_log("relMSE", "wall seconds", &series)?;
     write("report.png", &png)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(wall_s: f64, rel_mse: f64) -> Run {
+        Run {
+            integrator: "path".into(),
+            seed: 0,
+            budget: String::new(),
+            spp: 1,
+            wall_s,
+            cpu_s: None,
+            rel_mse,
+            rmse: 0.0,
+            mean_ratio: 1.0,
+            estimated_rel_mse: None,
+        }
+    }
+
+    #[test]
+    fn first_reached_interpolates_log_error_against_log_time() {
+        let (a, b, c) = (run(1.0, 1e-1), run(10.0, 1e-3), run(20.0, 1e-2));
+        let points = [&a, &b, &c];
+        // Halfway in log error between 1e-1 and 1e-3 is halfway in log time: √10 s.
+        let t = first_reached(&points, 1e-2).expect("reached");
+        assert!((t - 10f64.sqrt()).abs() < 1e-9, "{t}");
+        // The first checkpoint already below: its time; never below: none.
+        assert_eq!(first_reached(&points, 0.5), Some(1.0));
+        assert_eq!(first_reached(&points, 1e-4), None);
+        // A checkpoint exactly at the level: its own time. (Checkpoint c, also below 1e-2
+        // but later, does not count: the first crossing does.)
+        let t = first_reached(&points, 1e-3).expect("reached");
+        assert!((t - 10.0).abs() < 1e-9, "{t}");
+    }
+
+    #[test]
+    fn half_reached_is_the_time_by_which_half_of_the_seeds_got_there() {
+        assert_eq!(
+            half_reached(&[Some(3.0), None, Some(1.0), Some(2.0)]),
+            Some(2.0)
+        );
+        assert_eq!(half_reached(&[Some(3.0), Some(1.0), Some(2.0)]), Some(2.0));
+        // Two of three never did: fewer than half reached it.
+        assert_eq!(half_reached(&[None, Some(1.0), None]), None);
+        assert_eq!(half_reached(&[Some(4.0)]), Some(4.0));
+        assert_eq!(half_reached(&[None]), None);
+    }
 }

@@ -81,7 +81,8 @@ fn decades(values: impl Iterator<Item = f64>) -> (i32, i32) {
     (lo, hi.max(lo + 1))
 }
 
-/// Plots `series` (name, [(x, y)]) on log-log axes; returns PNG bytes.
+/// Plots `series` (name, [(x, y)]) on log-log axes, one colour and legend entry per name
+/// (series of one name, such as one per seed, share them); returns PNG bytes.
 pub fn log_log(
     y_label: &str,
     x_label: &str,
@@ -137,7 +138,15 @@ pub fn log_log(
         &format!("{y_label} against {x_label} (log-log)"),
         ink,
     );
-    for (i, (name, points)) in series.iter().enumerate() {
+    let mut names: Vec<&str> = Vec::new();
+    for (name, points) in series {
+        let (i, first) = match names.iter().position(|n| n == name) {
+            Some(i) => (i, false),
+            None => {
+                names.push(name);
+                (names.len() - 1, true)
+            }
+        };
         let c = COLOURS[i % COLOURS.len()];
         let pts: Vec<(i32, i32)> = points
             .iter()
@@ -149,6 +158,9 @@ pub fn log_log(
         }
         for &p in &pts {
             line(&mut img, (p.0 - 3, p.1), (p.0 + 3, p.1), c, 5);
+        }
+        if !first {
+            continue;
         }
         let ly = TOP + 10 + 14 * i as i32;
         line(
