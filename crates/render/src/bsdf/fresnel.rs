@@ -5,6 +5,20 @@ use glam::Vec3A;
 use crate::math::safe_sqrt;
 use crate::spectrum::Spectrum;
 
+/// The cosine-weighted hemispherical average of [`dielectric`], 2 ∫₀¹ Fr(±μ) μ dμ (twice the
+/// first Fresnel moment), for light arriving from outside or, with `inside`, from inside: the
+/// midpoint rule on `n` steps in μ.
+pub fn hemispherical_reflectance(eta: f32, inside: bool, n: u32) -> f64 {
+    let sign = if inside { -1.0 } else { 1.0 };
+    (0..n)
+        .map(|i| {
+            let mu = (i as f64 + 0.5) / n as f64;
+            2.0 * dielectric(sign * mu as f32, eta) as f64 * mu
+        })
+        .sum::<f64>()
+        / n as f64
+}
+
 /// Fresnel reflectance of a dielectric interface with relative IOR `eta` (inside/outside),
 /// for a direction with cosine `cos_i` to the normal (negative: arriving from inside).
 /// Returns 1 under total internal reflection.

@@ -18,13 +18,7 @@ pub struct SubsurfaceExit {
 
 impl SubsurfaceExit {
     pub fn new(eta: f32) -> Self {
-        let n = 4096;
-        let c: f64 = (0..n)
-            .map(|i| {
-                let mu = (i as f64 + 0.5) / n as f64;
-                2.0 * (1.0 - fresnel::dielectric(mu as f32, eta) as f64) * mu / n as f64
-            })
-            .sum();
+        let c = 1.0 - fresnel::hemispherical_reflectance(eta, false, 4096);
         SubsurfaceExit {
             eta,
             inv_c: (1.0 / c) as f32,
