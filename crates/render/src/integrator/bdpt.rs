@@ -879,7 +879,9 @@ impl<'a> Ctx<'a> {
                 }
                 ShadowTarget::Infinite => Vertex::at_infinity(li, pt.p, ls.wi, beta),
             };
-            v.pdf_fwd = self.pdf_le(&v, pt).0;
+            // Densities of v as a light subpath's start and of pt as its next vertex.
+            let (start, emit_to_pt) = self.pdf_le(&v, pt);
+            v.pdf_fwd = start;
             // [`Self::nee_ratio`] from the densities at hand (both with the light's choice).
             v.nee = if v.infinite {
                 1.0
@@ -892,7 +894,7 @@ impl<'a> Ctx<'a> {
                 l *= ls.wi.dot(pt.ns).abs();
             }
             joined = Some(Joined {
-                pt_rev: self.pdf(&v, None, pt),
+                pt_rev: emit_to_pt,
                 pt_minus_rev: pt.convert_density(to_p_minus, &camera[t - 2]),
                 qs_rev: pt.convert_density(to_v, &v),
                 qs_minus_rev: 0.0,
