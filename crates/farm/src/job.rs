@@ -446,6 +446,31 @@ impl TaskSpec {
             end: self.sample_end,
         }
     }
+
+    /// A pass's tasks of `kind` over [0, `count`) in ranges of `per_task` indices (photons,
+    /// subsurface points; no tile), in order, numbered on from `first_index`.
+    pub fn index_ranges(
+        kind: TaskKind,
+        count: u32,
+        per_task: u32,
+        first_index: u32,
+    ) -> impl Iterator<Item = TaskSpec> {
+        let per_task = per_task.max(1);
+        (0..count.div_ceil(per_task)).map(move |i| {
+            let start = i * per_task;
+            TaskSpec {
+                kind,
+                frame: 0,
+                tile_index: first_index + i,
+                x0: 0,
+                y0: 0,
+                x1: 0,
+                y1: 0,
+                sample_start: start,
+                sample_end: start.saturating_add(per_task).min(count),
+            }
+        })
+    }
 }
 
 /// The tasks of one frame, in stitch order: tiles row-major, each tile's sample ranges in
@@ -719,6 +744,34 @@ pub fn decisions(desc: &SceneDesc) -> Vec<String> {
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
+
+    #[test]
+    fn index_ranges_cover_the_count_in_order() {
+        let t: Vec<TaskSpec> =
+            TaskSpec::index_ranges(TaskKind::GlobalPhotons, 60_001, 25_000, 5).collect();
+        let ranges: Vec<(u32, u32, u32)> = t
+            .iter()
+            .map(|t| (t.tile_index, t.sample_start, t.sample_end))
+            .collect();
+        assert_eq!(
+            ranges,
+            [(5, 0, 25_000), (6, 25_000, 50_000), (7, 50_000, 60_001)]
+        );
+        assert!(
+            t.iter()
+                .all(|t| t.kind == TaskKind::GlobalPhotons && t.tile().x1 == 0)
+        );
+        assert_eq!(
+            TaskSpec::index_ranges(TaskKind::Records, 0, 10, 0).count(),
+            0
+        );
+        // The last range ends at the count even where start + per_task would overflow.
+        let last = TaskSpec::index_ranges(TaskKind::Records, u32::MAX, u32::MAX - 1, 0).last();
+        assert_eq!(
+            last.map(|t| (t.sample_start, t.sample_end)),
+            Some((u32::MAX - 1, u32::MAX))
+        );
+    }
 
     /// `scenes/NAME/scene.json` at 24×20 with `spp` samples (or iterations).
     pub(crate) fn scene(name: &str, spp: u32) -> SceneDesc {

@@ -87,22 +87,8 @@ impl PassPlan {
             (TaskKind::GlobalPhotons, self.settings.photons),
             (TaskKind::CausticPhotons, self.settings.caustic_photons),
         ] {
-            let mut start = 0;
-            while start < count {
-                let end = start.saturating_add(PHOTONS_PER_TASK).min(count);
-                out.push(TaskSpec {
-                    kind,
-                    frame: 0,
-                    tile_index: out.len() as u32,
-                    x0: 0,
-                    y0: 0,
-                    x1: 0,
-                    y1: 0,
-                    sample_start: start,
-                    sample_end: end,
-                });
-                start = end;
-            }
+            let first = out.len() as u32;
+            out.extend(TaskSpec::index_ranges(kind, count, PHOTONS_PER_TASK, first));
         }
         out
     }

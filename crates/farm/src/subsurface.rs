@@ -59,24 +59,8 @@ pub fn key(desc: &SceneDesc) -> String {
 impl SubsurfacePlan {
     /// Index ranges of [`POINTS_PER_TASK`] points, in merge order.
     pub fn tasks(&self) -> Vec<TaskSpec> {
-        let mut out = Vec::new();
-        let mut start = 0;
-        while start < self.points {
-            let end = start.saturating_add(POINTS_PER_TASK).min(self.points);
-            out.push(TaskSpec {
-                kind: TaskKind::SubsurfacePoints,
-                frame: 0,
-                tile_index: out.len() as u32,
-                x0: 0,
-                y0: 0,
-                x1: 0,
-                y1: 0,
-                sample_start: start,
-                sample_end: end,
-            });
-            start = end;
-        }
-        out
+        TaskSpec::index_ranges(TaskKind::SubsurfacePoints, self.points, POINTS_PER_TASK, 0)
+            .collect()
     }
 }
 
