@@ -1,7 +1,7 @@
 //! Speed against error: a scene rendered with each integrator at increasing budgets, each
-//! checkpoint compared with a reference. One progressive render per integrator: the image at a
-//! checkpoint of N samples is bit-identical to a fresh N-sample render, and the time to reach it
-//! is the render time so far.
+//! checkpoint compared with a reference. One progressive render per integrator and seed: the
+//! image at a checkpoint of N samples is bit-identical to a fresh N-sample render, and the time
+//! to reach it is the render time so far.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
