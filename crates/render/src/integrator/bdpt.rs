@@ -365,24 +365,22 @@ impl<'a> Ctx<'a> {
     }
 
     /// How much likelier light sampling (strategy s = 1) makes emitter vertex `v` from `from`
-    /// than a light subpath starting there: the ratio of the two densities of `v` per unit
-    /// area (the light's choice, the same in both, cancels). A sphere is sampled by the cone
+    /// than a light subpath starting there, whose density of `v` per unit area (with the
+    /// light's choice) is `start` — a light subpath's `pdf_fwd`, `pdf_le`'s first. A sphere is sampled by the cone
     /// it subtends (from 30 radii away the ratio is ≈ 4 cos θ at the light); a triangle by
     /// area (1); delta lights and lights at infinity start light subpaths as light sampling
     /// picks them (1). MIS weighs s = 1 by this density, as SmallVCM does; pbrt's BDPT takes
     /// the subpath's start for it, which undervalues a sphere's light sampling against light
     /// tracing and merging.
-    pub(super) fn nee_ratio(&self, v: &Vertex, from: &Vertex) -> f32 {
+    pub(super) fn nee_ratio(&self, v: &Vertex, from: &Vertex, start: f32) -> f32 {
         if v.infinite {
             return 1.0;
         }
-        let Some((_, light)) = self.light_of(v) else {
+        let Some((i, light)) = self.light_of(v) else {
             return 1.0;
         };
-        let w = (from.p - v.p).normalize_or_zero();
-        let (pos, _) = light.pdf_le(v.ng, w, self.bounds);
         let nee = from.convert_density(light.pdf_li_surface(from.p, v.p, v.ng), v);
-        nee_over_start(nee, pos)
+        nee_over_start(nee * self.scene.lights.pmf(i), start)
     }
 
     /// Radiance an emitter vertex sends toward `to` (from a light at infinity: every
@@ -598,7 +596,7 @@ impl<'a> Ctx<'a> {
             stats,
         );
         if let [z0, z1, ..] = &mut path[..] {
-            z0.nee = self.nee_ratio(z0, z1);
+            z0.nee = self.nee_ratio(z0, z1, z0.pdf_fwd);
         }
     }
 
@@ -712,7 +710,7 @@ impl<'a> Ctx<'a> {
         let k2 = |v: &Vertex| v.nee * v.nee;
         // (s = 0: the emitter the camera path hit; its s = 1 term is the first below.)
         let hit_k2 = match (s, pt_minus) {
-            (0, Some(m)) => self.nee_ratio(pt, m).powi(2),
+            (0, Some(m)) => self.nee_ratio(pt, m, emitted.0).powi(2),
             _ => 1.0,
         };
         let mut ri = 1.0f32;

@@ -1097,7 +1097,7 @@ mod tests {
                 for merge in [0.0, 1e-2, 1.0, 1e2, 1e4] {
                     let w = if s == 1 {
                         let mut v = work.y[0];
-                        v.nee = ctx.nee_ratio(&v, &work.eye[t - 1]);
+                        v.nee = ctx.nee_ratio(&v, &work.eye[t - 1], v.pdf_fwd);
                         ctx.mis_weight(&work.y, &work.eye, Some(&v), s, t, merge, None)
                     } else {
                         let mut sampler = MltSampler::independent(i);
@@ -1164,7 +1164,7 @@ mod tests {
         let ln = |v: &[f64]| v.iter().map(|p| p.ln()).sum::<f64>();
         // Strategy s = 1 picks x_0 by light sampling (BDPT's `nee_ratio` times the density of
         // a light subpath's start).
-        let nee = (ctx.nee_ratio(&x[0], &x[1]) as f64).ln();
+        let nee = (ctx.nee_ratio(&x[0], &x[1], e.pa_fwd[0] as f32) as f64).ln();
         let lp = |s: usize| ln(&e.pa_fwd[..s]) + ln(&rev[s..k]) + if s == 1 { nee } else { 0.0 };
         let own = lp(s);
         let term = |l: f64| (2.0 * (l - own)).exp();

@@ -441,9 +441,9 @@ fn sq(v: f32) -> f32 {
 /// z_{j−1} not specular] (p←(z_{j−1}) M)² + (p←(z_{j−1}) / p→(z_{j−1}))² T_{j−1}, with k_1 the
 /// square of z_0's [`Ctx::nee_ratio`] (P_1 picks z_0 by light sampling) and k_j = 1 after.
 /// Here q = p g with p the camera vertex's BSDF density (solid angle) of y's incoming
-/// direction and g the conversion to area at z_{i−1}, known now, so b holds g². Specular vertices carry the delta
-/// convention of [`super::bdpt::Ctx::delta_lobe`], so the chain S D S of a caustic seen
-/// through glass weighs right.
+/// direction and g the conversion to area at z_{i−1}, known now, so b holds g². Specular
+/// vertices carry the delta convention of [`super::bdpt::Ctx::delta_lobe`], so the chain
+/// S D S of a caustic seen through glass weighs right.
 fn push_light_refs(ctx: &Ctx, path: &[Vertex], merge: f32, refs: &mut Vec<LightRef>) {
     let Some(first) = path.first() else {
         return;
