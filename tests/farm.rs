@@ -10,7 +10,6 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use tessera_farm::client::Client;
-use tessera_farm::job::TaskKind;
 use tessera_farm::protocol::{JobState, JobStatus};
 
 const CLIENT_TOKEN: &str = "client-secret";
@@ -425,19 +424,19 @@ fn an_adaptive_job_adds_rounds_and_equals_an_adaptive_render() {
     );
 }
 
-/// Status of a job's pass: (state, built by).
-fn pass(job: &JobStatus, kind: tessera_farm::job::PassKind) -> (String, Option<i64>, String) {
+/// Status of a job's pass: (state, built by, key).
+fn pass(job: &JobStatus, name: &str) -> (String, Option<i64>, String) {
     let p = job
         .passes
         .iter()
-        .find(|p| p.kind == kind)
-        .unwrap_or_else(|| panic!("no {kind:?} pass in {:?}", job.passes));
+        .find(|p| p.name == name)
+        .unwrap_or_else(|| panic!("no {name} pass in {:?}", job.passes));
     (p.state.clone(), p.built_by, p.key.clone())
 }
 
 #[test]
 fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_changes() {
-    use tessera_farm::job::PassKind::{Photons, Records};
+    let (photons, records) = ("photons", "irradiance_cache");
     let dir = tempfile::tempdir().expect("temp dir");
     // A copy of the Cornell box whose material we can change.
     let scene_dir = dir.path().join("cornell");
@@ -465,9 +464,9 @@ fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_chan
 
     // First job: both passes built here, and the frame equals tessera render's.
     let first = submit();
-    let (state, by, photons_key) = pass(&first, Photons);
+    let (state, by, photons_key) = pass(&first, photons);
     assert_eq!((state.as_str(), by), ("built", Some(first.id)));
-    assert_eq!(pass(&first, Records).0, "built");
+    assert_eq!(pass(&first, records).0, "built");
     let farm = rt.block_on(client.frame_exr(first.id, 1)).expect("frame");
     let local = render_locally(&scene, &args, &dir.path().join("local.exr"));
     assert!(
@@ -478,11 +477,11 @@ fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_chan
     // The same scene again: nothing to build, only tiles; the same image.
     let again = submit();
     assert_eq!(
-        pass(&again, Photons),
+        pass(&again, photons),
         ("reused".into(), Some(first.id), photons_key.clone())
     );
-    assert_eq!(pass(&again, Records).0, "reused");
-    assert_eq!(again.tasks.total, 1, "one 32×32 tile, no pass tasks");
+    assert_eq!(pass(&again, records).0, "reused");
+    assert_eq!(again.tasks.total, 2, "one 32×32 tile and its AOVs, no pass tasks");
     assert!(rt.block_on(client.frame_exr(again.id, 1)).expect("frame") == farm);
 
     // One material changed: a new key, both passes built by the new job.
@@ -491,10 +490,10 @@ fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_chan
     assert_ne!(changed, text, "the red wall's albedo is in the scene");
     std::fs::write(&scene, changed).expect("write");
     let repainted = submit();
-    let (state, by, key) = pass(&repainted, Photons);
+    let (state, by, key) = pass(&repainted, photons);
     assert_eq!((state.as_str(), by), ("built", Some(repainted.id)));
     assert_ne!(key, photons_key);
-    assert_eq!(pass(&repainted, Records).0, "built");
+    assert_eq!(pass(&repainted, records).0, "built");
     assert!(
         rt.block_on(client.frame_exr(repainted.id, 1))
             .expect("frame")
@@ -512,7 +511,8 @@ fn an_sppm_job_runs_its_iterations_as_tasks_survives_a_restart_and_equals_tesser
     let rt = runtime();
     let client = Client::new(&url, CLIENT_TOKEN).expect("client");
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-glass/scene.json");
-    // 8 iterations of the default 200 000 photons: 8 photon tasks per iteration.
+    // 8 iterations of the default 200 000 photons: a camera task and 8 photon tasks per
+    // iteration, and the frame's AOVs.
     let args = ["--integrator", "sppm", "--size", "48x40", "--spp", "8"];
     let id = submit_scene(&url, &scene, &args);
 
@@ -531,7 +531,7 @@ fn an_sppm_job_runs_its_iterations_as_tasks_survives_a_restart_and_equals_tesser
     let before = rt.block_on(client.job(id)).expect("job");
     assert!(!before.state.is_final(), "the job finished before the kill");
     // Progress counts the iterations not queued yet.
-    assert_eq!(before.tasks.planned, 8 * 8);
+    assert_eq!(before.tasks.planned, 8 * 9 + 1);
     assert!(before.progress < 1.0, "{}", before.progress);
     serve1.0.kill().expect("SIGKILL the coordinator");
     let _ = serve1.0.wait();
@@ -541,7 +541,7 @@ fn an_sppm_job_runs_its_iterations_as_tasks_survives_a_restart_and_equals_tesser
 
     let job = wait_for(&rt, &client, id, Duration::from_secs(180));
     assert_eq!(job.state, JobState::Done, "{:?}", job.error);
-    assert_eq!(job.tasks.total, 8 * 8, "8 iterations of 8 photon tasks");
+    assert_eq!(job.tasks.total, 8 * 9 + 1, "8 iterations of 9 tasks, and the AOVs");
     assert!(
         job.decisions
             .iter()
@@ -578,19 +578,27 @@ fn whole_film_jobs_are_split_into_tasks_and_bit_identical_on_one_worker_and_on_t
         })
         .collect();
     // BDPT and VCM: 10 samples (VCM: iterations) in tasks of 3: 0-3, 3-6, 6-9, 9-10 over the
-    // film. PSSMLT and MLT: 10 mutations per pixel, a task per group of chains.
+    // film. PSSMLT and MLT: direct light the same way, and a task per group of chains.
     for (integrator, total, said) in [
         ("bdpt", 4, "light tracing splats anywhere"),
-        ("vcm", 4, "light tracing splats anywhere"),
-        ("pssmlt", 8, "Markov chains wander over the whole film"),
-        ("mlt", 8, "Markov chains wander over the whole film"),
+        ("vcm", 4, "light tracing splats and merges reach the whole film"),
+        ("pssmlt", 12, "Markov chains wander over the whole film"),
+        ("mlt", 12, "Markov chains wander over the whole film"),
     ] {
-        let args = ["--integrator", integrator, "--size", "40x32", "--spp", "10"];
+        let args = [
+            "--integrator",
+            integrator,
+            "--size",
+            "40x32",
+            "--spp",
+            "10",
+            "--samples-per-task",
+            "3",
+        ];
         let mut frames = Vec::new();
         for (workers, _, url, _) in &farms {
             let client = Client::new(url, CLIENT_TOKEN).expect("client");
-            let mut submit_args = args.to_vec();
-            submit_args.extend(["--samples-per-task", "3"]);
+            let submit_args = args.to_vec();
             // With two workers, a job counts only if both rendered some of it (a worker
             // still starting may miss a short job: submit again).
             for attempt in 0.. {
@@ -598,18 +606,16 @@ fn whole_film_jobs_are_split_into_tasks_and_bit_identical_on_one_worker_and_on_t
                 let id = submit_scene(url, &scene, &submit_args);
                 let job = wait_for(&rt, &client, id, Duration::from_secs(120));
                 assert_eq!(job.state, JobState::Done, "{:?}", job.error);
-                assert_eq!(
-                    job.tasks.total, total,
-                    "{integrator}: tasks over the whole film"
-                );
+                let tasks = rt.block_on(client.tasks(id)).expect("tasks");
+                let film: Vec<_> = tasks.iter().filter(|t| t.spec.kind != "aov").collect();
+                assert_eq!(film.len(), total, "{integrator}: tasks over the whole film");
+                assert!(film.iter().all(|t| (t.spec.x1, t.spec.y1) == (40, 32)));
                 let said = format!("{integrator}: {said}");
                 assert!(
                     job.decisions.iter().any(|d| d.starts_with(&said)),
                     "{:?}",
                     job.decisions
                 );
-                let tasks = rt.block_on(client.tasks(id)).expect("tasks");
-                assert!(tasks.iter().all(|t| t.spec.kind == TaskKind::Bdpt));
                 let used: std::collections::HashSet<_> =
                     tasks.iter().filter_map(|t| t.worker.clone()).collect();
                 if used.len() == *workers {
@@ -629,4 +635,108 @@ fn whole_film_jobs_are_split_into_tasks_and_bit_identical_on_one_worker_and_on_t
             "{integrator}: the farm's frame differs from tessera render's"
         );
     }
+}
+
+/// Bytes of the files under `dir`.
+fn disk_use(dir: &Path) -> u64 {
+    std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .flatten()
+                .map(|e| match e.file_type() {
+                    Ok(t) if t.is_dir() => disk_use(&e.path()),
+                    _ => e.metadata().map_or(0, |m| m.len()),
+                })
+                .sum()
+        })
+        .unwrap_or(0)
+}
+
+#[test]
+fn every_method_renders_through_local_workers_as_tessera_render_does_and_leaves_only_its_output() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let data = dir.path().join("data");
+    let (_serve, url) = serve_with(&data, "127.0.0.1:0", "30", &["--local-workers", "2"]);
+    let rt = runtime();
+    let client = Client::new(&url, CLIENT_TOKEN).expect("client");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
+    let mut ids = Vec::new();
+    let mut output = 0u64;
+    for method in tessera_render::method::names() {
+        let args = ["--integrator", method, "--size", "96x72", "--spp", "2"];
+        let out = dir.path().join(method);
+        let o = Command::new(exe())
+            .arg("submit")
+            .arg(&scene)
+            .args(["--coordinator", &url, "--token", CLIENT_TOKEN, "--wait", "-q", "-o"])
+            .arg(&out)
+            .args(args)
+            .output()
+            .expect("run tessera submit");
+        assert!(o.status.success(), "{method}: {}", String::from_utf8_lossy(&o.stderr));
+        let id: i64 = String::from_utf8_lossy(&o.stdout)
+            .split_whitespace()
+            .nth(1)
+            .and_then(|id| id.parse().ok())
+            .expect("job id");
+        let farm = std::fs::read(out.join("frame_0001.exr")).expect("downloaded frame");
+        let local = render_locally(&scene, &args, &dir.path().join(format!("{method}.exr")));
+        assert!(farm == local, "{method}: the farm's frame differs from tessera render's");
+        let png = rt.block_on(client.frame_preview(id, 1)).expect("preview");
+        output += (farm.len() + png.len()) as u64;
+        ids.push(id);
+    }
+    // Disk is reclaimed: once the frames are written, the data directory holds them, the
+    // store and the bundle, and the artifact cache.
+    let cache = disk_use(&data.join("cache"));
+    let used = disk_use(&data) - cache;
+    assert!(
+        (used as f64) <= 1.5 * output as f64,
+        "data directory {used} bytes besides the cache's {cache}, for {output} bytes of frames"
+    );
+    // Deleted jobs leave nothing of theirs.
+    for id in &ids {
+        let o = Command::new(exe())
+            .args(["delete", &id.to_string(), "--coordinator", &url, "--token", CLIENT_TOKEN])
+            .output()
+            .expect("run tessera delete");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert_eq!(disk_use(&data.join("jobs")), 0, "files of deleted jobs remain");
+    assert_eq!(disk_use(&data.join("bundles")), 0, "the bundle of deleted jobs remains");
+    assert!(rt.block_on(client.job(ids[0])).is_err());
+}
+
+#[test]
+fn a_capped_cache_evicts_artifacts_that_no_running_job_reads_and_old_jobs_expire() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let data = dir.path().join("data");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
+    let args = ["--integrator", "photon", "--size", "32x32", "--spp", "2"];
+    let rt = runtime();
+    let first = {
+        // A cache of 0 bytes keeps an artifact only while a job reads it.
+        let (_serve, url) = serve_with(&data, "127.0.0.1:0", "30", &["--local-workers", "1", "--cache-max-gib", "0"]);
+        let client = Client::new(&url, CLIENT_TOKEN).expect("client");
+        let mut built_by = Vec::new();
+        for _ in 0..2 {
+            let id = submit_scene(&url, &scene, &args);
+            let job = wait_for(&rt, &client, id, Duration::from_secs(120));
+            assert_eq!(job.state, JobState::Done, "{:?}", job.error);
+            assert_eq!(pass(&job, "photons").0, "built", "evicted, so built again");
+            built_by.push(id);
+        }
+        assert_eq!(disk_use(&data.join("cache")), 0, "artifacts outlived their jobs");
+        built_by
+    };
+    // A coordinator that keeps finished jobs for a millisecond deletes them when it starts.
+    std::thread::sleep(Duration::from_millis(50));
+    let (_serve, url) = serve_with(&data, "127.0.0.1:0", "30", &["--retain-days", "0.00000001"]);
+    let client = Client::new(&url, CLIENT_TOKEN).expect("client");
+    let start = Instant::now();
+    while first.iter().any(|&id| rt.block_on(client.job(id)).is_ok()) {
+        assert!(start.elapsed() < Duration::from_secs(30), "the old jobs were kept");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert_eq!(disk_use(&data.join("jobs")), 0);
 }

@@ -62,25 +62,23 @@ impl Bundle {
         Ok(Bundle { files })
     }
 
-    /// Packs the files into a deterministic tar archive.
-    pub fn to_tar(&self) -> Vec<u8> {
+    /// Packs the files into a deterministic tar archive (GNU headers: paths of any length);
+    /// a file that cannot be packed is an error naming it, never left out.
+    pub fn to_tar(&self) -> Result<Vec<u8>, String> {
         let mut builder = tar::Builder::new(Vec::new());
         for (path, data) in &self.files {
-            let mut header = tar::Header::new_ustar();
+            let mut header = tar::Header::new_gnu();
             header.set_size(data.len() as u64);
             header.set_mode(0o644);
             header.set_mtime(0);
             header.set_entry_type(tar::EntryType::Regular);
-            // Paths come from `confine`, so they are relative and valid UTF-8 on every
-            // platform we read them on.
-            if builder
+            builder
                 .append_data(&mut header, path, data.as_slice())
-                .is_err()
-            {
-                continue;
-            }
+                .map_err(|e| format!("cannot pack {} into the scene bundle: {e}", path.display()))?;
         }
-        builder.into_inner().unwrap_or_default()
+        builder
+            .into_inner()
+            .map_err(|e| format!("cannot finish the scene bundle: {e}"))
     }
 
     /// Loads and validates the scene file `scene` of this bundle.
@@ -167,11 +165,30 @@ mod tests {
             bundle.files.keys()
         );
         assert!(!bundle.files.keys().any(|k| k.ends_with("reference.exr")));
-        let tar = bundle.to_tar();
-        assert_eq!(hash(&tar), hash(&bundle.to_tar()), "deterministic");
+        let tar = bundle.to_tar().expect("packs");
+        assert_eq!(hash(&tar), hash(&bundle.to_tar().expect("packs")), "deterministic");
         let back = Bundle::from_tar(&tar).expect("unpack");
         let again = back.load(&name).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(again.meshes.len(), desc.meshes.len());
+    }
+
+    #[test]
+    fn long_paths_are_packed_and_a_missing_file_is_named() {
+        let long = format!("{}/mesh.obj", "deep/".repeat(40));
+        let bundle = Bundle {
+            files: [(PathBuf::from(&long), b"v 0 0 0\n".to_vec())].into(),
+        };
+        let back = Bundle::from_tar(&bundle.to_tar().expect("packs")).expect("unpacks");
+        assert!(back.files.contains_key(Path::new(&long)), "{:?}", back.files.keys());
+        // A scene naming a file its bundle lacks is refused with that file's name.
+        let scene = r#"{ "units": "m", "camera": { "type": "pinhole", "position": [0, 0, -3], "look_at": [0, 0, 0], "fov_deg": 40 },
+            "film": { "width": 8, "height": 8 }, "materials": { "m": { "type": "diffuse", "albedo": 0.5 } },
+            "shapes": [ { "type": "mesh", "file": "gone.obj", "material": "m" } ] }"#;
+        let bundle = Bundle {
+            files: [(PathBuf::from("scene.json"), scene.as_bytes().to_vec())].into(),
+        };
+        let e = bundle.load("scene.json").unwrap_err().to_string();
+        assert!(e.contains("gone.obj") && e.contains("shapes[0].file"), "{e}");
     }
 
     #[test]

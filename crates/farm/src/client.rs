@@ -80,21 +80,9 @@ impl Client {
         Ok(r.bytes().await?.to_vec())
     }
 
-    pub async fn download_artifact(&self, key: &str) -> anyhow::Result<Vec<u8>> {
-        let r =
-            Self::send(self.request(reqwest::Method::GET, &format!("/v1/artifacts/{key}"))).await?;
-        Ok(r.bytes().await?.to_vec())
-    }
-
-    /// The squared radii iteration `t` of an SPPM frame gathers within.
-    pub async fn download_sppm_radii(
-        &self,
-        job: i64,
-        frame: u32,
-        t: u32,
-    ) -> anyhow::Result<Vec<u8>> {
-        let path = format!("/v1/jobs/{job}/frames/{frame}/sppm/{t}/radii");
-        let r = Self::send(self.request(reqwest::Method::GET, &path)).await?;
+    /// The body of a GET of `path` (an artifact, a step's input).
+    pub async fn get_bytes(&self, path: &str) -> anyhow::Result<Vec<u8>> {
+        let r = Self::send(self.request(reqwest::Method::GET, path)).await?;
         Ok(r.bytes().await?.to_vec())
     }
 
@@ -161,23 +149,40 @@ impl Client {
         Ok(())
     }
 
+    /// Streams a task's result (a wire stream in the file at `path`) to the coordinator.
     pub async fn upload_result(
         &self,
         task: i64,
         lease: i64,
         seconds: f64,
-        body: Vec<u8>,
+        path: &std::path::Path,
     ) -> anyhow::Result<()> {
+        let file = tokio::fs::File::open(path)
+            .await
+            .with_context(|| path.display().to_string())?;
+        let len = file.metadata().await?.len();
+        let body = reqwest::Body::wrap_stream(tokio_util::io::ReaderStream::new(file));
         Self::send(
             self.request(
                 reqwest::Method::PUT,
                 &format!("/v1/tasks/{task}/result?lease={lease}&seconds={seconds}"),
             )
             .header("content-type", "application/octet-stream")
+            .header("content-length", len)
             .body(body),
         )
         .await?;
         Ok(())
+    }
+
+    /// Deletes a job that has ended.
+    pub async fn delete(&self, id: i64) -> anyhow::Result<()> {
+        Self::send(self.request(reqwest::Method::DELETE, &format!("/v1/jobs/{id}"))).await?;
+        Ok(())
+    }
+
+    pub async fn methods(&self) -> anyhow::Result<Vec<MethodStatus>> {
+        Self::json(self.request(reqwest::Method::GET, "/v1/methods")).await
     }
 
     pub async fn fail(&self, task: i64, failure: &Failure) -> anyhow::Result<()> {

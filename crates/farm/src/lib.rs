@@ -1,17 +1,12 @@
-//! The Tessera render farm: how an image is made from a job (`job`), the wire protocol and
-//! codecs shared by coordinator, workers and clients, the coordinator (HTTP API, SQLite job
-//! store, scheduler, stitcher), the worker loop and the client.
+//! The Tessera render farm: a job's settings and plan (`job`), the wire protocol shared by
+//! coordinator, workers and clients, the coordinator (HTTP API, SQLite job store, scheduler,
+//! the fold of results into frames), the worker loop and the client. The farm moves the
+//! core's tasks, results and artifacts without knowing one rendering method from another.
 
-pub mod bdpt;
 pub mod bundle;
 pub mod client;
-pub mod codec;
 pub mod coordinator;
 pub mod job;
-pub mod passes;
-pub mod progressive;
 pub mod protocol;
-pub mod sppm;
 pub mod store;
-pub mod subsurface;
 pub mod worker;

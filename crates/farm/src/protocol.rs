@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::job::{FrameRange, PassKind, RenderSettings, TaskSpec};
+use crate::job::{FrameRange, RenderSettings, TaskSpec};
 
 /// An error, as every 4xx/5xx response carries it.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
@@ -108,6 +108,8 @@ pub struct FrameStatus {
     pub frame: u32,
     /// queued, running, done.
     pub state: String,
+    /// The step it is at (an adaptive round, an SPPM iteration).
+    pub step: u32,
     pub tasks_done: u64,
     pub tasks_total: u64,
     /// Where to download the finished EXR (relative URL), once done.
@@ -130,6 +132,8 @@ pub struct JobStatus {
     pub finished_ms: Option<i64>,
     pub bundle: String,
     pub scene: String,
+    /// The rendering method that runs (for `auto`, the one it chose).
+    pub method: String,
     pub frames: FrameRange,
     pub settings: RenderSettings,
     pub width: u32,
@@ -153,7 +157,8 @@ pub struct JobStatus {
 /// A pass of a job and the artifact it makes or reuses.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 pub struct PassStatus {
-    pub kind: PassKind,
+    /// The pass's name (`photons`, `irradiance_cache`, `subsurface`).
+    pub name: String,
     /// The artifact's key: a hash of everything that determines it.
     pub key: String,
     /// `reused` (an artifact with this key was cached), `waiting`, `running` or `built`.
@@ -164,12 +169,15 @@ pub struct PassStatus {
     pub built_by: Option<i64>,
     /// Size of the artifact, bytes.
     pub bytes: Option<u64>,
+    /// What the pass built (counts, sizes), once built.
+    pub summary: Option<String>,
 }
 
 /// An artifact a task reads (download with `GET /v1/artifacts/{key}`).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 pub struct ArtifactRef {
-    pub kind: PassKind,
+    /// The pass that builds it.
+    pub pass: String,
     pub key: String,
 }
 
@@ -186,6 +194,10 @@ pub struct TaskStatus {
     pub worker: Option<String>,
     /// Seconds the accepted result took to render.
     pub seconds: Option<f64>,
+    /// Bytes of the accepted result as uploaded (compressed), and of its payload before
+    /// compression.
+    pub result_bytes: Option<u64>,
+    pub payload_bytes: Option<u64>,
     pub error: Option<String>,
 }
 
@@ -232,6 +244,10 @@ pub struct LeaseGrant {
     /// Artifacts the task reads, by key.
     #[serde(default)]
     pub artifacts: Vec<ArtifactRef>,
+    /// Where to download what the task's step reads besides the artifacts (relative URL), if
+    /// the step has an input.
+    #[serde(default)]
+    pub input: Option<String>,
 }
 
 /// A worker renewing its lease.
@@ -268,4 +284,15 @@ pub struct WorkerStatus {
     pub tasks_done: u64,
     /// Tasks it holds a lease on now.
     pub leased_tasks: Vec<i64>,
+}
+
+/// A rendering method, as the registry lists it.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct MethodStatus {
+    pub name: String,
+    pub summary: String,
+    /// What `spp` counts for it.
+    pub spp: String,
+    /// Scene settings (`integrator.…`) it reads besides spp, depth and seed.
+    pub params: Vec<String>,
 }

@@ -1,59 +1,61 @@
-//! The worker loop: lease a task, render it with the core, heartbeat while it runs, upload the
-//! result. Scenes are cached per job, so a job's bundle is downloaded and its BVH built once
-//! per worker, not once per tile; so are the pass artifacts (photon maps, irradiance records)
-//! a job's tasks name. Workers keep no state that matters: any worker may run any task, and a
-//! task may run twice.
+//! The worker loop: lease a task, run it with its method's plan, heartbeat while it runs,
+//! stream the result back. A job's bundle is downloaded, its scene built and its method
+//! planned once per worker, not once per task; so are the artifacts and step inputs its tasks
+//! read. Workers keep no state that matters: any worker may run any task, and a task may run
+//! twice. Nothing here knows one rendering method from another.
 
+use std::collections::HashMap;
+use std::io::BufWriter;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering::Relaxed};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
+use tessera_render::Scene;
+use tessera_render::method::{LoadFn, Loaded, Plan, Resources, TaskCtx};
+use tessera_render::wire::Header;
+use tessera_scene::SceneDesc;
 use tokio::sync::OnceCell;
 
 use crate::bundle::Bundle;
 use crate::client::{Client, is_transient, status_of};
-use crate::codec;
-use crate::job::{self, FrameRange, Limits, PassKind, Prepared, TaskKind};
-use crate::passes;
+use crate::job::{self, FrameRange, Limits};
 use crate::protocol::{Failure, Heartbeat, LeaseGrant, LeaseRequest, WorkerInfo};
-use crate::sppm;
-use tessera_render::Integrator;
-use tessera_render::integrator::PhotonIntegrator;
-use tessera_render::integrator::sppm::VisiblePoints;
-use tessera_render::photon::PhotonMaps;
 
 #[derive(Debug, Clone)]
 pub struct WorkerConfig {
     pub coordinator: String,
     pub token: String,
     pub name: String,
-    /// Tasks rendered at once (one thread each).
+    /// Tasks rendered at once (one thread each; a task over the whole film uses every core).
     pub slots: u32,
     /// Exit when this process is no longer our parent (started by `serve --local-workers`).
     pub parent_pid: Option<u32>,
 }
 
-/// Scenes kept, by job: the most recent few.
-const CACHED_JOBS: usize = 4;
+/// Jobs (scenes built) and downloads kept: the most recent few.
+const KEPT: usize = 4;
 
 /// Cells by key, least recently used first.
 type Cells<K, T> = Mutex<Vec<(K, Arc<OnceCell<T>>)>>;
+/// Values made once per process by key, least recently used first (blocking threads).
+type Made<K> = Mutex<Vec<(K, Arc<OnceLock<Result<Loaded, String>>>)>>;
 
-/// The cell for `key` in a small LRU list of cells (created empty if missing).
-fn cell_for<K: PartialEq, T>(list: &Cells<K, T>, key: K) -> Arc<OnceCell<T>> {
+/// The entry for `key` in a small LRU list (created if missing).
+fn entry<K: PartialEq, C: Default>(list: &Mutex<Vec<(K, Arc<C>)>>, key: K, keep: usize) -> Arc<C> {
     let mut list = list.lock().unwrap_or_else(|e| e.into_inner());
     match list.iter().position(|(k, _)| *k == key) {
         Some(i) => {
-            let entry = list.remove(i);
-            let cell = entry.1.clone();
-            list.push(entry);
+            let e = list.remove(i);
+            let cell = e.1.clone();
+            list.push(e);
             cell
         }
         None => {
-            let cell = Arc::new(OnceCell::new());
+            let cell = Arc::new(C::default());
             list.push((key, cell.clone()));
-            if list.len() > CACHED_JOBS {
+            if list.len() > keep {
                 list.remove(0);
             }
             cell
@@ -61,15 +63,8 @@ fn cell_for<K: PartialEq, T>(list: &Cells<K, T>, key: K) -> Arc<OnceCell<T>> {
     }
 }
 
-/// Forgets the cell for `key` (a failed initialisation is not cached).
-fn forget<K: PartialEq, T>(list: &Cells<K, T>, key: &K) {
-    list.lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .retain(|(k, _)| k != key);
-}
-
-/// The value for `key` in a small LRU list of cells, made by `init` once (concurrent callers
-/// wait for the first); a failed `init` is forgotten, so the next caller tries again.
+/// The value for `key`, made by `init` once (concurrent callers wait for the first); a failed
+/// `init` is forgotten, so the next caller tries again.
 async fn cached<K, T, F, Fut>(list: &Cells<K, T>, key: K, init: F) -> anyhow::Result<T>
 where
     K: PartialEq + Clone,
@@ -77,14 +72,23 @@ where
     F: FnOnce() -> Fut,
     Fut: std::future::Future<Output = anyhow::Result<T>>,
 {
-    let cell = cell_for(list, key.clone());
+    let cell = entry(list, key.clone(), KEPT);
     match cell.get_or_try_init(init).await {
         Ok(v) => Ok(v.clone()),
         Err(e) => {
-            forget(list, &key);
+            list.lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .retain(|(k, _)| *k != key);
             Err(e)
         }
     }
+}
+
+/// A job as a worker holds it: the scene with the job's settings, built, and its plan.
+struct Prepared {
+    desc: SceneDesc,
+    scene: Scene,
+    plan: Box<dyn Plan>,
 }
 
 struct Worker {
@@ -93,34 +97,64 @@ struct Worker {
     id: String,
     host: String,
     scene_builds: AtomicU64,
-    /// Scenes by job id, least recently used first; each built once (the cell).
-    cache: Cells<i64, Arc<Prepared>>,
-    /// Photon-mapping integrators by (job, artifact keys), built from downloaded artifacts.
-    integrators: Cells<(i64, String), Arc<PhotonIntegrator>>,
-    /// Decoded photon maps by artifact key.
-    maps: Cells<String, Arc<PhotonMaps>>,
-    /// Path tracers with a subsurface point cloud, by (job, artifact key).
-    clouds: Cells<(i64, String), Arc<dyn Integrator>>,
-    /// SPPM iterations' camera paths and radii by (job, frame, iteration): traced once per
-    /// worker, read by each of the iteration's chunks it runs.
-    sppm: Cells<(i64, u32, u32), Arc<SppmInputs>>,
+    /// Where results are written before they are streamed out.
+    tmp: PathBuf,
+    jobs: Cells<i64, Arc<Prepared>>,
+    /// Downloaded artifacts and step inputs (wire streams) by key.
+    downloads: Cells<String, Arc<Vec<u8>>>,
+    /// Artifacts and step inputs loaded from their streams, by key.
+    loaded: Made<String>,
+    /// Values shared by a step's tasks, by (job, frame, step, name).
+    memos: Made<(i64, u32, u32, String)>,
 }
 
-/// What every task of one SPPM iteration reads.
-struct SppmInputs {
-    points: VisiblePoints,
-    /// Squared gathering radius per pixel.
-    r2: Vec<f32>,
+/// What a task reads, for the core.
+struct TaskResources<'a> {
+    worker: &'a Worker,
+    grant: &'a LeaseGrant,
+    /// This task's downloads: artifacts by key, and the step's input.
+    artifacts: HashMap<String, Arc<Vec<u8>>>,
+    input: Option<(String, Arc<Vec<u8>>)>,
 }
 
-/// What a task reads besides its scene.
-enum Inputs {
-    None,
-    /// The photon-mapping integrator built from the job's artifacts.
-    Photon(Arc<PhotonIntegrator>),
-    /// The path tracer with the point cloud built from the job's artifact.
-    Clouds(Arc<dyn Integrator>),
-    Sppm(Arc<SppmInputs>),
+fn load_once(
+    list: &Made<String>,
+    key: &str,
+    bytes: Option<&Arc<Vec<u8>>>,
+    load: LoadFn,
+) -> Result<Loaded, String> {
+    let cell = entry(list, key.to_string(), KEPT);
+    cell.get_or_init(|| {
+        let bytes = bytes.ok_or_else(|| format!("{key} was not downloaded for this task"))?;
+        load(&mut bytes.as_slice())
+    })
+    .clone()
+}
+
+impl Resources for TaskResources<'_> {
+    fn artifact(&self, key: &str, load: LoadFn) -> Result<Loaded, String> {
+        load_once(&self.worker.loaded, key, self.artifacts.get(key), load)
+    }
+
+    fn input(&self, load: LoadFn) -> Result<Loaded, String> {
+        let (key, bytes) = self
+            .input
+            .as_ref()
+            .ok_or("the task's step has no input (the coordinator sent none)")?;
+        load_once(&self.worker.loaded, key, Some(bytes), load)
+    }
+
+    fn memo(
+        &self,
+        name: &str,
+        make: &dyn Fn() -> Result<Loaded, String>,
+    ) -> Result<Loaded, String> {
+        let t = &self.grant.task;
+        let key = (self.grant.job_id, t.frame, t.step, name.to_string());
+        entry(&self.worker.memos, key, 2)
+            .get_or_init(make)
+            .clone()
+    }
 }
 
 pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
@@ -131,16 +165,18 @@ pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
         config.name,
         &crate::coordinator::random_token()?[..8]
     );
+    let tmp = std::env::temp_dir().join(format!("tessera-worker-{id}"));
+    std::fs::create_dir_all(&tmp).with_context(|| tmp.display().to_string())?;
     let worker = Arc::new(Worker {
         client,
         id,
         host,
         scene_builds: AtomicU64::new(0),
-        cache: Mutex::new(Vec::new()),
-        integrators: Mutex::new(Vec::new()),
-        maps: Mutex::new(Vec::new()),
-        clouds: Mutex::new(Vec::new()),
-        sppm: Mutex::new(Vec::new()),
+        tmp,
+        jobs: Mutex::new(Vec::new()),
+        downloads: Mutex::new(Vec::new()),
+        loaded: Mutex::new(Vec::new()),
+        memos: Mutex::new(Vec::new()),
         config,
     });
     tracing::info!(worker = %worker.id, coordinator = %worker.config.coordinator, slots = worker.config.slots, "worker started");
@@ -184,45 +220,6 @@ fn watch_parent(parent: u32) {
 
 #[cfg(not(unix))]
 fn watch_parent(_parent: u32) {}
-
-/// Runs one task: a tile with the job's integrator (the photon one when given), a pass, or an
-/// SPPM chunk.
-fn run_spec(prepared: &Prepared, inputs: &Inputs, spec: &job::TaskSpec) -> Result<Vec<u8>, String> {
-    let photon = match inputs {
-        Inputs::Photon(p) => Some(p.as_ref()),
-        _ => None,
-    };
-    match spec.kind {
-        TaskKind::Sppm => {
-            let Inputs::Sppm(i) = inputs else {
-                return Err("an sppm task without its iteration's radii".into());
-            };
-            Ok(sppm::encode_output(&sppm::execute(
-                prepared, &i.points, &i.r2, spec,
-            )?))
-        }
-        TaskKind::Bdpt => {
-            let (sums, stats) = crate::bdpt::execute(prepared, spec)?;
-            Ok(crate::bdpt::encode_output(&sums, &stats))
-        }
-        TaskKind::Tile => {
-            let integrator: &dyn tessera_render::Integrator = match (photon, inputs) {
-                (Some(p), _) => p,
-                (None, Inputs::Clouds(i)) => i.as_ref(),
-                (None, _) => prepared
-                    .integrator()
-                    .ok_or("a tile task without its pass artifacts")?,
-            };
-            let camera = prepared.camera(spec.frame);
-            Ok(codec::encode(
-                &prepared.execute_using(integrator, &camera, spec),
-            ))
-        }
-        _ => Ok(passes::encode_output(&passes::execute(
-            prepared, photon, spec,
-        )?)),
-    }
-}
 
 /// Retries `f` while the coordinator is unreachable or answers 5xx, backing off up to 5 s,
 /// for at most `patience`.
@@ -275,41 +272,41 @@ impl Worker {
                     continue;
                 }
             };
-            self.run_task(grant).await;
+            self.clone().run_task(grant).await;
         }
     }
 
-    /// The scene of a job, loaded and built once per worker.
+    /// The scene and plan of a job, loaded, built and planned once per worker.
     async fn prepared(&self, grant: &LeaseGrant) -> anyhow::Result<Arc<Prepared>> {
-        cached(&self.cache, grant.job_id, || async {
+        cached(&self.jobs, grant.job_id, || async {
             let bytes = retrying("bundle download", Duration::from_secs(600), || {
                 self.client.download_bundle(&grant.bundle)
             })
             .await?;
-            // Pass tasks of photon maps have no frame: any of the job's frames will do
-            // to check the settings.
-            let (scene, settings, frame) = (
-                grant.scene.clone(),
-                grant.settings.clone(),
-                grant.task.frame.max(1),
-            );
+            let (scene, settings) = (grant.scene.clone(), grant.settings.clone());
+            let started = Instant::now();
             let prepared = tokio::task::spawn_blocking(move || -> anyhow::Result<Prepared> {
                 let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
                 let mut desc = bundle.load(&scene)?;
-                job::apply(
-                    &mut desc,
-                    &settings,
-                    FrameRange::single(frame),
-                    &Limits::default(),
-                )
-                .map_err(anyhow::Error::msg)?;
-                Ok(Prepared::scene_only(desc))
+                // The job's frames are the coordinator's to check; any of them plans alike.
+                let frames = FrameRange {
+                    first: 1,
+                    last: desc.frame_count(),
+                };
+                let plan = job::plan(&mut desc, &settings, frames, &Limits::default())
+                    .map_err(anyhow::Error::msg)?;
+                Ok(Prepared {
+                    scene: Scene::build(&desc),
+                    desc,
+                    plan,
+                })
             })
             .await??;
             self.scene_builds.fetch_add(1, Relaxed);
             tracing::info!(
                 job = grant.job_id,
-                build_s = prepared.build_seconds,
+                method = prepared.plan.method(),
+                build_s = started.elapsed().as_secs_f64(),
                 "scene loaded and built"
             );
             anyhow::Ok(Arc::new(prepared))
@@ -317,203 +314,111 @@ impl Worker {
         .await
     }
 
-    async fn download(&self, key: &str) -> anyhow::Result<Vec<u8>> {
-        retrying("artifact download", Duration::from_secs(600), || {
-            self.client.download_artifact(key)
-        })
-        .await
-    }
-
-    /// The photon maps with this key, downloaded and decoded once per worker (the record and
-    /// the tile stage of a job both read them).
-    async fn photon_maps(&self, key: &str) -> anyhow::Result<Arc<PhotonMaps>> {
-        cached(&self.maps, key.to_string(), || async {
-            let bytes = self.download(key).await?;
-            let maps = tokio::task::spawn_blocking(move || passes::decode_maps(&bytes))
-                .await?
-                .map_err(anyhow::Error::msg)?;
-            anyhow::Ok(Arc::new(maps))
-        })
-        .await
-    }
-
-    /// The photon-mapping integrator of a task's artifacts (maps, and records for tiles),
-    /// downloaded and decoded once per worker.
-    async fn photon_integrator(
-        &self,
-        grant: &LeaseGrant,
-        prepared: &Arc<Prepared>,
-    ) -> anyhow::Result<Arc<PhotonIntegrator>> {
-        let keys: Vec<&str> = grant.artifacts.iter().map(|a| a.key.as_str()).collect();
-        let id = (grant.job_id, keys.join(","));
-        cached(&self.integrators, id.clone(), || async {
-            let (mut maps, mut records) = (None, None);
-            for a in &grant.artifacts {
-                match a.kind {
-                    PassKind::Photons => maps = Some(self.photon_maps(&a.key).await?),
-                    PassKind::Records => records = Some(self.download(&a.key).await?),
-                    PassKind::Subsurface => {}
-                }
-            }
-            let prepared = prepared.clone();
-            let integ = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
-                let maps = maps.context("the task names no photon-map artifact")?;
-                let records = records
-                    .map(|b| passes::decode_records(&b))
-                    .transpose()
-                    .map_err(anyhow::Error::msg)?;
-                passes::integrator(&prepared, maps, records).map_err(anyhow::Error::msg)
+    /// A download (artifact or step input) by key, once per worker.
+    async fn download(&self, key: String, path: String) -> anyhow::Result<Arc<Vec<u8>>> {
+        cached(&self.downloads, key, || async {
+            let bytes = retrying("download", Duration::from_secs(600), || {
+                self.client.get_bytes(&path)
             })
-            .await??;
-            tracing::info!(job = grant.job_id, artifacts = %id.1, "pass artifacts loaded");
-            anyhow::Ok(Arc::new(integ))
+            .await?;
+            anyhow::Ok(Arc::new(bytes))
         })
         .await
     }
 
-    /// The path tracer of a tile task whose job has a subsurface point-cloud artifact,
-    /// downloaded and built once per worker.
-    async fn cloud_integrator(
-        &self,
-        grant: &LeaseGrant,
-        prepared: &Arc<Prepared>,
-    ) -> anyhow::Result<Arc<dyn Integrator>> {
-        let key = grant
-            .artifacts
-            .iter()
-            .find(|a| a.kind == PassKind::Subsurface)
-            .context("the task names no point-cloud artifact")?
-            .key
-            .clone();
-        cached(&self.clouds, (grant.job_id, key.clone()), || async {
-            let bytes = self.download(&key).await?;
-            let prepared = prepared.clone();
-            let integ = tokio::task::spawn_blocking(move || {
-                crate::subsurface::integrator(&prepared, &bytes)
-            })
-            .await?
-            .map_err(anyhow::Error::msg)?;
-            tracing::info!(job = grant.job_id, artifact = %key, "point cloud loaded");
-            anyhow::Ok(Arc::<dyn Integrator>::from(integ))
-        })
-        .await
-    }
-
-    /// An SPPM iteration's radii (downloaded; the initial ones for iteration 0) and camera
-    /// paths (traced here), once per worker.
-    async fn sppm_inputs(
-        &self,
-        grant: &LeaseGrant,
-        prepared: &Arc<Prepared>,
-    ) -> anyhow::Result<Arc<SppmInputs>> {
-        let (frame, t) = (grant.task.frame, grant.task.sample_start);
-        let id = (grant.job_id, frame, t);
-        cached(&self.sppm, id, || async {
-            let pixels = prepared.desc.film.width * prepared.desc.film.height;
-            let radii = if t == 0 {
-                None
-            } else {
-                Some(
-                    retrying("sppm radii download", Duration::from_secs(600), || {
-                        self.client.download_sppm_radii(grant.job_id, frame, t)
-                    })
-                    .await?,
-                )
+    /// Runs a task and writes its result to a file; returns the file.
+    async fn execute(self: &Arc<Self>, grant: &LeaseGrant) -> anyhow::Result<PathBuf> {
+        let prepared = self.prepared(grant).await.context("loading the scene")?;
+        let mut artifacts = HashMap::new();
+        for a in &grant.artifacts {
+            let bytes = self
+                .download(a.key.clone(), format!("/v1/artifacts/{}", a.key))
+                .await
+                .with_context(|| format!("downloading the {} artifact", a.pass))?;
+            artifacts.insert(a.key.clone(), bytes);
+        }
+        let input = match &grant.input {
+            Some(path) => Some((
+                path.clone(),
+                self.download(path.clone(), path.clone())
+                    .await
+                    .context("downloading the step's input")?,
+            )),
+            None => None,
+        };
+        let path = self
+            .tmp
+            .join(format!("{}-{}.tswf", grant.task_id, grant.lease));
+        let worker = self.clone();
+        let grant2 = grant.clone();
+        let out = path.clone();
+        let run = move || -> anyhow::Result<()> {
+            let resources = TaskResources {
+                worker: &worker,
+                grant: &grant2,
+                artifacts,
+                input,
             };
-            let prepared = prepared.clone();
-            let inputs = tokio::task::spawn_blocking(move || -> anyhow::Result<_> {
-                let r2 = match radii {
-                    Some(b) => sppm::decode_radii(&b, pixels),
-                    None => sppm::initial_radii(&prepared),
-                }
-                .map_err(anyhow::Error::msg)?;
-                let points =
-                    sppm::visible_points(&prepared, frame, t).map_err(anyhow::Error::msg)?;
-                Ok(SppmInputs { points, r2 })
-            })
-            .await??;
-            tracing::debug!(
-                job = grant.job_id,
-                frame,
-                iteration = t,
-                "sppm camera paths traced"
-            );
-            anyhow::Ok(Arc::new(inputs))
+            let ctx = TaskCtx {
+                scene: &prepared.scene,
+                desc: &prepared.desc,
+                resources: &resources,
+            };
+            let plan = prepared.plan.as_ref();
+            let spec = &grant2.task;
+            let partial = plan.execute(&ctx, spec).map_err(anyhow::Error::msg)?;
+            let schema = if spec.is_pass() {
+                let passes = plan.passes();
+                passes
+                    .get(spec.step as usize)
+                    .map(|p| p.schema())
+                    .context("a pass task of a job without that pass")?
+            } else {
+                plan.schema()
+            };
+            let mut header = Header::new("result", &schema);
+            header.task = Some(spec.clone());
+            let file = std::fs::File::create(&out).with_context(|| out.display().to_string())?;
+            partial.write_to(&header, &mut BufWriter::new(file))?;
+            Ok(())
+        };
+        tokio::task::spawn_blocking(move || {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(run))
         })
-        .await
+        .await?
+        .map_err(|panic| {
+            let what = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown panic".into());
+            anyhow::anyhow!("the renderer panicked: {what}")
+        })??;
+        Ok(path)
     }
 
-    async fn run_task(&self, grant: LeaseGrant) {
+    async fn run_task(self: Arc<Self>, grant: LeaseGrant) {
         let (task, lease, job) = (grant.task_id, grant.lease, grant.job_id);
         let lost = Arc::new(AtomicBool::new(false));
         let beat = self.spawn_heartbeat(&grant, lost.clone());
         let start = Instant::now();
-        let outcome = async {
-            let prepared = self.prepared(&grant).await.context("loading the scene")?;
-            let spec = grant.task;
-            let inputs = if spec.kind == TaskKind::Sppm {
-                Inputs::Sppm(
-                    self.sppm_inputs(&grant, &prepared)
-                        .await
-                        .context("tracing the sppm iteration's camera paths")?,
-                )
-            } else if spec.kind == TaskKind::Tile
-                && grant
-                    .artifacts
-                    .iter()
-                    .any(|a| a.kind == PassKind::Subsurface)
-            {
-                Inputs::Clouds(
-                    self.cloud_integrator(&grant, &prepared)
-                        .await
-                        .context("loading the point cloud")?,
-                )
-            } else if spec.kind == TaskKind::Records
-                || (spec.kind == TaskKind::Tile && !grant.artifacts.is_empty())
-            {
-                Inputs::Photon(
-                    self.photon_integrator(&grant, &prepared)
-                        .await
-                        .context("loading the pass artifacts")?,
-                )
-            } else {
-                Inputs::None
-            };
-            tokio::task::spawn_blocking(move || {
-                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    run_spec(&prepared, &inputs, &spec)
-                }))
-            })
-            .await?
-            .map_err(|panic| {
-                let what = panic
-                    .downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_else(|| "unknown panic".into());
-                anyhow::anyhow!("the renderer panicked: {what}")
-            })?
-            .map_err(anyhow::Error::msg)
-        }
-        .await;
+        let outcome = self.execute(&grant).await;
         let seconds = start.elapsed().as_secs_f64();
         beat.abort();
         if lost.load(Relaxed) {
-            tracing::warn!(
-                job,
-                task,
-                lease,
-                "lease lost while rendering; result dropped"
-            );
+            tracing::warn!(job, task, lease, "lease lost while rendering; result dropped");
+            if let Ok(path) = &outcome {
+                let _ = std::fs::remove_file(path);
+            }
             return;
         }
         match outcome {
-            Ok(bytes) => {
+            Ok(path) => {
                 let upload = retrying("result upload", Duration::from_secs(600), || {
-                    self.client
-                        .upload_result(task, lease, seconds, bytes.clone())
+                    self.client.upload_result(task, lease, seconds, &path)
                 })
                 .await;
+                let _ = std::fs::remove_file(&path);
                 match upload {
                     Ok(()) => tracing::info!(job, task, lease, seconds, "task done"),
                     Err(e) if status_of(&e) == Some(reqwest::StatusCode::CONFLICT) => {

@@ -48,7 +48,7 @@ fn bundle(files: &[(&str, &str)]) -> Vec<u8> {
             .map(|(p, d)| (PathBuf::from(p), d.as_bytes().to_vec()))
             .collect(),
     }
-    .to_tar()
+    .to_tar().expect("packs")
 }
 
 struct Api {
@@ -261,7 +261,7 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
         .await;
     // SPPM refines every pixel in each iteration: no adaptive sampling.
     let sppm = RenderSettings {
-        integrator: Some(tessera_farm::job::IntegratorName::Sppm),
+        integrator: Some("sppm".into()),
         target_error: Some(0.01),
         ..Default::default()
     };
@@ -269,7 +269,7 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
         .await;
     // BDPT refines every pixel at once (its splats land anywhere): no adaptive sampling.
     let bdpt = RenderSettings {
-        integrator: Some(tessera_farm::job::IntegratorName::Bdpt),
+        integrator: Some("bdpt".into()),
         target_error: Some(0.01),
         ..Default::default()
     };
@@ -284,7 +284,7 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
     api.expect(
         c.post(api.url("/v1/bundles")).bearer_auth(CLIENT).body(big),
         StatusCode::PAYLOAD_TOO_LARGE,
-        &[],
+        &["upload limit", "--max-upload-mib"],
     )
     .await;
 
@@ -317,7 +317,20 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
     )
     .await;
 
-    // And a good job is still accepted; it can be cancelled once.
+    // A method the registry does not have.
+    let unknown = RenderSettings {
+        integrator: Some("raytrace".into()),
+        ..Default::default()
+    };
+    api.expect(
+        api.submit(&hash, unknown),
+        bad,
+        &["integrator.type", "expected one of", "bdpt", "raytrace"],
+    )
+    .await;
+
+    // And a good job is still accepted; it cannot be deleted while it runs; it can be
+    // cancelled once, then deleted with its files.
     let r = api
         .submit(&hash, RenderSettings::default())
         .send()
@@ -325,6 +338,13 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
         .expect("submit");
     assert_eq!(r.status(), StatusCode::CREATED);
     let job: serde_json::Value = r.json().await.expect("job");
+    let this_job = api.url(&format!("/v1/jobs/{}", job["id"]));
+    api.expect(
+        c.delete(&this_job).bearer_auth(CLIENT),
+        StatusCode::CONFLICT,
+        &["cancel it"],
+    )
+    .await;
     let cancel = api.url(&format!("/v1/jobs/{}/cancel", job["id"]));
     let r = c
         .post(&cancel)
@@ -349,6 +369,50 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
         &["not finished"],
     )
     .await;
+    let bundles_before = std::fs::read_dir(dir.path().join("bundles")).expect("bundles").count();
+    let r = c.delete(&this_job).bearer_auth(CLIENT).send().await.expect("delete");
+    assert_eq!(r.status(), StatusCode::NO_CONTENT);
+    api.expect(c.get(&this_job).bearer_auth(CLIENT), StatusCode::NOT_FOUND, &["no job"])
+        .await;
+    api.expect(c.delete(&this_job).bearer_auth(CLIENT), StatusCode::NOT_FOUND, &["no job"])
+        .await;
+    assert!(!dir.path().join("jobs").join(job["id"].to_string()).exists());
+    // Its bundle went with it (no other job used it).
+    let bundles_after = std::fs::read_dir(dir.path().join("bundles")).expect("bundles").count();
+    assert_eq!(bundles_after + 1, bundles_before);
+    running.stop().await.expect("stop");
+}
+
+#[tokio::test]
+async fn the_methods_are_the_registry_in_the_api_and_its_document() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let running = start(dir.path()).await;
+    let base = format!("http://{}", running.addr);
+    let methods: Vec<serde_json::Value> = reqwest::Client::new()
+        .get(format!("{base}/v1/methods"))
+        .bearer_auth(CLIENT)
+        .send()
+        .await
+        .expect("get")
+        .json()
+        .await
+        .expect("JSON");
+    let names: Vec<&str> = methods.iter().filter_map(|m| m["name"].as_str()).collect();
+    assert_eq!(names, tessera_render::method::names());
+    let doc: serde_json::Value = reqwest::get(format!("{base}/v1/openapi.json"))
+        .await
+        .expect("get")
+        .json()
+        .await
+        .expect("JSON");
+    let listed = &doc["components"]["schemas"]["RenderSettings"]["properties"]["integrator"]["enum"];
+    let listed: Vec<&str> = listed
+        .as_array()
+        .expect("the integrator's names in the document")
+        .iter()
+        .filter_map(|v| v.as_str())
+        .collect();
+    assert_eq!(listed, tessera_render::method::names());
     running.stop().await.expect("stop");
 }
 
@@ -370,6 +434,9 @@ async fn openapi_document_describes_the_api() {
         "/v1/jobs/{id}/cancel",
         "/v1/jobs/{id}/frames/{frame}/exr",
         "/v1/jobs/{id}/frames/{frame}/preview.png",
+        "/v1/jobs/{id}/frames/{frame}/steps/{step}/input",
+        "/v1/artifacts/{key}",
+        "/v1/methods",
         "/v1/workers",
         "/v1/tasks/lease",
         "/v1/tasks/{id}/heartbeat",
@@ -390,7 +457,8 @@ async fn openapi_document_describes_the_api() {
         "tessera_queue_depth 0",
         "tessera_tasks_leased_total 0",
         "tessera_workers_alive 0",
-        "tessera_tile_seconds_total",
+        "tessera_task_seconds_total",
+        "tessera_result_payload_bytes_per_pixel",
     ] {
         assert!(metrics.contains(m), "{m} missing from\n{metrics}");
     }

@@ -10,7 +10,7 @@
 //! (caustics), how small the emitters are, whether they are in view.
 
 use glam::Vec3A;
-use tessera_scene::{IntegratorKind, LightDesc, MaterialKind, SceneDesc, SubsurfaceMethod};
+use tessera_scene::{LightDesc, MaterialKind, SceneDesc, SubsurfaceMethod};
 
 use crate::camera::Camera;
 
@@ -38,8 +38,8 @@ impl std::fmt::Display for Decision {
 /// What the analysis found and decided.
 #[derive(Debug, Clone)]
 pub struct Analysis {
-    /// The integrator to run (the scene's own choice unless it asked for `auto`).
-    pub integrator: IntegratorKind,
+    /// The method to run (the scene's own choice unless it asked for `auto`).
+    pub method: String,
     /// Light can reach a diffuse surface through a specular one: a caustic map has work.
     pub caustics: bool,
     pub decisions: Vec<Decision>,
@@ -211,12 +211,12 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
     // The integrator.
     let (auto, reason) = if !has_light {
         (
-            IntegratorKind::Direct,
+            "direct",
             "the scene has no light: the image is black whatever is traced".to_string(),
         )
     } else if caustics {
         (
-            IntegratorKind::Path,
+            "path",
             format!(
                 "light reaches diffuse surfaces through specular ones ({}): caustic paths need full path tracing",
                 names(&specular)
@@ -224,7 +224,7 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         )
     } else if interreflection {
         (
-            IntegratorKind::Path,
+            "path",
             format!(
                 "{} reflective surfaces light each other ({}): indirect light matters",
                 reflective.len(),
@@ -233,12 +233,12 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         )
     } else if reflective.is_empty() {
         (
-            IntegratorKind::Direct,
+            "direct",
             "nothing reflects light: the camera sees only emitters and the environment, which direct lighting computes exactly".to_string(),
         )
     } else if specular.is_empty() {
         (
-            IntegratorKind::Direct,
+            "direct",
             format!(
                 "one reflective surface that cannot see itself ({}), no specular surface: every light path has one bounce, direct lighting is exact and cheaper",
                 names(&reflective)
@@ -246,30 +246,25 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         )
     } else {
         (
-            IntegratorKind::Path,
+            "path",
             "specular surfaces seen by the camera: their reflections are followed".to_string(),
         )
     };
-    let integrator = match desc.integrator.kind {
-        IntegratorKind::Auto => {
-            decisions.push(Decision {
-                topic: "integrator",
-                choice: format!("{auto:?} (auto)").to_lowercase(),
-                reason,
-            });
-            auto
-        }
-        kind => {
-            decisions.push(Decision {
-                topic: "integrator",
-                choice: format!("{kind:?}").to_lowercase(),
-                reason: format!(
-                    "set by the scene (auto would choose {} because {reason})",
-                    format!("{auto:?}").to_lowercase()
-                ),
-            });
-            kind
-        }
+    let integrator = if desc.integrator.method == "auto" {
+        decisions.push(Decision {
+            topic: "integrator",
+            choice: format!("{auto} (auto)"),
+            reason,
+        });
+        auto.to_string()
+    } else {
+        let name = desc.integrator.method.clone();
+        decisions.push(Decision {
+            topic: "integrator",
+            choice: name.clone(),
+            reason: format!("set by the scene (auto would choose {auto} because {reason})"),
+        });
+        name
     };
 
     // Passes the literature would add, and whether this scene can use them.
@@ -280,7 +275,7 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
             reason: format!(
                 "specular surfaces ({}) can focus light onto diffuse ones{}",
                 names(&specular),
-                if matches!(integrator, IntegratorKind::Photon | IntegratorKind::Sppm) {
+                if matches!(integrator.as_str(), "photon" | "sppm") {
                     ""
                 } else {
                     " (used by the photon and sppm integrators; path tracing renders caustics with more noise)"
@@ -375,7 +370,7 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         },
     });
     Analysis {
-        integrator,
+        method: integrator,
         caustics,
         decisions,
     }
@@ -392,7 +387,7 @@ mod tests {
             .join("../../scenes")
             .join(rel);
         let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-        d.integrator.kind = IntegratorKind::Auto;
+        d.integrator.method = "auto".into();
         let a = analyze(&d);
         let text = a
             .decisions
@@ -414,7 +409,7 @@ mod tests {
     fn auto_makes_different_reasoned_choices_for_different_scenes() {
         // The Cornell box: diffuse walls light each other; nothing specular.
         let (cb, text) = analyze_scene("cornell-box/scene.json");
-        assert_eq!(cb.integrator, IntegratorKind::Path, "{text}");
+        assert_eq!(cb.method, "path", "{text}");
         assert!(text.contains("light each other"), "{text}");
         assert_eq!(choice(&cb, "caustic photon map"), "skipped", "{text}");
         assert!(
@@ -425,21 +420,21 @@ mod tests {
 
         // Cornell glass: glass over diffuse blocks, a small bulb: caustics, small emitter.
         let (cg, text) = analyze_scene("cornell-glass/scene.json");
-        assert_eq!(cg.integrator, IntegratorKind::Path, "{text}");
+        assert_eq!(cg.method, "path", "{text}");
         assert!(text.contains("caustic paths"), "{text}");
         assert_eq!(choice(&cg, "caustic photon map"), "needed", "{text}");
         assert!(text.contains("small emitters"), "{text}");
 
         // One diffuse plane under a sun, nothing specular: one bounce, direct lighting is exact.
         let (gp, text) = analyze_scene("hard/grazing-plane/scene.json");
-        assert_eq!(gp.integrator, IntegratorKind::Direct, "{text}");
+        assert_eq!(gp.method, "direct", "{text}");
         assert!(text.contains("direct lighting is exact"), "{text}");
         assert_eq!(choice(&gp, "caustic photon map"), "skipped");
 
         // An IOR-1 sphere under a sky is noticed as invisible.
         let (io, text) = analyze_scene("hard/ior-one/scene.json");
         assert!(text.contains("IOR 1"), "{text}");
-        assert_eq!(io.integrator, IntegratorKind::Direct, "{text}");
+        assert_eq!(io.method, "direct", "{text}");
     }
 
     /// No translucent material, no point-cloud pass: the decision says so (and `prepare`
@@ -474,7 +469,7 @@ mod tests {
             .join("../../scenes/hard/grazing-plane/scene.json");
         let d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
         let a = analyze(&d);
-        assert_eq!(a.integrator, IntegratorKind::Path);
+        assert_eq!(a.method, "path");
         assert!(
             a.decisions[0].reason.contains("auto would choose direct"),
             "{:?}",

@@ -172,6 +172,20 @@ impl PixelSums {
         }
     }
 
+    /// Σ w·L, Σ w and the centred second moment Σ (w·L − mean)² of the pixel's samples, from
+    /// the exact sums.
+    pub fn moments(&self) -> ([f64; 3], f64, [f64; 3]) {
+        let n = self.samples as f64;
+        let s = self.wl.map(|v| unfixed(v, FRAC));
+        let mut m2 = [0.0; 3];
+        if n > 0.0 {
+            for c in 0..3 {
+                m2[c] = (unfixed(self.wl2[c], FRAC_SQ) - s[c] * s[c] / n).max(0.0);
+            }
+        }
+        (s, unfixed(self.w, FRAC), m2)
+    }
+
     /// The pixel's final values.
     pub fn resolve(&self) -> Pixel {
         let w = unfixed(self.w, FRAC);

@@ -20,7 +20,7 @@ use glam::{Vec3, Vec3A};
 use crate::spectrum::Spectrum;
 
 /// One irradiance record.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[repr(C)]
 pub struct Record {
     pub p: Vec3,

@@ -15,6 +15,7 @@ pub mod integrator;
 pub mod irradiance;
 pub mod light;
 pub mod math;
+pub mod method;
 pub mod metrics;
 pub mod output;
 pub mod photon;
@@ -24,6 +25,7 @@ pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod spectrum;
+pub mod wire;
 
 pub use error::RenderError;
 pub use film::{Image, SampleRange, Tile};

@@ -50,11 +50,12 @@ pub fn render_tile(
             let (ray, w) = camera_ray(scene, camera, pixel, &mut sampler);
             let out = integrator.li(scene, ray, &mut sampler, &mut stats);
             stats.samples += 1;
-            let l = out.l * exposure;
-            // DESIGN invariant 3: no NaN or Inf reaches the film; count what was dropped.
+            let mut l = out.l * exposure;
+            // DESIGN invariant 3: no NaN or Inf reaches the film. The sample counts as black
+            // (every pixel keeps as many samples as its range), and is counted.
             if !l.is_finite() {
                 stats.nonfinite += 1;
-                continue;
+                l = crate::spectrum::Spectrum::ZERO;
             }
             let aov = out.first_hit.map(|h| Aov {
                 albedo: h.albedo,

@@ -319,7 +319,7 @@ impl Scene {
             lights: LightSet::new(lights, radius),
             filter: Filter::new(desc.film.filter),
             film: desc.film,
-            integrator: desc.integrator,
+            integrator: desc.integrator.clone(),
             center,
             radius,
             objects,

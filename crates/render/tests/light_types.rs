@@ -28,7 +28,7 @@ use tessera_render::integrator::bdpt::Bdpt;
 use tessera_render::integrator::metropolis::Metropolis;
 use tessera_render::metrics::compare;
 use tessera_render::{Image, Scene};
-use tessera_scene::{IntegratorKind, SceneDesc};
+use tessera_scene::SceneDesc;
 
 /// The scene with `lights` and `ball` (a material name) at 32×32.
 fn sky(name: &str, ball: &str, lights: &str) -> SceneDesc {
@@ -135,7 +135,7 @@ fn vcm_and_pssmlt_agree_with_the_path_tracer_under_sky_and_sun() {
     assert!((mean - 1.0).abs() < 0.01 && rel < 2e-3, "vcm {rel} {mean}");
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let pssmlt = Metropolis::new(IntegratorKind::Pssmlt, &desc).expect("pssmlt");
+    let pssmlt = Metropolis::new("pssmlt", &desc).expect("pssmlt");
     let (image, _) = pool()
         .install(|| pssmlt.render(&scene, &camera, 256, &|_| {}))
         .expect("renders lights at infinity");
@@ -146,7 +146,7 @@ fn vcm_and_pssmlt_agree_with_the_path_tracer_under_sky_and_sun() {
         "pssmlt {rel} {mean}"
     );
     // Path-space MLT still says no.
-    let mlt = Metropolis::new(IntegratorKind::Mlt, &desc).expect("mlt");
+    let mlt = Metropolis::new("mlt", &desc).expect("mlt");
     let refused = pool().install(|| mlt.render(&scene, &camera, 1, &|_| {}));
     assert!(refused.is_err_and(|e| e.contains("lights at infinity")));
 }
@@ -201,7 +201,7 @@ fn bidirectional_renderers_converge_under_point_and_spot_lights() {
     assert!((mean - 1.0).abs() < 0.02, "vcm {rel} {mean}");
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    for kind in [IntegratorKind::Pssmlt, IntegratorKind::Mlt] {
+    for kind in ["pssmlt", "mlt"] {
         let m = Metropolis::new(kind, &desc).expect("a Metropolis renderer");
         let (image, _) = pool()
             .install(|| m.render(&scene, &camera, 256, &|_| {}))

@@ -38,5 +38,5 @@ fn bootstrap_weights_estimate_the_same_brightness_as_bdpt() {
 
 #[test]
 fn mlt_converges_to_the_path_traced_reference_the_same_on_any_threads() {
-    common::assert_metropolis_converges_deterministically(tessera_scene::IntegratorKind::Mlt);
+    common::assert_metropolis_converges_deterministically("mlt");
 }

@@ -13,14 +13,13 @@ use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::render::render_frame;
 use tessera_render::{Scene, integrator};
-use tessera_scene::IntegratorKind;
 
 /// relMSE and mean ratio against `reference-32.exr` of scene `name` rendered by photon mapping
 /// (no irradiance cache: final gathering at every sample) with `photons` global and caustic
 /// photons, `gather` final-gather rays and `spp` samples per pixel.
 fn photon_error(name: &str, photons: u32, gather: u32, spp: u32) -> (f64, f64) {
     let (mut desc, reference) = scene_and_reference(name);
-    desc.integrator.kind = IntegratorKind::Photon;
+    desc.integrator.method = "photon".into();
     let p = &mut desc.integrator.photon;
     p.photons = Some(photons);
     p.gather_rays = Some(gather);
@@ -75,7 +74,7 @@ fn photon_mapped_cornell_glass_converges_to_the_path_traced_reference() {
 fn sppm_error(name: &str, photons: u32, iterations: u32) -> (f64, f64) {
     use tessera_render::integrator::sppm::{SppmSettings, render};
     let (mut desc, reference) = scene_and_reference(name);
-    desc.integrator.kind = IntegratorKind::Sppm;
+    desc.integrator.method = "sppm".into();
     desc.integrator.photon.photons = Some(photons);
     let analysis = tessera_render::analysis::analyze(&desc);
     let settings = tessera_render::photon::PhotonSettings::resolve(&desc, &analysis).0;

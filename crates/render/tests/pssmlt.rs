@@ -6,5 +6,5 @@ mod common;
 
 #[test]
 fn pssmlt_converges_to_the_path_traced_reference_the_same_on_any_threads() {
-    common::assert_metropolis_converges_deterministically(tessera_scene::IntegratorKind::Pssmlt);
+    common::assert_metropolis_converges_deterministically("pssmlt");
 }

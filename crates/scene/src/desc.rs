@@ -89,50 +89,6 @@ pub enum FilterDesc {
     Mitchell { radius: f32, b: f32, c: f32 },
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum IntegratorKind {
-    /// Unidirectional path tracing with next-event estimation, MIS and Russian roulette.
-    Path,
-    /// Emitted plus directly reflected light (specular chains are followed).
-    Direct,
-    /// Chosen from the scene by analysis before rendering.
-    Auto,
-    /// Photon mapping: direct light exact, caustics from the caustic map, indirect diffuse by
-    /// final gathering over the global map (through an irradiance cache where enabled).
-    Photon,
-    /// Stochastic progressive photon mapping: `spp` iterations of one camera sample per pixel
-    /// and `photon_map.photons` photons each.
-    Sppm,
-    /// Bidirectional path tracing: every connection of a camera and a light subpath, weighted
-    /// by multiple importance sampling.
-    Bdpt,
-    /// Primary-sample-space Metropolis light transport over BDPT's strategies (multiplexed);
-    /// `spp` is mutations per pixel.
-    Pssmlt,
-    /// Metropolis light transport in path space (Veach & Guibas 1997): bidirectional
-    /// mutations, lens and caustic perturbations; `spp` is mutations per pixel.
-    Mlt,
-    /// Vertex connection and merging: BDPT plus photon merging at camera vertices under one
-    /// MIS; `spp` iterations.
-    Vcm,
-}
-
-impl IntegratorKind {
-    /// Whether the integrator renders whole frames rather than independent tiles (its samples
-    /// reach pixels other than their own: light-tracing splats, SPPM's shared photons, Markov
-    /// chains wandering over the film).
-    pub fn whole_frame(self) -> bool {
-        matches!(
-            self,
-            IntegratorKind::Sppm
-                | IntegratorKind::Bdpt
-                | IntegratorKind::Pssmlt
-                | IntegratorKind::Mlt
-                | IntegratorKind::Vcm
-        )
-    }
-}
-
 /// Photon-mapping knobs as the scene gives them; `None` = chosen from the scene.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PhotonDesc {
@@ -158,9 +114,10 @@ pub struct IrradianceCacheDesc {
     pub gather_rays: Option<u32>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct IntegratorDesc {
-    pub kind: IntegratorKind,
+    /// The rendering method's name (`tessera_render::method` lists them and checks it).
+    pub method: String,
     pub spp: u32,
     /// Longest path, in scattering events.
     pub max_depth: u32,

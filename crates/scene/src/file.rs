@@ -225,28 +225,6 @@ pub struct FilterFile {
     pub c: Option<f32>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum IntegratorType {
-    #[default]
-    Path,
-    Direct,
-    /// Chosen by scene analysis (`tessera_render::analysis`).
-    Auto,
-    /// Jensen's photon mapping with final gathering (and Ward's irradiance cache).
-    Photon,
-    /// Stochastic progressive photon mapping (Hachisuka & Jensen 2009): consistent.
-    Sppm,
-    /// Bidirectional path tracing (Veach 1997): unbiased.
-    Bdpt,
-    /// Primary-sample-space MLT (Kelemen et al. 2002), multiplexed (Hachisuka et al. 2014).
-    Pssmlt,
-    /// Path-space MLT (Veach & Guibas 1997).
-    Mlt,
-    /// Vertex connection and merging (Georgiev et al. 2012): consistent.
-    Vcm,
-}
-
 /// How caustic photons are weighted by distance in a radiance estimate (Jensen 2001, §7.2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -332,8 +310,9 @@ pub enum SubsurfaceMethod {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct IntegratorFile {
-    #[serde(rename = "type", default)]
-    pub kind: IntegratorType,
+    /// The rendering method, by its name in the render crate's registry (which checks it).
+    #[serde(rename = "type", default = "default_method")]
+    pub method: String,
     #[serde(default = "default_spp")]
     pub spp: u32,
     #[serde(default = "default_max_depth")]
@@ -353,7 +332,7 @@ pub struct IntegratorFile {
 impl Default for IntegratorFile {
     fn default() -> Self {
         IntegratorFile {
-            kind: IntegratorType::default(),
+            method: default_method(),
             spp: default_spp(),
             max_depth: default_max_depth(),
             rr_depth: default_rr_depth(),
@@ -363,6 +342,10 @@ impl Default for IntegratorFile {
             subsurface: SubsurfaceMethod::default(),
         }
     }
+}
+
+fn default_method() -> String {
+    "path".into()
 }
 
 fn default_spp() -> u32 {

@@ -139,6 +139,19 @@ impl Ctx<'_> {
         v
     }
 
+    /// A method name as the registry spells them (lower-case words joined by `-` or `_`);
+    /// whether a method of that name exists is the render crate's to say.
+    fn method_name(&mut self, name: &str) -> String {
+        let word = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-' || c == '_';
+        if name.is_empty() || name.len() > 32 || !name.chars().all(word) {
+            self.problem(
+                "integrator.type",
+                format!("expected a method name such as \"path\" or \"bdpt\", got \"{name}\""),
+            );
+        }
+        name.to_string()
+    }
+
     fn positive(&mut self, path: &str, v: f32) -> f32 {
         if !(v > 0.0 && v.is_finite()) {
             self.problem(path, format!("expected a positive number, got {v}"));
@@ -534,17 +547,7 @@ impl Ctx<'_> {
             );
         }
         IntegratorDesc {
-            kind: match i.kind {
-                IntegratorType::Path => IntegratorKind::Path,
-                IntegratorType::Direct => IntegratorKind::Direct,
-                IntegratorType::Auto => IntegratorKind::Auto,
-                IntegratorType::Photon => IntegratorKind::Photon,
-                IntegratorType::Sppm => IntegratorKind::Sppm,
-                IntegratorType::Bdpt => IntegratorKind::Bdpt,
-                IntegratorType::Pssmlt => IntegratorKind::Pssmlt,
-                IntegratorType::Mlt => IntegratorKind::Mlt,
-                IntegratorType::Vcm => IntegratorKind::Vcm,
-            },
+            method: self.method_name(&i.method),
             spp: i.spp,
             max_depth: i.max_depth,
             rr_depth: i.rr_depth,

@@ -48,6 +48,17 @@ pub struct ServeArgs {
     /// Largest scene bundle upload, MiB.
     #[arg(long, default_value_t = 512)]
     pub max_upload_mib: usize,
+    /// Largest task result a worker may upload, MiB (results stream to disk).
+    #[arg(long, default_value_t = 4096)]
+    pub max_result_mib: u64,
+    /// Size cap of the pass-artifact cache (photon maps, irradiance caches, point clouds),
+    /// GiB: the least recently used artifacts are evicted beyond it.
+    #[arg(long, default_value_t = 8.0)]
+    pub cache_max_gib: f64,
+    /// Delete finished, failed and cancelled jobs (frames, results, bundle) this many days
+    /// after they ended (default: keep them until deleted).
+    #[arg(long)]
+    pub retain_days: Option<f64>,
 }
 
 pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
@@ -73,6 +84,20 @@ pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
     config.limits.max_spp = args.max_spp;
     config.limits.max_frames = args.max_frames;
     config.max_upload = args.max_upload_mib << 20;
+    config.max_result = args.max_result_mib << 20;
+    anyhow::ensure!(
+        args.cache_max_gib >= 0.0 && args.cache_max_gib.is_finite(),
+        "--cache-max-gib: expected a size in GiB, got {}",
+        args.cache_max_gib
+    );
+    config.cache_max = (args.cache_max_gib * (1u64 << 30) as f64) as u64;
+    if let Some(days) = args.retain_days {
+        anyhow::ensure!(
+            days > 0.0 && days.is_finite(),
+            "--retain-days: expected a positive number of days, got {days}"
+        );
+        config.retain = Some(Duration::from_secs_f64(days * 86400.0));
+    }
     config.local_workers = args.local_workers;
     let running = coordinator::start(config).await?;
     let url = format!("http://{}", running.addr);
@@ -161,9 +186,10 @@ pub struct SubmitArgs {
     /// maximum per pixel).
     #[arg(long)]
     pub target_error: Option<f64>,
-    /// The integrator: path, direct, auto, photon, sppm or bdpt (overrides the scene's integrator.type).
-    #[arg(long)]
-    pub integrator: Option<job::IntegratorName>,
+    /// The rendering method (overrides the scene's integrator.type): one of the registry's,
+    /// listed by `tessera methods`.
+    #[arg(long, value_parser = crate::render::parse_method)]
+    pub integrator: Option<String>,
     /// Build pass artifacts (photon maps, irradiance caches) anew even where the coordinator
     /// has one with the same key.
     #[arg(long)]
@@ -205,11 +231,11 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         last: desc.frame_count(),
     });
     let mut check = desc.clone();
-    job::apply(&mut check, &settings, frames, &job::Limits::default())
-        .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
+    job::plan(&mut check, &settings, frames, &job::Limits::default())
+        .map_err(|e| crate::render::setting_error(&args.scene, e))?;
 
     let client = Client::new(&args.coordinator, &args.token)?;
-    let tar = bundle.to_tar();
+    let tar = bundle.to_tar().map_err(anyhow::Error::msg)?;
     let size = tar.len();
     let info = client
         .upload_bundle(tar)
@@ -291,4 +317,38 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         crate::print(&format!("wrote {}\n", path.display()))?;
     }
     Ok(())
+}
+
+#[derive(clap::Args)]
+pub struct DeleteArgs {
+    /// The job's id.
+    pub id: i64,
+    /// The coordinator's URL.
+    #[arg(long, env = "TESSERA_COORDINATOR")]
+    pub coordinator: String,
+    /// The client token.
+    #[arg(long, env = "TESSERA_CLIENT_TOKEN", hide_env_values = true)]
+    pub token: String,
+}
+
+/// `tessera delete ID`: a job that has ended, with its files.
+pub async fn delete(args: DeleteArgs) -> anyhow::Result<()> {
+    let client = Client::new(&args.coordinator, &args.token)?;
+    client
+        .delete(args.id)
+        .await
+        .with_context(|| format!("deleting job {}", args.id))?;
+    crate::print(&format!("job {} deleted\n", args.id))
+}
+
+/// `tessera methods`: the registry.
+pub fn methods() -> anyhow::Result<()> {
+    let mut text = String::new();
+    for m in tessera_render::method::METHODS {
+        text += &format!("{:<8} {}\n{:<8} spp: {}\n", m.name, m.summary, "", m.spp);
+        if !m.params.is_empty() {
+            text += &format!("{:<8} reads integrator.{}\n", "", m.params.join(", integrator."));
+        }
+    }
+    crate::print(&text)
 }

@@ -35,6 +35,10 @@ enum Command {
     Worker(farm::WorkerArgs),
     /// Submit a scene to a coordinator (and wait for its frames).
     Submit(farm::SubmitArgs),
+    /// Delete a job that has ended, with its frames and results, from a coordinator.
+    Delete(farm::DeleteArgs),
+    /// List the rendering methods (`--integrator`, `integrator.type`).
+    Methods,
     /// Measure: speed against error for a scene (or `bench farm`, `bench leases`).
     Bench(bench::BenchArgs),
 }
@@ -78,6 +82,8 @@ fn main() -> ExitCode {
         Command::Serve(args) => block_on(farm::serve(args)),
         Command::Worker(args) => block_on(farm::worker(args)),
         Command::Submit(args) => block_on(farm::submit(args)),
+        Command::Delete(args) => block_on(farm::delete(args)),
+        Command::Methods => farm::methods(),
         Command::Bench(args) => bench::run(args),
     };
     match result {

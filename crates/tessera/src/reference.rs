@@ -55,9 +55,10 @@ pub fn run(args: ReferenceArgs) -> anyhow::Result<()> {
         threads: args.threads,
         // Small tiles: finer adaptive steering, and parallelism on small films.
         tile: 8,
+        samples_per_task: None,
         seed: None,
         // Unbiased whatever the scene asks for: references judge the biased methods.
-        integrator: Some(tessera_farm::job::IntegratorName::Path),
+        integrator: Some("path".into()),
         // Translucent materials by the brute-force random walk, not the dipole's model.
         subsurface: Some(tessera_scene::SubsurfaceMethod::RandomWalk),
         size: args.size,

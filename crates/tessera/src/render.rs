@@ -1,13 +1,14 @@
-//! `tessera render`: one machine, all its cores.
+//! `tessera render`: one machine, all its cores — the farm in one process.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use rayon::prelude::*;
-use tessera_farm::job::{self, FrameRange, Limits, Prepared, RenderSettings, TaskOutput};
-use tessera_farm::progressive::{Adaptive, render_adaptive};
+use tessera_farm::job::{self, FrameRange, Limits, RenderSettings};
+use tessera_render::method::local::{Local, Progress};
+use tessera_render::method::Plan;
+use tessera_scene::{Problem, SceneDesc, SceneError};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -16,7 +17,8 @@ pub struct RenderArgs {
     /// Output OpenEXR file; a PNG preview is written beside it. Default: <scene folder>.exr.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
-    /// Samples per pixel (overrides the scene's integrator.spp).
+    /// Samples per pixel (overrides the scene's integrator.spp; what a sample is depends on
+    /// the method).
     #[arg(long)]
     pub spp: Option<u32>,
     /// Worker threads (default: one per core).
@@ -25,16 +27,21 @@ pub struct RenderArgs {
     /// Tile size in pixels; it does not change the image, only the work units.
     #[arg(long, default_value_t = job::DEFAULT_TILE)]
     pub tile: u32,
+    /// Samples (iterations) per task where the method cuts frames by samples, as a farm job
+    /// may ask (each task's sums are rounded to f32 once, so the same job cut alike is the
+    /// same image on a farm and here).
+    #[arg(long)]
+    pub samples_per_task: Option<u32>,
     /// Random seed (overrides the scene's integrator.seed).
     #[arg(long)]
     pub seed: Option<u64>,
     /// Film size WxH (overrides the scene's film; the vertical field of view is kept).
     #[arg(long)]
     pub size: Option<Size>,
-    /// The integrator: path, direct, auto, photon, sppm, bdpt, pssmlt, mlt or vcm (overrides
-    /// the scene's integrator.type).
-    #[arg(long)]
-    pub integrator: Option<tessera_farm::job::IntegratorName>,
+    /// The rendering method (overrides the scene's integrator.type): one of the registry's,
+    /// listed by `tessera methods`.
+    #[arg(long, value_parser = parse_method)]
+    pub integrator: Option<String>,
     /// Translucent materials: dipole (the sampled BSSRDF), hierarchical (Jensen & Buhler's point
     /// cloud) or random-walk (the brute-force reference); overrides the scene's
     /// integrator.subsurface.
@@ -59,6 +66,13 @@ pub struct RenderArgs {
     pub strategies: Option<PathBuf>,
 }
 
+/// A method name of the registry.
+pub fn parse_method(s: &str) -> Result<String, String> {
+    tessera_render::method::lookup(s)
+        .map(|m| m.name.to_string())
+        .map_err(|e| e.trim_start_matches("integrator.type: ").to_string())
+}
+
 /// A subsurface method by name (`dipole`, `hierarchical`, `random-walk` or `random_walk`).
 pub fn parse_subsurface(s: &str) -> Result<tessera_scene::SubsurfaceMethod, String> {
     use tessera_scene::SubsurfaceMethod;
@@ -72,58 +86,108 @@ pub fn parse_subsurface(s: &str) -> Result<tessera_scene::SubsurfaceMethod, Stri
     }
 }
 
-/// Renders one frame in this process, through the same plan → tasks → stitch path as the
-/// farm (`tessera_farm::job`), with the tasks spread over a thread pool.
-pub fn run(args: RenderArgs) -> anyhow::Result<()> {
-    let start = Instant::now();
+/// A bad job setting as a scene error (exit code 2), naming the scene file.
+pub fn setting_error(scene: &Path, message: String) -> anyhow::Error {
+    let (path, message) = match message.split_once(": ") {
+        Some((field, rest)) if !field.contains(' ') => (field.to_string(), rest.to_string()),
+        _ => (String::new(), message),
+    };
+    SceneError::Invalid(vec![Problem {
+        file: scene.to_path_buf(),
+        path,
+        message,
+    }])
+    .into()
+}
+
+/// A scene loaded from `args`, its settings applied and its job planned.
+pub fn planned(args: &RenderArgs) -> anyhow::Result<(SceneDesc, Box<dyn Plan>)> {
     let mut desc = tessera_scene::load(&args.scene)?;
+    if let Some(m) = args.subsurface {
+        desc.integrator.subsurface = m;
+    }
     let settings = RenderSettings {
         spp: args.spp,
         seed: args.seed,
         tile: Some(args.tile),
-        samples_per_task: None,
+        samples_per_task: args.samples_per_task,
         size: args.size.map(|s| s.0),
         target_error: args.target_error,
-        integrator: args.integrator,
+        integrator: args.integrator.clone(),
         reuse: None,
     };
-    let frame = args.frame;
-    job::apply(
-        &mut desc,
-        &settings,
-        FrameRange::single(frame),
-        &Limits::default(),
-    )
-    .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
-    if let Some(m) = args.subsurface {
-        desc.integrator.subsurface = m;
-    }
-    let output = args
-        .output
-        .clone()
-        .unwrap_or_else(|| default_output(&args.scene));
-
-    let threads = args
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    anyhow::ensure!(threads >= 1, "--threads: expected at least 1");
+    let frames = FrameRange::single(args.frame);
+    job::apply(&mut desc, &settings, frames, &Limits::default())
+        .map_err(|e| setting_error(&args.scene, e))?;
+    let mut job = job::job(desc.clone(), &settings, frames);
     if let Some(t) = args.time_limit {
         anyhow::ensure!(
             t > 0.0 && t.is_finite(),
             "--time-limit: expected positive seconds, got {t}"
         );
+        job.time_limit = Some(std::time::Duration::from_secs_f64(t));
     }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("cannot start worker threads")?;
+    let plan = tessera_render::method::plan(&job).map_err(|e| setting_error(&args.scene, e))?;
+    Ok((desc, plan))
+}
 
+/// Sizes the rayon pool that tasks which parallelise themselves use (once per process).
+pub fn threads(threads: Option<usize>) -> anyhow::Result<usize> {
+    let threads = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    anyhow::ensure!(threads >= 1, "--threads: expected at least 1");
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build_global()
+        .context("cannot start worker threads")?;
+    Ok(threads)
+}
+
+/// A progress bar fed by [`Local`]'s progress.
+pub fn progress_bar(quiet: bool) -> ProgressBar {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(0)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} {msg:>10} {wide_bar} {percent:>3}% {elapsed_precise} eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+/// Moves `bar` on with `p`.
+pub fn show(bar: &ProgressBar, p: Progress) {
+    match p {
+        Progress::Start { pass, work } => {
+            bar.set_message(pass.unwrap_or("frame"));
+            bar.set_position(0);
+            bar.set_length(work);
+        }
+        Progress::Done(n) => bar.inc(n),
+    }
+}
+
+/// Renders one frame in this process, through the same plan → tasks → fold as the farm
+/// (`tessera_render::method::local`).
+pub fn run(args: RenderArgs) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let threads = threads(args.threads)?;
+    let (desc, plan) = planned(&args)?;
+    anyhow::ensure!(
+        args.strategies.is_none() || plan.method() == "bdpt",
+        "--strategies: per-strategy images are BDPT's; give --integrator bdpt"
+    );
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| default_output(&args.scene));
     let load_time = start.elapsed();
-    let tasks = job::plan_frame(&desc, &settings, frame);
-    let prepared = pool.install(|| Prepared::new(desc, FrameRange::single(frame)));
-    let build_time = prepared.build_seconds;
-    let desc = &prepared.desc;
-    let stats = &prepared.scene.stats;
+    let building = Instant::now();
+    let scene = tessera_render::Scene::build(&desc);
+    let stats = &scene.stats;
     tracing::info!(
         scene = %desc.name,
         triangles = stats.triangles,
@@ -131,130 +195,57 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         lights = stats.lights,
         emissive_triangles = stats.emissive_triangles,
         load_s = load_time.as_secs_f64(),
-        build_s = build_time,
+        build_s = building.elapsed().as_secs_f64(),
         "scene ready"
     );
     let (w, h, spp) = (desc.film.width, desc.film.height, desc.integrator.spp);
-    let analysis = &prepared.analysis;
+    let analysis = tessera_render::analysis::analyze(&desc);
     for d in &analysis.decisions {
         tracing::info!(topic = d.topic, choice = %d.choice, reason = %d.reason, "decision");
     }
-    for p in &prepared.passes {
-        tracing::info!(pass = %p, "pass");
+    for d in plan.decisions() {
+        tracing::info!(decision = %d, "method");
     }
-
-    let progress = if args.quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(w as u64 * h as u64)
-    };
-    progress.set_style(
-        ProgressStyle::with_template(
-            "{spinner} {wide_bar} {percent:>3}% {elapsed_precise} eta {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let bar = progress_bar(args.quiet);
+    let progress = |p: Progress| show(&bar, p);
+    let local = Local::new(plan.as_ref(), &scene, &desc, threads, &progress);
+    let passes = local.passes().map_err(anyhow::Error::msg)?;
+    let build_time = building.elapsed().as_secs_f64();
     let rendering = Instant::now();
     let cpu_start = cpu_seconds();
-    let camera = prepared.camera(frame);
-    let adaptive = (args.target_error.is_some() || args.time_limit.is_some()).then(|| Adaptive {
-        target_rel_mse: args.target_error,
-        time_limit: args.time_limit.map(std::time::Duration::from_secs_f64),
-        first_spp: job::ADAPTIVE_FIRST_SPP.min(spp),
-        max_spp: spp,
-    });
-    let kind = analysis.integrator;
-    let (sppm, bdpt) = (
-        kind == tessera_scene::IntegratorKind::Sppm,
-        tessera_farm::bdpt::sample_ranges(kind),
-    );
-    let metropolis = tessera_render::integrator::metropolis::Metropolis::new(kind, desc);
-    // Adaptive sampling refines tiles; these refine every pixel at once.
-    anyhow::ensure!(
-        !(kind.whole_frame() && adaptive.is_some()),
-        "--target-error/--time-limit: {} renders whole frames, not tiles; give --spp (samples, or sppm's iterations) instead",
-        format!("{kind:?}").to_lowercase()
-    );
-    anyhow::ensure!(
-        args.strategies.is_none() || kind == tessera_scene::IntegratorKind::Bdpt,
-        "--strategies: per-strategy images are BDPT's; give --integrator bdpt"
-    );
-    let (image, stats, extra, spp_text) = match &adaptive {
-        None if sppm => {
-            use tessera_render::integrator::sppm::{self, SppmSettings};
-            let (settings, s) = SppmSettings::resolve(desc, analysis);
-            progress.set_length(spp as u64);
-            let (image, stats) = pool.install(|| {
-                sppm::render(&prepared.scene, &camera, &settings, &s, &|_| {
-                    progress.inc(1)
-                })
-            });
-            let text = s.describe();
-            (image, stats, tessera_farm::sppm::metadata(&s), text)
-        }
-        None if bdpt => {
-            let range = tessera_render::SampleRange { start: 0, end: spp };
-            let (sums, stats) = pool
-                .install(|| {
-                    tessera_farm::bdpt::render_range(&prepared, &camera, range, &|n| {
-                        progress.inc(n)
-                    })
-                })
-                .map_err(anyhow::Error::msg)?;
-            let name = format!("{kind:?}").to_lowercase();
-            let image = sums.image(camera.exposure);
-            if let Some(dir) = &args.strategies {
-                pool.install(|| write_strategies(dir, &prepared, &camera, range))?;
-            }
-            (image, stats, Vec::new(), format!("{spp} spp, {name}"))
-        }
-        None if metropolis.is_some() => {
-            let m = metropolis.expect("checked");
-            progress.set_length(spp as u64 * w as u64 * h as u64);
-            let (image, stats) = pool
-                .install(|| m.render(&prepared.scene, &camera, spp, &|n| progress.inc(n)))
-                .map_err(anyhow::Error::msg)?;
-            // No settings in the EXR: the farm's frame of the same job is the same file.
-            (image, stats, Vec::new(), m.describe(spp))
-        }
-        None => {
-            let outputs: Vec<TaskOutput> = pool.install(|| {
-                tasks
-                    .par_iter()
-                    .map(|task| {
-                        let out = prepared.execute_with(&camera, task);
-                        progress.inc(out.sums.tile.pixel_count() as u64);
-                        out
-                    })
-                    .collect()
-            });
-            let (image, stats) = job::stitch(w, h, &outputs);
-            (image, stats, Vec::new(), format!("{spp} spp"))
-        }
-        Some(rule) => {
-            progress.set_length(0);
-            let r = pool.install(|| render_adaptive(&prepared, &camera, args.tile, rule));
-            let text = format!(
-                "adaptive {}–{} spp in {} rounds ({}; estimated relMSE {:.3e})",
-                r.spp_min, r.spp_max, r.rounds, r.stopped, r.estimated_rel_mse
-            );
-            (r.image, r.stats, r.metadata, text)
-        }
-    };
+    let done = local.frame(args.frame).map_err(anyhow::Error::msg)?;
     let render_s = rendering.elapsed().as_secs_f64();
     let cpu_s = cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
-    progress.finish_and_clear();
-
-    job::write_frame(&output, desc, frame, &image, &stats, &extra)?;
+    bar.finish_and_clear();
+    if let Some(dir) = &args.strategies {
+        let camera = tessera_render::camera::Camera::new(&desc.camera_at(args.frame), &desc.film);
+        write_strategies(dir, &desc, &scene, &camera, spp)?;
+    }
+    job::write_frame(&output, &desc, plan.as_ref(), args.frame, &done)?;
     let preview = output.with_extension("png");
 
-    let mut report = format!("{}: {w}×{h}, {spp_text}, {threads} threads\n", desc.name);
+    let meta = |k: &str| done.metadata.iter().find(|(key, _)| key == k).map(|(_, v)| v.as_str());
+    let spp_text = match (meta("adaptive_spp_min"), meta("adaptive_spp_max")) {
+        (Some(lo), Some(hi)) => format!(
+            "adaptive {lo}–{hi} spp in {} rounds ({}; estimated relMSE {})",
+            meta("adaptive_rounds").unwrap_or("?"),
+            meta("adaptive_stopped").unwrap_or("?"),
+            meta("estimated_rel_mse").unwrap_or("?")
+        ),
+        _ => format!("{spp} spp"),
+    };
+    let mut report = format!(
+        "{}: {w}×{h}, {}, {spp_text}, {threads} threads\n",
+        desc.name,
+        plan.method()
+    );
     if let Some(d) = analysis.decisions.first() {
         report += &format!("{d}\n");
     }
-    for p in &prepared.passes {
+    for p in &passes {
         report += &format!("{p}\n");
     }
+    let stats = done.stats;
     report += &format!(
         "render {render_s:.2} s wall{}; {:.3} M samples/s, {:.2} M rays/s\n",
         cpu_s.map(|c| format!(", {c:.2} s CPU")).unwrap_or_default(),
@@ -280,14 +271,16 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
 /// `--strategies DIR`: BDPT's per-strategy images of depth ≤ 5.
 fn write_strategies(
     dir: &Path,
-    prepared: &Prepared,
+    desc: &SceneDesc,
+    scene: &tessera_render::Scene,
     camera: &tessera_render::camera::Camera,
-    range: tessera_render::SampleRange,
+    spp: u32,
 ) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
-    let bdpt = tessera_render::integrator::bdpt::Bdpt::new(&prepared.desc);
+    let bdpt = tessera_render::integrator::bdpt::Bdpt::new(desc);
+    let range = tessera_render::SampleRange { start: 0, end: spp };
     let images = bdpt
-        .render_strategies(&prepared.scene, camera, range, 5)
+        .render_strategies(scene, camera, range, 5)
         .map_err(anyhow::Error::msg)?;
     let meta = tessera_render::output::ExrMetadata::default();
     for i in &images {

@@ -18,8 +18,10 @@ pub fn spawn(app: &Arc<App>, addr: SocketAddr, stop: tokio::sync::watch::Receive
         addr
     };
     let url = format!("http://{host}");
+    let log = app.config.worker_log.clone();
     for i in 1..=n {
         let (url, token, mut stop) = (url.clone(), app.config.worker_token.clone(), stop.clone());
+        let log = log.clone();
         tokio::spawn(async move {
             let exe = match std::env::current_exe() {
                 Ok(exe) => exe,
@@ -36,6 +38,7 @@ pub fn spawn(app: &Arc<App>, addr: SocketAddr, stop: tokio::sync::watch::Receive
                     .args(["--slots", &slots.to_string()])
                     .args(["--parent-pid", &std::process::id().to_string()])
                     .env("TESSERA_WORKER_TOKEN", &token)
+                    .envs(log.iter().map(|l| ("RUST_LOG", l.as_str())))
                     .kill_on_drop(true)
                     .spawn();
                 let mut child = match child {

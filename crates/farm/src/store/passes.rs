@@ -1,15 +1,15 @@
 //! Passes and the artifact cache in the store.
 //!
-//! A job that needs precomputation has one `passes` row per pass (photon maps, then the
-//! irradiance cache), each with the key of the artifact it makes. A pass whose key is in the
-//! `cache` table (and allowed to be reused) starts `reused`; otherwise the first pass to build
-//! is `running` with its tasks queued, later ones `waiting`. Tile tasks are queued when every
-//! pass is built or reused. Artifacts are files named by key; `cache` says which job built each.
+//! A job that needs precomputation has one `passes` row per pass, in order, each with the key
+//! of the artifact it makes. A pass whose key is cached (and allowed to be reused) starts
+//! `reused`; otherwise the first pass to build is `running` with its tasks queued, later ones
+//! `waiting`. Frames are queued when every pass is built or reused. Artifacts are files named
+//! by key; `cache` says which job built each and when one was last used, for eviction.
 
 use rusqlite::{OptionalExtension, Transaction, params};
 
 use super::{Result, Store};
-use crate::job::{PassKind, TaskKind, TaskSpec};
+use crate::job::TaskSpec;
 use crate::protocol::{ArtifactRef, PassStatus};
 
 /// How a pass of a new job starts.
@@ -19,13 +19,13 @@ pub enum PassStart {
     Reused,
     /// To build now, with these tasks.
     Build(Vec<TaskSpec>),
-    /// To build after the passes before it (its tasks need their artifacts).
-    Waiting,
+    /// To build after the passes before it (its tasks may read their artifacts).
+    Waiting(Vec<TaskSpec>),
 }
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct NewPass {
-    pub kind: PassKind,
+    pub name: String,
     pub key: String,
     pub start: PassStart,
 }
@@ -34,7 +34,8 @@ pub struct NewPass {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CacheEntry {
     pub key: String,
-    pub kind: PassKind,
+    /// The pass that builds it.
+    pub name: String,
     /// Relative to the data directory.
     pub path: String,
     pub bytes: u64,
@@ -43,82 +44,67 @@ pub struct CacheEntry {
     pub job: i64,
 }
 
-/// What follows a finished pass.
-#[derive(Debug, Clone, PartialEq)]
-pub enum NextStage {
-    /// The next pass, with its tasks.
-    Pass(PassKind, Vec<TaskSpec>),
-    /// The tile tasks of every frame.
-    Tiles(Vec<TaskSpec>),
-}
-
 impl Store {
-    /// Inserts a new job's passes and the tasks of those that build now. Returns whether the
-    /// tile tasks can be queued at once (every pass reused).
+    /// Inserts a new job's passes and the tasks of the one that builds first. Returns whether
+    /// the frames can be queued at once (every pass reused).
     pub(super) fn insert_passes(tx: &Transaction, job: i64, passes: &[NewPass]) -> Result<bool> {
-        let mut all_reused = true;
-        for p in passes {
-            let (state, total) = match &p.start {
-                PassStart::Reused => ("reused", 0),
-                PassStart::Build(tasks) => ("running", tasks.len()),
-                PassStart::Waiting => ("waiting", 0),
+        let mut building = false;
+        for (step, p) in passes.iter().enumerate() {
+            let (state, tasks) = match &p.start {
+                PassStart::Reused => ("reused", None),
+                PassStart::Build(t) | PassStart::Waiting(t) if !building => ("running", Some(t)),
+                PassStart::Build(t) | PassStart::Waiting(t) => ("waiting", Some(t)),
             };
             tx.execute(
-                "INSERT INTO passes (job_id, kind, key, state, tasks_total) VALUES (?1, ?2, ?3, ?4, ?5)",
-                params![job, p.kind.as_str(), p.key, state, total as i64],
+                "INSERT INTO passes (job_id, step, name, key, state, tasks_total) VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+                params![job, step as u32, p.name, p.key, state, tasks.map_or(0, |t| t.len() as i64)],
             )?;
-            if let PassStart::Build(tasks) = &p.start {
+            if let Some(tasks) = tasks {
                 Self::insert_tasks(tx, job, tasks)?;
-                all_reused = false;
+                if state == "waiting" {
+                    tx.execute(
+                        "UPDATE tasks SET state = 'waiting' WHERE job_id = ?1 AND frame = 0 AND step = ?2",
+                        params![job, step as u32],
+                    )?;
+                }
             }
-            if p.start == PassStart::Waiting {
-                all_reused = false;
-            }
+            building |= tasks.is_some();
         }
-        Ok(all_reused)
+        Ok(!building)
     }
 
-    /// The artifacts a task of `kind` reads: the keys of the job's passes before its stage.
+    /// The artifacts a task reads: those of the job's passes before it (a frame's task: all).
     pub(super) fn artifacts_for(
         tx: &Transaction,
         job: i64,
-        kind: TaskKind,
+        task: &TaskSpec,
     ) -> Result<Vec<ArtifactRef>> {
-        let wanted: &[PassKind] = match kind {
-            TaskKind::GlobalPhotons
-            | TaskKind::CausticPhotons
-            | TaskKind::Sppm
-            | TaskKind::Bdpt
-            | TaskKind::SubsurfacePoints => &[],
-            TaskKind::Records => &[PassKind::Photons],
-            TaskKind::Tile => &[PassKind::Photons, PassKind::Records, PassKind::Subsurface],
-        };
-        let mut out = Vec::new();
-        for &pass in wanted {
-            let key: Option<String> = tx
-                .query_row(
-                    "SELECT key FROM passes WHERE job_id = ?1 AND kind = ?2",
-                    params![job, pass.as_str()],
-                    |r| r.get(0),
-                )
-                .optional()?;
-            if let Some(key) = key {
-                out.push(ArtifactRef { kind: pass, key });
-            }
-        }
+        let below = if task.is_pass() { task.step } else { u32::MAX };
+        let mut stmt = tx.prepare(
+            "SELECT name, key FROM passes WHERE job_id = ?1 AND step < ?2 ORDER BY step",
+        )?;
+        let out = stmt
+            .query_map(params![job, below], |r| {
+                Ok(ArtifactRef {
+                    pass: r.get(0)?,
+                    key: r.get(1)?,
+                })
+            })?
+            .collect::<rusqlite::Result<_>>()?;
         Ok(out)
     }
 
     /// The cached artifact with this key.
     pub fn cached(&self, key: &str) -> Result<Option<CacheEntry>> {
-        self.conn()
+        Ok(self
+            .conn()
             .query_row(
-                "SELECT key, kind, path, bytes, sha256, job_id FROM cache WHERE key = ?1",
+                "SELECT key, name, path, bytes, sha256, job_id FROM cache WHERE key = ?1",
                 [key],
                 |r| {
                     Ok(CacheEntry {
                         key: r.get(0)?,
-                        kind: PassKind::parse(&r.get::<_, String>(1)?).unwrap_or(PassKind::Photons),
+                        name: r.get(1)?,
                         path: r.get(2)?,
                         bytes: r.get::<_, i64>(3)? as u64,
                         sha256: r.get(4)?,
@@ -126,47 +112,38 @@ impl Store {
                     })
                 },
             )
-            .optional()
+            .optional()?)
     }
 
-    /// Done tasks of a pass in merge order: (task id, lease, spec).
-    pub fn pass_results(&self, job: i64, pass: PassKind) -> Result<Vec<(i64, i64, TaskSpec)>> {
-        let kinds: &[TaskKind] = match pass {
-            PassKind::Photons => &[TaskKind::GlobalPhotons, TaskKind::CausticPhotons],
-            PassKind::Records => &[TaskKind::Records],
-            PassKind::Subsurface => &[TaskKind::SubsurfacePoints],
-        };
-        let conn = self.conn();
-        let mut stmt = conn.prepare(&format!(
-            "SELECT id, lease, {} FROM tasks
-             WHERE job_id = ?1 AND state = 'done' AND kind IN (?2, ?3)
-             ORDER BY tile_index",
-            super::SPEC_COLUMNS
-        ))?;
-        let (a, b) = (kinds[0].as_str(), kinds[kinds.len() - 1].as_str());
-        stmt.query_map(params![job, a, b], |r| {
-            Ok((r.get(0)?, r.get(1)?, super::task_spec(r, 2)?))
-        })?
-        .collect()
+    /// Notes that an artifact was used now (for least-recently-used eviction).
+    pub fn touch(&self, key: &str, now: i64) -> Result<()> {
+        self.conn().execute(
+            "UPDATE cache SET used_ms = ?2 WHERE key = ?1",
+            params![key, now],
+        )?;
+        Ok(())
     }
 
-    /// A pass's artifact is written: cache it, mark the pass built, and queue what follows.
+    /// A pass's artifact is written: cache it, mark the pass built, and queue what follows:
+    /// the next pass that waits, or (`frames`, when none waits) every frame's first step.
+    /// Returns whether frames were queued.
     pub fn pass_built(
         &self,
         job: i64,
-        pass: PassKind,
+        step: u32,
         entry: &CacheEntry,
-        next: &NextStage,
+        summary: &str,
+        frames: &[Vec<TaskSpec>],
         now: i64,
-    ) -> Result<()> {
+    ) -> Result<bool> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         tx.execute(
-            "INSERT OR REPLACE INTO cache (key, kind, path, bytes, sha256, job_id, created_ms)
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+            "INSERT OR REPLACE INTO cache (key, name, path, bytes, sha256, job_id, created_ms, used_ms)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?7)",
             params![
                 entry.key,
-                entry.kind.as_str(),
+                entry.name,
                 entry.path,
                 entry.bytes as i64,
                 entry.sha256,
@@ -175,65 +152,100 @@ impl Store {
             ],
         )?;
         tx.execute(
-            "UPDATE passes SET state = 'built' WHERE job_id = ?1 AND kind = ?2",
-            params![job, pass.as_str()],
+            "UPDATE passes SET state = 'built', summary = ?3 WHERE job_id = ?1 AND step = ?2",
+            params![job, step, summary],
         )?;
         // Only a job still running gets more tasks.
         let running: bool = tx
             .prepare("SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running')")?
             .exists([job])?;
+        let waiting: Option<u32> = tx
+            .query_row(
+                "SELECT step FROM passes WHERE job_id = ?1 AND state = 'waiting' ORDER BY step LIMIT 1",
+                [job],
+                |r| r.get(0),
+            )
+            .optional()?;
+        let mut frames_queued = false;
         if running {
-            match next {
-                NextStage::Pass(kind, tasks) => {
+            match waiting {
+                Some(next) => {
                     tx.execute(
-                        "UPDATE passes SET state = 'running', tasks_total = ?3
-                         WHERE job_id = ?1 AND kind = ?2",
-                        params![job, kind.as_str(), tasks.len() as i64],
+                        "UPDATE passes SET state = 'running' WHERE job_id = ?1 AND step = ?2",
+                        params![job, next],
                     )?;
-                    Self::insert_tasks(&tx, job, tasks)?;
+                    tx.execute(
+                        "UPDATE tasks SET state = 'queued' WHERE job_id = ?1 AND frame = 0 AND step = ?2 AND state = 'waiting'",
+                        params![job, next],
+                    )?;
                 }
-                NextStage::Tiles(tasks) => Self::insert_tasks(&tx, job, tasks)?,
+                None => {
+                    for tasks in frames {
+                        Self::insert_tasks(&tx, job, tasks)?;
+                    }
+                    frames_queued = true;
+                }
             }
         }
-        tx.commit()
+        tx.commit()?;
+        Ok(frames_queued)
     }
 
-    /// Passes whose tasks are all done but whose artifact was not written (a restart in
-    /// between): (job, pass).
-    pub fn unfinished_passes(&self) -> Result<Vec<(i64, PassKind)>> {
+    /// Every cached artifact, least recently used first, with whether a job that has not ended
+    /// reads it.
+    pub fn cache_entries(&self) -> Result<Vec<(CacheEntry, bool)>> {
         let conn = self.conn();
         let mut stmt = conn.prepare(
-            "SELECT p.job_id, p.kind FROM passes p JOIN jobs j ON j.id = p.job_id
-             WHERE p.state = 'running' AND p.tasks_done = p.tasks_total
-               AND j.state IN ('queued', 'running')
-             ORDER BY p.job_id, p.kind",
+            "SELECT c.key, c.name, c.path, c.bytes, c.sha256, c.job_id,
+                EXISTS (SELECT 1 FROM passes p JOIN jobs j ON j.id = p.job_id
+                        WHERE p.key = c.key AND j.state IN ('queued', 'running'))
+             FROM cache c ORDER BY c.used_ms, c.created_ms",
         )?;
-        stmt.query_map([], |r| {
-            Ok((
-                r.get(0)?,
-                PassKind::parse(&r.get::<_, String>(1)?).unwrap_or(PassKind::Photons),
-            ))
-        })?
-        .collect()
+        let out = stmt
+            .query_map([], |r| {
+                Ok((
+                    CacheEntry {
+                        key: r.get(0)?,
+                        name: r.get(1)?,
+                        path: r.get(2)?,
+                        bytes: r.get::<_, i64>(3)? as u64,
+                        sha256: r.get(4)?,
+                        job: r.get(5)?,
+                    },
+                    r.get(6)?,
+                ))
+            })?
+            .collect::<rusqlite::Result<_>>()?;
+        Ok(out)
+    }
+
+    /// Forgets a cached artifact (its file is the caller's to delete).
+    pub fn uncache(&self, key: &str) -> Result<()> {
+        self.conn()
+            .execute("DELETE FROM cache WHERE key = ?1", [key])?;
+        Ok(())
     }
 
     pub(super) fn job_passes(conn: &rusqlite::Connection, job: i64) -> Result<Vec<PassStatus>> {
         let mut stmt = conn.prepare(
-            "SELECT p.kind, p.key, p.state, p.tasks_done, p.tasks_total, c.job_id, c.bytes
+            "SELECT p.name, p.key, p.state, p.tasks_done, p.tasks_total, c.job_id, c.bytes, p.summary
              FROM passes p LEFT JOIN cache c ON c.key = p.key
-             WHERE p.job_id = ?1 ORDER BY p.rowid",
+             WHERE p.job_id = ?1 ORDER BY p.step",
         )?;
-        stmt.query_map([job], |r| {
-            Ok(PassStatus {
-                kind: PassKind::parse(&r.get::<_, String>(0)?).unwrap_or(PassKind::Photons),
-                key: r.get(1)?,
-                state: r.get(2)?,
-                tasks_done: r.get::<_, i64>(3)? as u64,
-                tasks_total: r.get::<_, i64>(4)? as u64,
-                built_by: r.get(5)?,
-                bytes: r.get::<_, Option<i64>>(6)?.map(|b| b as u64),
-            })
-        })?
-        .collect()
+        let out = stmt
+            .query_map([job], |r| {
+                Ok(PassStatus {
+                    name: r.get(0)?,
+                    key: r.get(1)?,
+                    state: r.get(2)?,
+                    tasks_done: r.get::<_, i64>(3)? as u64,
+                    tasks_total: r.get::<_, i64>(4)? as u64,
+                    built_by: r.get(5)?,
+                    bytes: r.get::<_, Option<i64>>(6)?.map(|b| b as u64),
+                    summary: r.get(7)?,
+                })
+            })?
+            .collect::<rusqlite::Result<_>>()?;
+        Ok(out)
     }
 }

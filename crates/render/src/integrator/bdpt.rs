@@ -1431,10 +1431,10 @@ impl Bdpt {
                     }
                 }
                 stats.samples += 1;
-                let l = l * ctx.camera.exposure;
+                let mut l = l * ctx.camera.exposure;
                 if !l.is_finite() {
                     stats.nonfinite += 1;
-                    continue;
+                    l = Spectrum::ZERO;
                 }
                 acc.add(fw, l, None);
             }

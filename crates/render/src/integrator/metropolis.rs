@@ -21,7 +21,7 @@ use crate::camera::Camera;
 use crate::film::Image;
 use crate::sampler::hash::hash;
 use crate::scene::Scene;
-use tessera_scene::{IntegratorKind, SceneDesc};
+use tessera_scene::SceneDesc;
 
 /// Groups a Metropolis frame's work is cut into (its farm tasks).
 pub const GROUPS: u32 = 8;
@@ -81,33 +81,80 @@ pub(super) fn render_groups<C: Chains>(
 ) -> Result<(BdptSums, RayStats), String> {
     let s = m.settings();
     let ctx = m.ctx(scene, camera)?;
-    let all = (mutations as f64 * super::pssmlt::ctx_area(&ctx)) as u64;
-    let (mut sums, mut stats) = direct_and_brightness(
-        &ctx,
-        s.max_depth,
-        mutations,
-        (all / 16).max(s.bootstrap as u64),
-        s.seed,
-        groups.clone(),
-    )?;
+    let direct = shares(mutations.max(1) as u64, &groups);
+    let range = SampleRange {
+        start: direct.start as u32,
+        end: direct.end as u32,
+    };
+    let (mut sums, mut stats) = direct_light(&ctx, s.max_depth, range)?;
+    let (chains, st) = chain_groups(m, &ctx, mutations, groups, progress);
+    stats.add(&st);
+    sums.brightness = chains.brightness;
+    sums.chain = chains.splats;
+    Ok((sums, stats))
+}
+
+/// What a group of chains adds to a frame: its chains' splats (Σ f / f* × acceptance per
+/// pixel, 2⁻³² units) and its brightness samples (their sum, 2⁻³² units, and count).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChainSums {
+    pub splats: Vec<[i64; 3]>,
+    pub brightness: (i128, u64),
+}
+
+/// Emitted and directly reflected light (depths 0 and 1) by BDPT, samples `range` of every
+/// pixel, as Veach & Guibas do: it is what sampling independently does best; the chains are
+/// left the indirect light.
+pub(super) fn direct_light(
+    ctx: &Ctx,
+    max_depth: u32,
+    range: SampleRange,
+) -> Result<(BdptSums, RayStats), String> {
+    let direct = Bdpt {
+        max_depth: max_depth.min(MIN_DEPTH - 1),
+        min_depth: 0,
+        rr_depth: u32::MAX,
+    };
+    direct.render_range(ctx.scene, ctx.camera, range, &|_| {})
+}
+
+/// Groups `groups` of the chains of a frame with `mutations` per pixel: their share of the
+/// brightness samples and bootstrap paths, and their chains' splats.
+fn chain_groups<C: Chains>(
+    m: &C,
+    ctx: &Ctx,
+    mutations: u32,
+    groups: Range<u32>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> (ChainSums, RayStats) {
+    let s = m.settings();
+    let (w, h) = (ctx.scene.film.width, ctx.scene.film.height);
+    let mut out = ChainSums {
+        splats: vec![[0; 3]; w as usize * h as usize],
+        brightness: (0, 0),
+    };
     if s.max_depth < MIN_DEPTH {
-        return Ok((sums, stats));
+        return (out, RayStats::default());
     }
+    let all = (mutations as f64 * super::pssmlt::ctx_area(ctx)) as u64;
+    let (brightness, mut stats) =
+        brightness_samples(ctx, s.max_depth, (all / 16).max(s.bootstrap as u64), s.seed, &groups);
+    out.brightness = brightness;
     let (boots, st) = bootstrap_cdfs(
         s.bootstrap_paths,
         groups.clone(),
         C::Scratch::default,
-        |scratch, i| m.bootstrap_weight(&ctx, scratch, i),
+        |scratch, i| m.bootstrap_weight(ctx, scratch, i),
     );
     stats.add(&st);
-    let splats = Splats::new(scene.film.width, scene.film.height);
+    let splats = Splats::new(w, h);
     let chain_stats: Vec<RayStats> = chain_list(s.chains, all, groups.clone())
         .into_par_iter()
         .map_init(C::Scratch::default, |scratch, (c, steps, g)| {
             let Some(start) = boots[(g - groups.start) as usize].pick(c, s.seed) else {
                 return RayStats::default();
             };
-            let st = m.run_chain(&ctx, scratch, (c, steps, start), &splats);
+            let st = m.run_chain(ctx, scratch, (c, steps, start), &splats);
             progress(steps);
             st
         })
@@ -115,8 +162,8 @@ pub(super) fn render_groups<C: Chains>(
     for st in &chain_stats {
         stats.add(st);
     }
-    sums.chain = splats.totals();
-    Ok((sums, stats))
+    out.splats = splats.totals();
+    (out, stats)
 }
 
 /// The part of `n` items group `g` owns.
@@ -130,42 +177,24 @@ fn shares(n: u64, groups: &Range<u32>) -> Range<u64> {
     share(n, groups.start).start..share(n, groups.end.max(groups.start + 1) - 1).end
 }
 
-/// What both Metropolis renderers add their chains to, for groups `groups`: emitted and
-/// directly reflected light (depths 0 and 1) by BDPT at `spp` samples per pixel in all, as
-/// Veach & Guibas do (it is what sampling independently does best; the chains are left the
-/// indirect light), and their share of `n` samples of the brightness b, the mean luminance
-/// of the indirect light (depths 2..=`max_depth`) over the extended film, each a BDPT sample
-/// with every strategy of every depth (so rare bright paths, a small light seen in glass,
-/// count as often as the film shows them, not as rarely as one strategy finds them). b's
-/// error scales the chains' image.
-pub(super) fn direct_and_brightness(
+/// Groups `groups`' share of `n` samples of the brightness b, the mean luminance of the
+/// indirect light (depths 2..=`max_depth`) over the extended film, each a BDPT sample with
+/// every strategy of every depth (so rare bright paths, a small light seen in glass, count as
+/// often as the film shows them, not as rarely as one strategy finds them): their sum (2⁻³²
+/// units) and count. b's error scales the chains' image.
+fn brightness_samples(
     ctx: &Ctx,
     max_depth: u32,
-    spp: u32,
     n: u64,
     seed: u64,
-    groups: Range<u32>,
-) -> Result<(BdptSums, RayStats), String> {
-    let direct = Bdpt {
-        max_depth: max_depth.min(MIN_DEPTH - 1),
-        min_depth: 0,
-        rr_depth: u32::MAX,
-    };
-    let samples = shares(spp.max(1) as u64, &groups);
-    let range = SampleRange {
-        start: samples.start as u32,
-        end: samples.end as u32,
-    };
-    let (mut sums, mut stats) = direct.render_range(ctx.scene, ctx.camera, range, &|_| {})?;
-    if max_depth < MIN_DEPTH {
-        return Ok((sums, stats));
-    }
+    groups: &Range<u32>,
+) -> ((i128, u64), RayStats) {
     // Roulette is fine here (no chain to reject it).
     let rr = Ctx {
         rr_depth: 3,
         ..*ctx
     };
-    let bright: Vec<(f64, RayStats)> = shares(n, &groups)
+    let bright: Vec<(f64, RayStats)> = shares(n, groups)
         .into_par_iter()
         .map_init(Paths::default, |paths, i| {
             let mut stats = RayStats::default();
@@ -174,12 +203,13 @@ pub(super) fn direct_and_brightness(
             (y, stats)
         })
         .collect();
+    let (mut sum, mut stats) = ((0i128, 0u64), RayStats::default());
     for (y, st) in &bright {
-        sums.brightness.0 += fixed_brightness(*y);
-        sums.brightness.1 += 1;
+        sum.0 += fixed_brightness(*y);
+        sum.1 += 1;
         stats.add(st);
     }
-    Ok((sums, stats))
+    (sum, stats)
 }
 
 /// The mean of n samples with sum `sum` and sum of squares `sum2`, and its standard error.
@@ -261,13 +291,57 @@ pub enum Metropolis {
 }
 
 impl Metropolis {
-    /// The Metropolis renderer `kind` names, with `desc`'s settings; `None` for the others.
-    pub fn new(kind: IntegratorKind, desc: &SceneDesc) -> Option<Self> {
-        match kind {
-            IntegratorKind::Pssmlt => Some(Metropolis::Pssmlt(Pssmlt::new(desc))),
-            IntegratorKind::Mlt => Some(Metropolis::Mlt(Mlt::new(desc))),
+    /// The Metropolis renderer called `name` (`pssmlt` or `mlt`), with `desc`'s settings;
+    /// `None` for other names.
+    pub fn new(name: &str, desc: &SceneDesc) -> Option<Self> {
+        match name {
+            "pssmlt" => Some(Metropolis::Pssmlt(Pssmlt::new(desc))),
+            "mlt" => Some(Metropolis::Mlt(Mlt::new(desc))),
             _ => None,
         }
+    }
+
+    fn ctx<'a>(&self, scene: &'a Scene, camera: &'a Camera) -> Result<Ctx<'a>, String> {
+        match self {
+            Metropolis::Pssmlt(m) => m.ctx(scene, camera),
+            Metropolis::Mlt(m) => m.ctx(scene, camera),
+        }
+    }
+
+    fn max_depth(&self) -> u32 {
+        match self {
+            Metropolis::Pssmlt(m) => m.settings().max_depth,
+            Metropolis::Mlt(m) => m.settings().max_depth,
+        }
+    }
+
+    /// Direct light for samples `range` of every pixel (see [`direct_light`]): fixed-point
+    /// sums, any split of the samples merging to the same bits.
+    pub fn direct(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        range: SampleRange,
+    ) -> Result<(BdptSums, RayStats), String> {
+        direct_light(&self.ctx(scene, camera)?, self.max_depth(), range)
+    }
+
+    /// Group `group` of the chains of a frame with `mutations` per pixel (its brightness
+    /// samples, bootstrap paths and chains).
+    pub fn chains(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        mutations: u32,
+        group: u32,
+        progress: &(dyn Fn(u64) + Sync),
+    ) -> Result<(ChainSums, RayStats), String> {
+        let ctx = self.ctx(scene, camera)?;
+        let g = group..group + 1;
+        Ok(match self {
+            Metropolis::Pssmlt(m) => chain_groups(m, &ctx, mutations, g, progress),
+            Metropolis::Mlt(m) => chain_groups(m, &ctx, mutations, g, progress),
+        })
     }
 
     /// Groups `groups` of a frame with `mutations` per pixel (see [`GROUPS`]).

@@ -16,7 +16,7 @@ pub mod sppm;
 pub mod vcm;
 
 use glam::{Vec2, Vec3A};
-use tessera_scene::{IntegratorDesc, IntegratorKind, SceneDesc, SubsurfaceMethod};
+use tessera_scene::{IntegratorDesc, SceneDesc, SubsurfaceMethod};
 
 use crate::analysis::Analysis;
 
@@ -110,7 +110,7 @@ pub(crate) fn sample_direct(
 }
 
 /// Counters kept per tile (no shared state in the sample loop).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct RayStats {
     /// Rays traced: camera, continuation and shadow rays.
     pub rays: u64,
@@ -154,19 +154,19 @@ pub trait Integrator: Send + Sync {
     ) -> RadianceSample;
 }
 
-/// A path tracer (`path`, `auto`) or the direct-lighting estimator (`direct`) from a
-/// description alone; integrators with passes come from [`prepare`].
-fn path_family(desc: &IntegratorDesc) -> PathIntegrator {
-    match desc.kind {
-        IntegratorKind::Direct => PathIntegrator::direct_lighting(desc.max_depth),
+/// A path tracer, or the direct-lighting estimator for `direct`.
+fn path_family(method: &str, desc: &IntegratorDesc) -> PathIntegrator {
+    match method {
+        "direct" => PathIntegrator::direct_lighting(desc.max_depth),
         _ => PathIntegrator::new(desc.max_depth, desc.rr_depth),
     }
     .with_subsurface(desc.subsurface)
 }
 
-/// The integrator that renders `desc` (built as `scene`; `analysis` resolved `auto`), with
-/// any passes it needs (photon maps, irradiance records) run in-process; and what was decided
-/// on the way, for logs and the job status.
+/// The per-ray integrator of a tile method (path, direct, photon; `analysis` resolved
+/// `auto`) with its passes (photon maps, irradiance records, point clouds) run in-process, and
+/// what was decided on the way: for tests and tools that render with [`crate::render`]
+/// directly. Frames are rendered by [`crate::method`].
 ///
 /// `frames` are the frames to be rendered: view-dependent passes (irradiance records) are made
 /// from their cameras.
@@ -176,43 +176,20 @@ pub fn prepare(
     analysis: &Analysis,
     frames: std::ops::RangeInclusive<u32>,
 ) -> (Box<dyn Integrator>, Vec<String>) {
-    match analysis.integrator {
-        IntegratorKind::Photon => {
-            let (p, why) = PhotonIntegrator::prepare(desc, scene, analysis, frames);
-            (Box::new(p), why)
-        }
-        // SPPM, BDPT, VCM and the Metropolis renderers render whole frames; asked for tiles, a path tracer renders
-        // the same image, and says so.
-        kind @ (IntegratorKind::Sppm
-        | IntegratorKind::Bdpt
-        | IntegratorKind::Pssmlt
-        | IntegratorKind::Mlt
-        | IntegratorKind::Vcm) => (
-            Box::new(path_family(&IntegratorDesc {
-                kind: IntegratorKind::Path,
-                ..desc.integrator
-            })),
-            vec![format!(
-                "{} renders whole frames (tessera render); per-tile rendering path traces",
-                format!("{kind:?}").to_lowercase()
-            )],
-        ),
-        kind => {
-            let path = path_family(&IntegratorDesc {
-                kind,
-                ..desc.integrator
-            });
-            if !needs_point_clouds(desc) {
-                return (Box::new(path), Vec::new());
-            }
-            let clouds = subsurface_pass(desc, scene);
-            let passes = clouds.summary.clone();
-            (
-                Box::new(path.with_clouds(std::sync::Arc::new(clouds))),
-                passes,
-            )
-        }
+    if analysis.method == "photon" {
+        let (p, why) = PhotonIntegrator::prepare(desc, scene, analysis, frames);
+        return (Box::new(p), why);
     }
+    let path = path_family(&analysis.method, &desc.integrator);
+    if !needs_point_clouds(desc) {
+        return (Box::new(path), Vec::new());
+    }
+    let clouds = subsurface_pass(desc, scene);
+    let passes = clouds.summary.clone();
+    (
+        Box::new(path.with_clouds(std::sync::Arc::new(clouds))),
+        passes,
+    )
 }
 
 /// Whether rendering `desc` takes the hierarchical method's point-cloud pass: translucent
@@ -245,20 +222,6 @@ pub fn subsurface_irradiance(
     placement.irradiance(desc, scene, range, &|si, sub, sampler, stats| {
         tracer.exit_irradiance(scene, si, sub, sampler, stats)
     })
-}
-
-/// The tile integrator of `desc` (`analysis` resolved `auto`) with point clouds built
-/// elsewhere: a farm worker's, from the pass artifact.
-pub fn with_point_clouds(
-    desc: &SceneDesc,
-    analysis: &Analysis,
-    clouds: PointClouds,
-) -> Box<dyn Integrator> {
-    let path = path_family(&IntegratorDesc {
-        kind: analysis.integrator,
-        ..desc.integrator
-    });
-    Box::new(path.with_clouds(std::sync::Arc::new(clouds)))
 }
 
 /// The integrator for frame 1 of a scene: its own choice, or the one scene analysis makes for

@@ -76,7 +76,7 @@ pub struct PixelSum {
 
 /// Every pixel's statistics across iterations, row-major (f64: they accumulate over
 /// thousands of iterations). This is what a farm coordinator keeps between iterations.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SppmState {
     pub width: u32,
     pub height: u32,
@@ -121,29 +121,41 @@ impl SppmState {
         alpha: f32,
     ) {
         let len = self.r.len();
-        let (mut phi, mut m) = (vec![DVec3::ZERO; len], vec![0u64; len]);
+        let (mut phi, mut m) = (vec![[0.0f64; 3]; len], vec![0u64; len]);
         for chunk in chunks {
             for s in chunk {
                 let i = s.pixel as usize;
                 if i < len {
-                    phi[i] += DVec3::from_array(s.phi);
+                    for c in 0..3 {
+                        phi[i][c] += s.phi[c];
+                    }
                     m[i] += s.m as u64;
                 }
             }
         }
+        let ld: Vec<[f32; 3]> = camera.ld.iter().map(|l| l.to_array()).collect();
+        self.add_sums(&ld, &camera.w, &phi, &m, alpha);
+    }
+
+    /// Folds one iteration in from its per-pixel totals: emitted and direct light `ld` and
+    /// filter weight `w` of the camera paths, and Φ and M summed over the iteration's chunks;
+    /// then Hachisuka & Jensen's update (see [`Self::add_iteration`]).
+    pub fn add_sums(&mut self, ld: &[[f32; 3]], w: &[f32], phi: &[[f64; 3]], m: &[u64], alpha: f32) {
         let alpha = alpha as f64;
-        for i in 0..len {
-            if let Some(l) = camera.ld.get(i).filter(|l| l.is_finite()) {
-                self.ld[i] += DVec3::new(l.x as f64, l.y as f64, l.z as f64);
+        for i in 0..self.r.len() {
+            if let Some(l) = ld.get(i).filter(|l| l.iter().all(|v| v.is_finite())) {
+                self.ld[i] += DVec3::new(l[0] as f64, l[1] as f64, l[2] as f64);
             }
-            if let Some(&w) = camera.w.get(i).filter(|w| w.is_finite()) {
+            if let Some(&w) = w.get(i).filter(|w| w.is_finite()) {
                 self.w[i] += w as f64;
             }
-            if m[i] > 0 {
-                let (n, r, m) = (self.n[i], self.r[i], m[i] as f64);
-                let n_new = n + alpha * m;
-                let r_new = r * (n_new / (n + m)).sqrt();
-                self.tau[i] = (self.tau[i] + phi[i]) * (r_new * r_new) / (r * r);
+            let mi = m.get(i).copied().unwrap_or(0);
+            if mi > 0 {
+                let (n, r, mf) = (self.n[i], self.r[i], mi as f64);
+                let n_new = n + alpha * mf;
+                let r_new = r * (n_new / (n + mf)).sqrt();
+                let p = DVec3::from_array(phi[i]);
+                self.tau[i] = (self.tau[i] + p) * (r_new * r_new) / (r * r);
                 self.n[i] = n_new;
                 self.r[i] = r_new;
             }

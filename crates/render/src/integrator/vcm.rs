@@ -318,10 +318,10 @@ impl CameraPass<'_> {
                 l += self.merge_at(&cam, t, toward_eye);
             }
             stats.samples += 1;
-            let l = l * ctx.camera.exposure;
+            let mut l = l * ctx.camera.exposure;
             if !l.is_finite() {
                 stats.nonfinite += 1;
-                continue;
+                l = Spectrum::ZERO;
             }
             acc.add(fw, l, None);
         }

@@ -21,7 +21,7 @@ use glam::{Vec3, Vec3A};
 pub const MAX_K: usize = 1024;
 
 /// A photon at rest on a surface.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[repr(C)]
 pub struct Photon {
     pub p: Vec3,

@@ -252,7 +252,7 @@ const GAUSSIAN_INTEGRAL: f32 = {
 /// Outgoing radiance precomputed at a global photon on a Lambertian surface (Christensen,
 /// "Faster Photon Map Global Illumination", 1999): final gathering reads the nearest one
 /// instead of making a k-nearest density estimate per gather ray.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[repr(C)]
 pub struct RadiancePhoton {
     pub p: Vec3,

@@ -76,7 +76,7 @@ pub fn assert_falls(what: &str, budgets: &[String], errors: &[(f64, f64)], mean_
 /// samples, paths through the glass to the bulb among them); at 4096, σ ≈ 0.37 % (pssmlt) and
 /// 0.2 % (mlt) over seeds 0–5, so 1 % is 2.7σ and 5σ there.
 #[allow(dead_code, reason = "used by the Metropolis tests only")]
-pub fn assert_metropolis_converges_deterministically(kind: tessera_scene::IntegratorKind) {
+pub fn assert_metropolis_converges_deterministically(kind: &str) {
     use tessera_render::integrator::metropolis::Metropolis;
     let setup = |name: &str| {
         let (desc, reference) = scene_and_reference(name);

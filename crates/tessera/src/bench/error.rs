@@ -1,7 +1,8 @@
-//! Speed against error: a scene rendered with each integrator at increasing budgets, each
-//! checkpoint compared with a reference. One progressive render per integrator and seed: the
-//! image at a checkpoint of N samples is bit-identical to a fresh N-sample render, and the time
-//! to reach it is the render time so far.
+//! Speed against error: a scene rendered with each method at increasing budgets, each
+//! checkpoint compared with a reference. One progressive render per method and seed where the
+//! method can continue a frame (the frame's state takes each further range of samples, so the
+//! time to reach a checkpoint is the render time so far); a fresh render per budget where it
+//! cannot (Markov chains).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -9,15 +10,11 @@ use std::time::Instant;
 
 use anyhow::{Context, ensure};
 use serde::Serialize;
-use tessera_farm::job::{self, FrameRange, Limits, Prepared, RenderSettings};
-use tessera_farm::progressive::Accumulator;
-use tessera_render::SampleRange;
-use tessera_render::camera::Camera;
-use tessera_render::integrator::bdpt::BdptSums;
-use tessera_render::integrator::metropolis::Metropolis;
-use tessera_render::integrator::sppm::{Sppm, SppmSettings, SppmState};
+use tessera_farm::job::{self, FrameRange, Limits, RenderSettings};
+use tessera_render::method::Plan;
+use tessera_render::method::local::{Local, Progress};
 use tessera_render::metrics;
-use tessera_scene::{IntegratorKind, SubsurfaceMethod};
+use tessera_scene::SubsurfaceMethod;
 
 #[derive(clap::Args)]
 pub struct ErrorArgs {
@@ -74,8 +71,8 @@ fn parse_budget(s: &str) -> anyhow::Result<Budget> {
     Ok(Budget::Samples(v))
 }
 
-/// An integrator of `--integrators`, with its subsurface method if it names one.
-fn integrator_kind(name: &str) -> anyhow::Result<(IntegratorKind, Option<SubsurfaceMethod>)> {
+/// A method of `--integrators`, with its subsurface method if it names one.
+fn integrator_kind(name: &str) -> anyhow::Result<(String, Option<SubsurfaceMethod>)> {
     let (kind, method) = match name.trim().split_once(':') {
         Some((k, m)) => (
             k,
@@ -86,10 +83,7 @@ fn integrator_kind(name: &str) -> anyhow::Result<(IntegratorKind, Option<Subsurf
         ),
         None => (name.trim(), None),
     };
-    let kind = kind
-        .parse::<tessera_farm::job::IntegratorName>()
-        .map(|n| n.kind())
-        .map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
+    let kind = crate::render::parse_method(kind).map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
     Ok((kind, method))
 }
 
@@ -153,7 +147,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         !budgets.is_empty(),
         "--budgets: expected at least one budget"
     );
-    let kinds: Vec<(String, (IntegratorKind, Option<SubsurfaceMethod>))> = args
+    let kinds: Vec<(String, (String, Option<SubsurfaceMethod>))> = args
         .integrators
         .iter()
         .map(|n| Ok((n.trim().to_string(), integrator_kind(n)?)))
@@ -163,63 +157,62 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
     base.film.width = reference.width;
     base.film.height = reference.height;
     let reference: Vec<glam::Vec3A> = reference.pixels.iter().map(|&p| p.into()).collect();
-    let threads = args
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()?;
+    let threads = crate::render::threads(args.threads)?;
 
     let seeds: Vec<u64> = (0..u64::from(args.seeds))
         .map(|i| base.integrator.seed.wrapping_add(i))
         .collect();
     let mut runs = Vec::new();
-    for ((name, (kind, method)), &seed) in
+    let noop = |_: Progress| {};
+    for ((name, (method, subsurface)), &seed) in
         kinds.iter().flat_map(|k| seeds.iter().map(move |s| (k, s)))
     {
         let mut desc = base.clone();
-        desc.integrator.kind = *kind;
+        desc.integrator.method = method.clone();
         desc.integrator.seed = seed;
-        if let Some(m) = method {
+        if let Some(m) = subsurface {
             desc.integrator.subsurface = *m;
         }
-        job::apply(
-            &mut desc,
-            &RenderSettings::default(),
-            FrameRange::single(1),
-            &Limits::default(),
-        )
-        .map_err(anyhow::Error::msg)?;
+        // The first render goes to the first budget's samples (1 for a time budget); later
+        // ones continue it where the method can, else render anew.
+        let first = match budgets.first() {
+            Some(Budget::Samples(n)) => *n,
+            _ => 1,
+        };
+        let plan_for = |spp: u32| -> anyhow::Result<(tessera_scene::SceneDesc, Box<dyn Plan>)> {
+            let mut d = desc.clone();
+            let settings = RenderSettings {
+                spp: Some(spp),
+                ..Default::default()
+            };
+            let plan = job::plan(&mut d, &settings, FrameRange::single(1), &Limits::default())
+                .map_err(|e| anyhow::anyhow!("--integrators {name}: {e}"))?;
+            Ok((d, plan))
+        };
         // The clock includes building the scene and any passes (photon maps, irradiance
         // records): time to an error is time from the scene file.
         let (start, cpu0) = (Instant::now(), crate::render::cpu_seconds());
-        let prepared = pool.install(|| Prepared::new(desc.clone(), FrameRange::single(1)));
-        for p in &prepared.passes {
+        let (first_desc, plan) = plan_for(first)?;
+        let scene = tessera_render::Scene::build(&first_desc);
+        let local = Local::new(plan.as_ref(), &scene, &first_desc, threads, &noop);
+        for p in local.passes().map_err(anyhow::Error::msg)? {
             crate::print(&format!(
                 "{name:>8} pass: {p} ({:.2} s setup)\n",
-                prepared.build_seconds
+                start.elapsed().as_secs_f64()
             ))?;
         }
-        let camera = prepared.camera(1);
         let setup = (start.elapsed().as_secs_f64(), crate::render::cpu_seconds());
-        let mut acc = if *kind == IntegratorKind::Sppm {
-            let (photon, s) = SppmSettings::resolve(&desc, &prepared.analysis);
-            Progressive::Sppm(
-                Box::new(Sppm::new(&prepared.scene, &photon, s)),
-                SppmState::new(desc.film.width, desc.film.height, s.initial_radius),
-            )
-        } else if tessera_farm::bdpt::sample_ranges(*kind) {
-            Progressive::Bdpt(BdptSums::new(desc.film.width, desc.film.height))
-        } else if let Some(m) = Metropolis::new(*kind, &desc) {
-            Progressive::Fresh(m, None)
-        } else {
-            Progressive::Tiles(Accumulator::new(&desc, job::DEFAULT_TILE))
+        let mut progressive = Progressive {
+            local: &local,
+            state: None,
+            image: None,
+            samples: 0,
+            fresh: false,
         };
         // A continued render's clock runs from the start; a fresh one's is the setup plus
         // its last render.
         let mut last = (0.0, None);
-        let fresh = matches!(acc, Progressive::Fresh(..));
-        let clock = |last: (f64, Option<f64>)| {
+        let clock = |last: (f64, Option<f64>), fresh: bool| {
             if fresh {
                 (
                     setup.0 + last.0,
@@ -233,29 +226,34 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
             }
         };
         for budget in &budgets {
-            let render = |acc: &mut Progressive, n: u32| -> anyhow::Result<(f64, Option<f64>)> {
+            let render = |p: &mut Progressive, n: u32| -> anyhow::Result<(f64, Option<f64>)> {
                 let (t0, c0) = (Instant::now(), crate::render::cpu_seconds());
-                pool.install(|| acc.render_to(&prepared, &camera, n))?;
+                p.render_to(n, &|spp| plan_for(spp), &scene, threads)?;
                 Ok((
                     t0.elapsed().as_secs_f64(),
                     crate::render::cpu_seconds().zip(c0).map(|(b, a)| b - a),
                 ))
             };
             match *budget {
-                Budget::Samples(n) => last = render(&mut acc, n)?,
+                Budget::Samples(n) => last = render(&mut progressive, n)?,
                 Budget::Seconds(limit) => {
                     // Double the samples until the wall time reaches the budget (at least one
                     // sample, even when the setup alone took longer).
-                    while clock(last).0 < limit || acc.samples() == 0 {
-                        let next = (acc.samples() * 2).max(acc.samples() + 1);
-                        last = render(&mut acc, next)?;
+                    while clock(last, progressive.fresh).0 < limit || progressive.samples == 0 {
+                        let next = (progressive.samples * 2).max(progressive.samples + 1);
+                        last = render(&mut progressive, next)?;
                     }
                 }
             }
-            let (wall_s, cpu_s) = clock(last);
-            let image = acc.image(&camera);
+            let (wall_s, cpu_s) = clock(last, progressive.fresh);
+            let image = progressive
+                .image
+                .as_ref()
+                .context("no image rendered")?;
             let rgb: Vec<glam::Vec3A> = image.pixels.iter().map(|p| p.rgb.into()).collect();
             let e = metrics::compare(&rgb, &reference);
+            // Without any per-pixel variance (one batch, SPPM) there is no estimate.
+            let has_variance = image.pixels.iter().any(|p| p.variance.iter().any(|&v| v > 0.0));
             let run = Run {
                 integrator: name.clone(),
                 seed,
@@ -263,14 +261,13 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                     Budget::Samples(n) => format!("{n} spp"),
                     Budget::Seconds(s) => format!("{s} s"),
                 },
-                spp: acc.samples(),
+                spp: progressive.samples,
                 wall_s,
                 cpu_s,
                 rel_mse: e.rel_mse,
                 rmse: e.rmse,
                 mean_ratio: e.mean_ratio,
-                estimated_rel_mse: (!kind.whole_frame())
-                    .then(|| metrics::estimated_rel_mse(&image)),
+                estimated_rel_mse: has_variance.then(|| metrics::estimated_rel_mse(image)),
             };
             crate::print(&format!(
                 "{:>8}{} {:>6} spp  {:8.2} s wall  relMSE {:.3e} (estimated {})  RMSE {:.3e}  mean/ref {:.4}\n",
@@ -309,67 +306,59 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
     ))
 }
 
-/// A render that can be continued: tiles' sample sums, SPPM's per-pixel state (whose samples
-/// are iterations), or BDPT's whole-film sums. Each way the image after N is that of a fresh
-/// N render.
-enum Progressive<'a> {
-    Tiles(Accumulator),
-    Sppm(Box<Sppm<'a>>, SppmState),
-    /// BDPT's or VCM's whole-film sums.
-    Bdpt(BdptSums),
-    /// Rendered anew for each budget (Markov chains are not continued): PSSMLT, MLT.
-    Fresh(Metropolis, Option<(tessera_render::Image, u32)>),
+/// A render that can be continued where its method can (tiles, sample ranges, SPPM's
+/// iterations: the frame's state takes the further samples), or is rendered anew for each
+/// budget (Markov chains).
+struct Progressive<'a> {
+    local: &'a Local<'a>,
+    state: Option<Box<dyn tessera_render::method::Payload>>,
+    image: Option<tessera_render::Image>,
+    samples: u32,
+    /// The method cannot continue a frame.
+    fresh: bool,
 }
 
+type PlanFor<'a> =
+    dyn Fn(u32) -> anyhow::Result<(tessera_scene::SceneDesc, Box<dyn Plan>)> + 'a;
+
 impl Progressive<'_> {
-    fn samples(&self) -> u32 {
-        match self {
-            Progressive::Tiles(acc) => acc.samples,
-            Progressive::Sppm(_, state) => state.iterations,
-            Progressive::Bdpt(sums) => sums.samples,
-            Progressive::Fresh(_, done) => done.as_ref().map_or(0, |d| d.1),
-        }
-    }
-
-    fn render_to(&mut self, prepared: &Prepared, camera: &Camera, n: u32) -> anyhow::Result<()> {
-        match self {
-            Progressive::Tiles(acc) => acc.render_to(prepared, camera, n),
-            Progressive::Sppm(sppm, state) => {
-                while state.iterations < n {
-                    sppm.iterate(camera, state);
+    fn render_to(
+        &mut self,
+        n: u32,
+        plan_for: &PlanFor,
+        scene: &tessera_render::Scene,
+        threads: usize,
+    ) -> anyhow::Result<()> {
+        if !self.fresh {
+            match &mut self.state {
+                None => {
+                    let (state, done) = self.local.frame_with_state(1).map_err(anyhow::Error::msg)?;
+                    self.state = Some(state);
+                    self.image = Some(done.image);
+                    self.samples = self.local.desc.integrator.spp;
+                    if self.samples >= n {
+                        return Ok(());
+                    }
                 }
+                Some(_) => {}
             }
-            Progressive::Bdpt(sums) => {
-                if n > sums.samples {
-                    let range = SampleRange {
-                        start: sums.samples,
-                        end: n,
-                    };
-                    let (more, _) =
-                        tessera_farm::bdpt::render_range(prepared, camera, range, &|_| {})
-                            .map_err(anyhow::Error::msg)?;
-                    sums.merge(&more);
+            let state = self.state.as_mut().context("no frame to continue")?;
+            match self.local.more(1, state.as_mut(), n) {
+                Some(done) => {
+                    self.image = Some(done.map_err(anyhow::Error::msg)?.image);
+                    self.samples = n;
+                    return Ok(());
                 }
-            }
-            Progressive::Fresh(m, done) => {
-                let (image, _) = m
-                    .render(&prepared.scene, camera, n, &|_| {})
-                    .map_err(anyhow::Error::msg)?;
-                *done = Some((image, n));
+                None => self.fresh = true,
             }
         }
+        let noop = |_: Progress| {};
+        let (desc, plan) = plan_for(n)?;
+        let local = Local::new(plan.as_ref(), scene, &desc, threads, &noop);
+        local.passes().map_err(anyhow::Error::msg)?;
+        self.image = Some(local.frame(1).map_err(anyhow::Error::msg)?.image);
+        self.samples = n;
         Ok(())
-    }
-
-    fn image(&self, camera: &Camera) -> tessera_render::Image {
-        match self {
-            Progressive::Tiles(acc) => acc.image().0,
-            Progressive::Sppm(_, state) => state.image(camera.exposure),
-            Progressive::Bdpt(sums) => sums.image(camera.exposure),
-            Progressive::Fresh(_, done) => done
-                .as_ref()
-                .map_or_else(|| tessera_render::Image::new(0, 0), |d| d.0.clone()),
-        }
     }
 }
 

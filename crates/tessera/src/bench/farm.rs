@@ -1,12 +1,16 @@
 //! Farm benchmarks: figures, not assertions.
 //!
 //! - `bench farm`: the same frame by `tessera render --threads T` and by a coordinator with
-//!   local worker processes plus a client (upload, submit, poll, download), as wall times and
-//!   their ratio; the two EXRs must be identical.
+//!   local worker processes plus a client (upload, submit, poll, download), for every method
+//!   of the registry (or those given): wall times, whether the two EXRs are byte-identical,
+//!   each method's result bytes per task and per pixel (uploaded and before compression), the
+//!   processes' peak resident memory, and the data directory against the jobs' output.
 //! - `bench leases`: how many leases per second a coordinator grants to many simulated workers
-//!   over loopback HTTP, leasing only and leasing + posting (empty) results.
+//!   over loopback HTTP, leasing only and leasing + running the (tiny) task + posting its
+//!   result.
 
-use std::path::PathBuf;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::{Duration, Instant};
@@ -14,25 +18,26 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use tessera_farm::bundle::Bundle;
 use tessera_farm::client::Client;
-use tessera_farm::codec;
 use tessera_farm::coordinator::{self, Config};
-use tessera_farm::job::{RenderSettings, TaskOutput};
+use tessera_farm::job::{self, FrameRange, Limits, RenderSettings};
 use tessera_farm::protocol::{JobRequest, JobState, LeaseRequest, WorkerInfo};
-use tessera_render::RayStats;
-use tessera_render::film::TileSums;
 
 #[derive(clap::Args)]
 pub struct FarmArgs {
     #[arg(default_value = "scenes/cornell-box/scene.json")]
     pub scene: PathBuf,
-    #[arg(long, default_value_t = 256)]
+    /// Samples per pixel (iterations, mutations) for every method.
+    #[arg(long, default_value_t = 4)]
     pub spp: u32,
+    /// Film size WxH (default: the scene's).
+    #[arg(long)]
+    pub size: Option<crate::render::Size>,
+    /// Methods, comma-separated (default: every method of the registry).
+    #[arg(long, value_delimiter = ',')]
+    pub methods: Vec<String>,
     /// Threads for `render`, and local worker processes (one slot per core each) for the farm.
     #[arg(long, default_value_t = 2)]
     pub workers: u32,
-    /// Runs of each, alternating; the medians are reported.
-    #[arg(long, default_value_t = 3)]
-    pub repeat: u32,
 }
 
 #[derive(clap::Args)]
@@ -45,11 +50,6 @@ pub struct LeaseArgs {
     /// Tile side: 256×256 with 2-pixel tiles is 16384 tasks.
     #[arg(long, default_value_t = 2)]
     pub tile: u32,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 /// A coordinator on loopback with `local_workers` supervised workers, once they have all
@@ -66,6 +66,7 @@ pub(super) async fn local_coordinator(
         coordinator::random_token()?,
     );
     config.local_workers = local_workers;
+    config.worker_log = Some("warn".into());
     let running = coordinator::start(config).await?;
     let client = Client::new(&format!("http://{}", running.addr), &token)?;
     let start = Instant::now();
@@ -79,33 +80,94 @@ pub(super) async fn local_coordinator(
     Ok((running, client))
 }
 
+/// Peak resident memory of a process (`VmHWM`), MiB, where the platform tells it.
+pub(super) fn peak_rss_mib(pid: u32) -> Option<f64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
+}
+
+/// Bytes under `dir`, and under its `cache` folder.
+fn disk_use(dir: &Path) -> (u64, u64) {
+    fn walk(p: &Path) -> u64 {
+        std::fs::read_dir(p)
+            .map(|entries| {
+                entries
+                    .flatten()
+                    .map(|e| match e.file_type() {
+                        Ok(t) if t.is_dir() => walk(&e.path()),
+                        _ => e.metadata().map_or(0, |m| m.len()),
+                    })
+                    .sum()
+            })
+            .unwrap_or(0)
+    }
+    (walk(dir), walk(&dir.join("cache")))
+}
+
+/// One method's figures.
+struct MethodRun {
+    method: String,
+    render_s: f64,
+    farm_s: f64,
+    identical: bool,
+    tasks: usize,
+    /// By task kind: (tasks, wire bytes, payload bytes, pixels).
+    kinds: BTreeMap<String, (u64, u64, u64, u64)>,
+    output_bytes: u64,
+}
+
 pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
     let dir = tempfile_dir()?;
     let exe = std::env::current_exe()?;
-    let (running, client) = local_coordinator(dir.join("data"), args.workers).await?;
-    let (bundle, _, scene_name) = Bundle::pack_scene(&args.scene)?;
-    let tar = bundle.to_tar();
-    let (mut local, mut farm) = (Vec::new(), Vec::new());
-    for run in 0..args.repeat {
-        let out = dir.join(format!("render_{run}.exr"));
+    let data = dir.join("data");
+    let (running, client) = local_coordinator(data.clone(), args.workers).await?;
+    let (bundle, desc, scene_name) = Bundle::pack_scene(&args.scene)?;
+    let tar = bundle.to_tar().map_err(anyhow::Error::msg)?;
+    let methods: Vec<String> = if args.methods.is_empty() {
+        tessera_render::method::names()
+            .into_iter()
+            .map(String::from)
+            .collect()
+    } else {
+        args.methods.clone()
+    };
+    let size = args.size.map(|s| s.0);
+    let (w, h) = size.map_or((desc.film.width, desc.film.height), |[w, h]| (w, h));
+    crate::print(&format!(
+        "{}: {w}×{h}, {} spp, tessera render --threads {n} against serve --local-workers {n}\n",
+        args.scene.display(),
+        args.spp,
+        n = args.workers
+    ))?;
+    let mut runs = Vec::new();
+    for method in &methods {
+        let settings = RenderSettings {
+            spp: Some(args.spp),
+            size,
+            integrator: Some(method.clone()),
+            ..Default::default()
+        };
+        let mut check = desc.clone();
+        if let Err(e) = job::plan(&mut check, &settings, FrameRange::single(1), &Limits::default()) {
+            crate::print(&format!("{method:>8}: skipped — {e}\n"))?;
+            continue;
+        }
+        let out = dir.join(format!("render_{method}.exr"));
         let t = Instant::now();
-        let status = tokio::process::Command::new(&exe)
-            .arg("render")
+        let mut cmd = tokio::process::Command::new(&exe);
+        cmd.arg("render")
             .arg(&args.scene)
-            .args([
-                "--spp",
-                &args.spp.to_string(),
-                "--threads",
-                &args.workers.to_string(),
-                "-q",
-                "-o",
-            ])
-            .arg(&out)
-            .stdout(std::process::Stdio::null())
-            .status()
-            .await?;
-        anyhow::ensure!(status.success(), "tessera render failed");
-        local.push(t.elapsed().as_secs_f64());
+            .args(["--spp", &args.spp.to_string(), "--integrator", method])
+            .args(["--threads", &args.workers.to_string(), "-q", "-o"])
+            .arg(&out);
+        if let Some([w, h]) = size {
+            cmd.args(["--size", &format!("{w}x{h}")]);
+        }
+        let status = cmd.stdout(std::process::Stdio::null()).status().await?;
+        anyhow::ensure!(status.success(), "tessera render --integrator {method} failed");
+        let render_s = t.elapsed().as_secs_f64();
 
         let t = Instant::now();
         let info = client.upload_bundle(tar.clone()).await?;
@@ -115,10 +177,7 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
                 scene: scene_name.clone(),
                 name: None,
                 frames: None,
-                settings: RenderSettings {
-                    spp: Some(args.spp),
-                    ..Default::default()
-                },
+                settings,
                 priority: 0,
             })
             .await?;
@@ -131,30 +190,89 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
         };
         anyhow::ensure!(
             done.state == JobState::Done,
-            "farm job failed: {:?}",
+            "farm job ({method}) failed: {:?}",
             done.error
         );
         let exr = client.frame_exr(job.id, done.frames.first).await?;
-        farm.push(t.elapsed().as_secs_f64());
-        let same = std::fs::read(&out)? == exr;
-        anyhow::ensure!(same, "the farm's EXR differs from tessera render's");
+        let farm_s = t.elapsed().as_secs_f64();
+        let png = client.frame_preview(job.id, done.frames.first).await?;
+        let identical = std::fs::read(&out)? == exr;
+        let mut kinds: BTreeMap<String, (u64, u64, u64, u64)> = BTreeMap::new();
+        let tasks = client.tasks(job.id).await?;
+        for t in &tasks {
+            let k = kinds.entry(t.spec.kind.clone()).or_default();
+            k.0 += 1;
+            k.1 += t.result_bytes.unwrap_or(0);
+            k.2 += t.payload_bytes.unwrap_or(0);
+            k.3 += t.spec.pixels();
+        }
+        let run = MethodRun {
+            method: done.method.clone(),
+            render_s,
+            farm_s,
+            identical,
+            tasks: tasks.len(),
+            kinds,
+            output_bytes: (exr.len() + png.len()) as u64,
+        };
         crate::print(&format!(
-            "run {}: render {:.2} s, farm {:.2} s ({} tasks), identical EXR\n",
-            run + 1,
-            local.last().copied().unwrap_or(0.0),
-            farm.last().copied().unwrap_or(0.0),
-            done.tasks.total
+            "{method:>8}: render {:.2} s, farm {:.2} s ({} tasks), EXR {}\n",
+            run.render_s,
+            run.farm_s,
+            run.tasks,
+            if identical { "byte-identical" } else { "DIFFERS" }
         ))?;
+        for (kind, (n, wire, payload, pixels)) in &run.kinds {
+            let per_pixel = |b: u64| {
+                if *pixels == 0 {
+                    "–".to_string()
+                } else {
+                    format!("{:.1}", b as f64 / *pixels as f64)
+                }
+            };
+            crate::print(&format!(
+                "{:>10} {kind:<16} {n:>5} tasks, per task {:>10.0} B payload / {:>10.0} B uploaded, per pixel {:>6} / {:>6} B\n",
+                "",
+                *payload as f64 / *n as f64,
+                *wire as f64 / *n as f64,
+                per_pixel(*payload),
+                per_pixel(*wire),
+            ))?;
+        }
+        runs.push(run);
     }
-    let (l, f) = (median(local), median(farm));
+    let (total, cache) = disk_use(&data);
+    let output: u64 = runs.iter().map(|r| r.output_bytes).sum();
     crate::print(&format!(
-        "median wall: tessera render --threads {w} {l:.2} s; serve --local-workers {w} + submit {f:.2} s; farm/render = {:.3} ({:+.1} %)\n",
-        f / l,
-        (f / l - 1.0) * 100.0,
-        w = args.workers
+        "data directory after {} jobs: {:.1} MiB, of it the artifact cache {:.1} MiB; the jobs' output (EXR + PNG) {:.1} MiB: (data − cache) / output = {:.2}\n",
+        runs.len(),
+        total as f64 / 1048576.0,
+        cache as f64 / 1048576.0,
+        output as f64 / 1048576.0,
+        (total - cache) as f64 / output.max(1) as f64
     ))?;
+    let workers = client.workers().await?;
+    let worker_peaks: Vec<String> = workers
+        .iter()
+        .filter_map(|w| peak_rss_mib(w.pid).map(|m| format!("{m:.0}")))
+        .collect();
+    crate::print(&format!(
+        "peak resident memory: coordinator (with this client) {} MiB; workers {} MiB\n",
+        peak_rss_mib(std::process::id()).map_or("?".into(), |m| format!("{m:.0}")),
+        worker_peaks.join(", ")
+    ))?;
+    let different: Vec<&str> = runs
+        .iter()
+        .filter(|r| !r.identical)
+        .map(|r| r.method.as_str())
+        .collect();
     running.stop().await?;
     let _ = std::fs::remove_dir_all(&dir);
+    anyhow::ensure!(
+        different.is_empty(),
+        "the farm's EXR differs from tessera render's for {}",
+        different.join(", ")
+    );
     Ok(())
 }
 
@@ -163,18 +281,26 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
     let (running, client) = local_coordinator(dir.join("data"), 0).await?;
     let worker_token = running.app.config.worker_token.clone();
     let url = format!("http://{}", running.addr);
-    let (bundle, _, scene_name) = Bundle::pack_scene(&args.scene)?;
-    let info = client.upload_bundle(bundle.to_tar()).await?;
+    let (bundle, desc, scene_name) = Bundle::pack_scene(&args.scene)?;
+    let info = client.upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?).await?;
+    let settings = RenderSettings {
+        spp: Some(1),
+        tile: Some(args.tile),
+        ..Default::default()
+    };
+    // The simulated workers run the job's (tiny) tasks for real, to post real results.
+    let mut planned = desc.clone();
+    let plan = job::plan(&mut planned, &settings, FrameRange::single(1), &Limits::default())
+        .map_err(anyhow::Error::msg)?;
+    let plan: Arc<dyn tessera_render::method::Plan> = Arc::from(plan);
+    let scene = Arc::new(tessera_render::Scene::build(&planned));
+    let planned = Arc::new(planned);
     let submit = || JobRequest {
         bundle: info.hash.clone(),
         scene: scene_name.clone(),
         name: Some("lease benchmark".into()),
         frames: None,
-        settings: RenderSettings {
-            spp: Some(1),
-            tile: Some(args.tile),
-            ..Default::default()
-        },
+        settings: settings.clone(),
         priority: 0,
     };
 
@@ -186,6 +312,7 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
         let mut handles = Vec::new();
         for i in 0..args.workers {
             let (url, token, granted) = (url.clone(), worker_token.clone(), granted.clone());
+            let (plan, scene, desc, dir) = (plan.clone(), scene.clone(), planned.clone(), dir.clone());
             handles.push(tokio::spawn(async move {
                 let client = Client::new(&url, &token)?;
                 let req = LeaseRequest {
@@ -203,14 +330,12 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
                 while let Some(grant) = client.lease(&req).await? {
                     granted.fetch_add(1, Relaxed);
                     if complete {
-                        let t = grant.task;
-                        let out = TaskOutput {
-                            sums: TileSums::new(t.tile(), t.samples()),
-                            stats: RayStats::default(),
-                        };
+                        let path = dir.join(format!("{}.tswf", grant.task_id));
+                        write_result(plan.as_ref(), &scene, &desc, &grant.task, &path)?;
                         client
-                            .upload_result(grant.task_id, grant.lease, 0.0, codec::encode(&out))
+                            .upload_result(grant.task_id, grant.lease, 0.0, &path)
                             .await?;
+                        let _ = std::fs::remove_file(&path);
                     }
                 }
                 anyhow::Ok(())
@@ -226,7 +351,7 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
             "{} simulated workers, {n} tasks, {}: {:.2} s, {:.0} leases/s\n",
             args.workers,
             if complete {
-                "lease + result"
+                "lease + run + result"
             } else {
                 "lease only"
             },
@@ -234,7 +359,7 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
             n as f64 / secs
         ))?;
         if complete {
-            // Let the coordinator stitch the (black) frame before it stops.
+            // Let the coordinator fold and write the frame before it stops.
             while !client.job(job.id).await?.state.is_final() {
                 tokio::time::sleep(Duration::from_millis(20)).await;
             }
@@ -244,6 +369,43 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
     }
     running.stop().await?;
     let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
+}
+
+/// Runs a task of `plan` in this process and writes its result as a worker does.
+fn write_result(
+    plan: &dyn tessera_render::method::Plan,
+    scene: &tessera_render::Scene,
+    desc: &tessera_scene::SceneDesc,
+    task: &job::TaskSpec,
+    path: &Path,
+) -> anyhow::Result<()> {
+    struct NoResources;
+    impl tessera_render::method::Resources for NoResources {
+        fn artifact(&self, key: &str, _: tessera_render::method::LoadFn) -> Result<tessera_render::method::Loaded, String> {
+            Err(format!("no artifact {key} here"))
+        }
+        fn input(&self, _: tessera_render::method::LoadFn) -> Result<tessera_render::method::Loaded, String> {
+            Err("no step input here".into())
+        }
+        fn memo(
+            &self,
+            _: &str,
+            make: &dyn Fn() -> Result<tessera_render::method::Loaded, String>,
+        ) -> Result<tessera_render::method::Loaded, String> {
+            make()
+        }
+    }
+    let ctx = tessera_render::method::TaskCtx {
+        scene,
+        desc,
+        resources: &NoResources,
+    };
+    let partial = plan.execute(&ctx, task).map_err(anyhow::Error::msg)?;
+    let mut header = tessera_render::wire::Header::new("result", &plan.schema());
+    header.task = Some(task.clone());
+    let file = std::fs::File::create(path).with_context(|| path.display().to_string())?;
+    partial.write_to(&header, &mut std::io::BufWriter::new(file))?;
     Ok(())
 }
 

@@ -18,7 +18,7 @@ use glam::{Vec2, Vec3A};
 use serde::Serialize;
 use tessera_farm::bundle::Bundle;
 use tessera_farm::client::Client;
-use tessera_farm::job::{FrameRange, RenderSettings, TaskKind};
+use tessera_farm::job::{FrameRange, RenderSettings};
 use tessera_farm::protocol::{JobRequest, JobState, JobStatus};
 use tessera_render::Scene;
 use tessera_render::camera::Camera;
@@ -95,7 +95,7 @@ async fn wait_all(client: &Client, ids: &[i64]) -> anyhow::Result<Vec<JobStatus>
     Ok(done)
 }
 
-/// Task seconds of a job: (passes, tiles per frame).
+/// Task seconds of a job: (passes, frame tasks per frame).
 async fn task_seconds(
     client: &Client,
     id: i64,
@@ -105,7 +105,7 @@ async fn task_seconds(
     let mut tiles = vec![0.0; frames.len() as usize];
     for t in client.tasks(id).await? {
         let s = t.seconds.unwrap_or(0.0);
-        if t.spec.kind == TaskKind::Tile {
+        if !t.spec.is_pass() {
             tiles[(t.spec.frame - frames.first) as usize] += s;
         } else {
             passes += s;
@@ -127,7 +127,7 @@ pub async fn run(args: FlythroughArgs) -> anyhow::Result<()> {
     let dir = tempfile_dir()?;
     let (running, client) = local_coordinator(dir.join("data"), args.workers).await?;
     let (bundle, _, scene_name) = Bundle::pack_scene(&args.scene)?;
-    let info = client.upload_bundle(bundle.to_tar()).await?;
+    let info = client.upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?).await?;
     let request = |frames: FrameRange, reuse: bool| JobRequest {
         bundle: info.hash.clone(),
         scene: scene_name.clone(),

@@ -1,0 +1,91 @@
+//! Disk is reclaimed (DESIGN: "task results go once their frame is written; jobs can be
+//! deleted and expire; the artifact cache has a size cap").
+
+use super::{App, now_ms};
+
+impl App {
+    /// Removes what a written frame no longer needs: its tasks' results, its checkpoint and
+    /// its steps' inputs.
+    pub(super) fn remove_frame_files(&self, job: i64, frame: u32) -> anyhow::Result<()> {
+        for (task, lease) in self.store.results_of(job, frame)? {
+            let _ = std::fs::remove_file(self.result_path(job, task, lease));
+        }
+        let _ = std::fs::remove_file(self.checkpoint_path(job, frame));
+        let steps = self.job_dir(job).join("steps");
+        if let Ok(entries) = std::fs::read_dir(&steps) {
+            let prefix = format!("{frame}-");
+            for e in entries.flatten() {
+                if e.file_name().to_string_lossy().starts_with(&prefix) {
+                    let _ = std::fs::remove_file(e.path());
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Deletes a job that has ended, with its files (and its bundle, if no other job uses
+    /// it). `None` if the job has not ended or does not exist.
+    pub(super) fn delete_job(&self, job: i64) -> anyhow::Result<Option<()>> {
+        let Some(orphan) = self.store.delete_job(job)? else {
+            return Ok(None);
+        };
+        self.forget_job(job);
+        let dir = self.job_dir(job);
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
+        }
+        if let Some(bundle) = orphan {
+            let _ = std::fs::remove_file(self.bundle_path(&bundle));
+        }
+        self.store.checkpoint()?;
+        tracing::info!(job, "job deleted");
+        Ok(Some(()))
+    }
+
+    /// Deletes the jobs that ended longer ago than `--retain-days`.
+    pub(super) fn sweep_expired_jobs(&self) {
+        let Some(retain) = self.config.retain else {
+            return;
+        };
+        let before = now_ms() - retain.as_millis() as i64;
+        match self.store.ended_before(before) {
+            Ok(jobs) => {
+                for job in jobs {
+                    if let Err(e) = self.delete_job(job) {
+                        tracing::warn!(job, error = %e, "deleting an expired job");
+                    }
+                }
+            }
+            Err(e) => tracing::warn!(error = %e, "listing expired jobs"),
+        }
+    }
+
+    /// Evicts the least recently used artifacts until the cache is within `--cache-max-gib`,
+    /// keeping those a job that has not ended reads.
+    pub(super) fn enforce_cache_cap(&self) {
+        let entries = match self.store.cache_entries() {
+            Ok(e) => e,
+            Err(e) => {
+                tracing::warn!(error = %e, "listing the artifact cache");
+                return;
+            }
+        };
+        let mut total: u64 = entries.iter().map(|(e, _)| e.bytes).sum();
+        for (entry, in_use) in entries {
+            if total <= self.config.cache_max {
+                break;
+            }
+            if in_use {
+                continue;
+            }
+            if let Err(e) = self.store.uncache(&entry.key) {
+                tracing::warn!(key = %entry.key, error = %e, "evicting an artifact");
+                continue;
+            }
+            let _ = std::fs::remove_file(self.config.data.join(&entry.path));
+            total = total.saturating_sub(entry.bytes);
+            tracing::info!(key = %entry.key, pass = %entry.name, bytes = entry.bytes, "artifact evicted (the cache is over its cap)");
+        }
+    }
+}

@@ -1,0 +1,406 @@
+//! Folding results as they arrive, in each step's task order: a frame's into its state (then
+//! the next step, or the frame's EXR), a pass's into its artifact (then the next pass, or
+//! every frame's first step).
+//!
+//! One fold runs at a time, so the coordinator holds one task's decoded result at a time. A
+//! fold's state is kept in memory for the few frames in flight; any state can be rebuilt from
+//! the frame's checkpoint (written between steps) and the step's results on disk, which stay
+//! until the frame is written — so a restart, or an eviction, loses nothing. Results that
+//! arrive out of order wait on disk until those before them are folded: the frame is the same
+//! bits whatever the order of arrival.
+
+use std::any::Any;
+use std::collections::HashMap;
+use std::io::{BufReader, BufWriter};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+use anyhow::Context;
+use tessera_render::method::{DynPass, Next, Payload};
+use tessera_render::wire::{self, Header};
+
+use super::{App, JobPlan, now_ms, replace_file};
+use crate::job;
+use crate::store::{Artifact, CacheEntry, StepKey};
+
+/// Frames folded in memory at once (each may hold a few bytes per pixel × 100).
+const FRAMES_IN_MEMORY: usize = 2;
+/// Tasks looked at per query while folding.
+const BATCH: usize = 64;
+
+struct FrameFold {
+    step: u32,
+    /// Tasks of the step folded so far.
+    next: usize,
+    state: Box<dyn Payload>,
+}
+
+struct PassFold {
+    next: usize,
+    state: Box<dyn Any + Send + Sync>,
+}
+
+#[derive(Default)]
+struct Inner {
+    /// Least recently used first.
+    frames: Vec<((i64, u32), FrameFold)>,
+    passes: HashMap<(i64, u32), PassFold>,
+}
+
+#[derive(Default)]
+pub(super) struct Folds {
+    inner: Mutex<Inner>,
+}
+
+impl Folds {
+    fn lock(&self) -> MutexGuard<'_, Inner> {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    pub fn forget_job(&self, job: i64) {
+        let mut inner = self.lock();
+        inner.frames.retain(|((j, _), _)| *j != job);
+        inner.passes.retain(|(j, _), _| *j != job);
+    }
+}
+
+/// What a result file holds, read and checked against its task.
+fn read_result(
+    app: &App,
+    job: &JobPlan,
+    key: StepKey,
+    id: i64,
+    lease: i64,
+    pass: Option<&dyn DynPass>,
+) -> anyhow::Result<Box<dyn Payload>> {
+    let path = app.result_path(key.job, id, lease);
+    let file = std::fs::File::open(&path).with_context(|| path.display().to_string())?;
+    let (mut reader, _header) = wire::Reader::new(BufReader::new(file))
+        .with_context(|| path.display().to_string())?;
+    let partial = match pass {
+        Some(p) => p.decode(&mut reader),
+        None => job.plan.decode(&mut reader),
+    }
+    .with_context(|| format!("{}: the result of task {id}", path.display()))?;
+    reader
+        .finish()
+        .with_context(|| format!("{}: the result of task {id}", path.display()))?;
+    Ok(partial)
+}
+
+impl App {
+    /// Folds in the results of `key`'s step that are done and next in order (in the
+    /// background); a failure fails the job with its reason.
+    pub(super) fn spawn_fold(self: &Arc<Self>, key: StepKey) {
+        let app = self.clone();
+        tokio::task::spawn_blocking(move || {
+            if let Err(e) = app.fold(key) {
+                let place = if key.frame == 0 {
+                    format!("pass {}", key.step)
+                } else {
+                    format!("frame {}", key.frame)
+                };
+                let message = format!("folding {place}: {e:#}");
+                tracing::error!(job = key.job, error = %message, "fold failed");
+                let _ = app.store.fail_job(key.job, &message, now_ms());
+                app.forget_job(key.job);
+            }
+        });
+    }
+
+    /// Folds what can be folded of `key`'s frame or pass (blocking).
+    pub(super) fn fold(&self, key: StepKey) -> anyhow::Result<()> {
+        if self.store.job_state(key.job)?.is_none_or(|s| s.is_final()) {
+            return Ok(());
+        }
+        let job = self.job_plan(key.job)?;
+        let mut inner = self.folds.lock();
+        if key.frame == 0 {
+            self.fold_pass(&mut inner, &job, key)
+        } else {
+            self.fold_frame(&mut inner, &job, key.job, key.frame).map(|_| ())
+        }
+    }
+
+    /// The frame as it stands, folded as far as its results allow (blocking).
+    pub(super) fn preview(&self, job_id: i64, frame: u32) -> anyhow::Result<tessera_render::Image> {
+        let job = self.job_plan(job_id)?;
+        let mut inner = self.folds.lock();
+        self.fold_frame(&mut inner, &job, job_id, frame)?;
+        Ok(match inner.frames.iter().find(|(k, _)| *k == (job_id, frame)) {
+            Some((_, f)) => job.plan.preview(frame, f.state.as_ref()),
+            None => tessera_render::Image::new(job.desc.film.width, job.desc.film.height),
+        })
+    }
+
+    /// The fold of a frame, moved to the back of the LRU list: kept, or rebuilt from its
+    /// checkpoint (or from nothing at step 0).
+    fn frame_fold<'a>(
+        &self,
+        inner: &'a mut Inner,
+        job: &JobPlan,
+        job_id: i64,
+        frame: u32,
+    ) -> anyhow::Result<&'a mut FrameFold> {
+        let at = inner.frames.iter().position(|(k, _)| *k == (job_id, frame));
+        let entry = match at {
+            Some(i) => inner.frames.remove(i),
+            None => {
+                let path = self.checkpoint_path(job_id, frame);
+                let fold = match std::fs::File::open(&path) {
+                    Ok(file) => {
+                        let (mut r, _) = wire::Reader::new(BufReader::new(file))
+                            .with_context(|| path.display().to_string())?;
+                        let step: u32 = wire::decode_from(&mut r)
+                            .with_context(|| path.display().to_string())?;
+                        let state = job
+                            .plan
+                            .decode_frame(&mut r)
+                            .with_context(|| path.display().to_string())?;
+                        r.finish().with_context(|| path.display().to_string())?;
+                        FrameFold {
+                            step,
+                            next: 0,
+                            state,
+                        }
+                    }
+                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => FrameFold {
+                        step: 0,
+                        next: 0,
+                        state: job.plan.new_frame(frame),
+                    },
+                    Err(e) => return Err(e).context(path.display().to_string()),
+                };
+                if inner.frames.len() >= FRAMES_IN_MEMORY {
+                    inner.frames.remove(0);
+                }
+                ((job_id, frame), fold)
+            }
+        };
+        inner.frames.push(entry);
+        Ok(&mut inner.frames.last_mut().expect("just pushed").1)
+    }
+
+    /// Folds a frame's done results in order, and moves it on when a step is complete.
+    /// Returns whether the frame was written.
+    fn fold_frame(
+        &self,
+        inner: &mut Inner,
+        job: &JobPlan,
+        job_id: i64,
+        frame: u32,
+    ) -> anyhow::Result<bool> {
+        if self.store.frame_state(job_id, frame)?.as_deref() != Some("running") {
+            return Ok(false);
+        }
+        loop {
+            let f = self.frame_fold(inner, job, job_id, frame)?;
+            let key = StepKey {
+                job: job_id,
+                frame,
+                step: f.step,
+            };
+            let total = loop {
+                let (batch, total) = self.store.step_tasks(key, f.next, BATCH)?;
+                let mut folded = 0;
+                for (id, state, lease, spec) in &batch {
+                    let Some(lease) = lease.filter(|_| state == "done") else {
+                        break;
+                    };
+                    let partial = match read_result(self, job, key, *id, lease, None) {
+                        Ok(p) => p,
+                        Err(e) => return self.unreadable(*id, e),
+                    };
+                    job.plan
+                        .fold(f.state.as_mut(), spec, partial)
+                        .map_err(|e| anyhow::anyhow!("task {id} ({} {}): {e}", spec.kind, spec.index))?;
+                    f.next += 1;
+                    folded += 1;
+                }
+                if folded < BATCH {
+                    break total;
+                }
+            };
+            if total == 0 || f.next < total {
+                return Ok(false);
+            }
+            match job.plan.advance(frame, f.state.as_mut(), Duration::ZERO).map_err(anyhow::Error::msg)? {
+                Next::Step(step) => {
+                    let Some(number) = step.tasks.first().map(|t| t.step) else {
+                        anyhow::bail!("step {} of frame {frame} led to a step without tasks", f.step);
+                    };
+                    if let Some(input) = &step.input {
+                        let path = self.input_path(job_id, frame, number);
+                        let header = Header::new("input", &job.plan.schema());
+                        replace_file(&path, |file| {
+                            input.write_to(&header, &mut BufWriter::new(file))?;
+                            Ok(())
+                        })?;
+                    }
+                    self.store.add_step(job_id, frame, &step.tasks)?;
+                    let path = self.checkpoint_path(job_id, frame);
+                    let header = Header::new("checkpoint", &job.plan.schema());
+                    replace_file(&path, |file| {
+                        let mut w = wire::Writer::new(BufWriter::new(file), &header)?;
+                        wire::encode_into(&number, &mut w)?;
+                        f.state.encode(&mut w)?;
+                        w.finish()?;
+                        Ok(())
+                    })?;
+                    for (id, lease) in self.store.step_results(key)? {
+                        let _ = std::fs::remove_file(self.result_path(job_id, id, lease));
+                    }
+                    let _ = std::fs::remove_file(self.input_path(job_id, frame, f.step));
+                    tracing::debug!(job = job_id, frame, step = number, tasks = step.tasks.len(), "step queued");
+                    f.step = number;
+                    f.next = 0;
+                    self.work.notify_waiters();
+                }
+                Next::Done(done) => {
+                    let path = self.frame_path(job_id, frame);
+                    let tmp = path.with_extension("tmp.exr");
+                    job::write_frame(&tmp, &job.desc, job.plan.as_ref(), frame, &done)?;
+                    std::fs::rename(tmp.with_extension("png"), path.with_extension("png"))?;
+                    std::fs::rename(&tmp, &path)?;
+                    let mut files = Vec::new();
+                    for (kind, file) in [("exr", path.clone()), ("png", path.with_extension("png"))] {
+                        let bytes = std::fs::read(&file)?;
+                        files.push(Artifact {
+                            kind: kind.into(),
+                            path: self.relative(&file),
+                            bytes: bytes.len() as u64,
+                            sha256: crate::bundle::hash(&bytes),
+                        });
+                    }
+                    self.metrics.count_frame();
+                    let job_done = self.store.frame_stitched(
+                        job_id,
+                        frame,
+                        &files,
+                        done.estimated_rel_mse,
+                        now_ms(),
+                    )?;
+                    inner.frames.retain(|(k, _)| *k != (job_id, frame));
+                    self.remove_frame_files(job_id, frame)?;
+                    tracing::info!(job = job_id, frame, path = %path.display(), job_done, "frame written");
+                    if job_done {
+                        inner.frames.retain(|((j, _), _)| *j != job_id);
+                        inner.passes.retain(|(j, _), _| *j != job_id);
+                        self.jobs
+                            .lock()
+                            .unwrap_or_else(|e| e.into_inner())
+                            .remove(&job_id);
+                        self.enforce_cache_cap();
+                        self.store.checkpoint()?;
+                    }
+                    return Ok(true);
+                }
+            }
+        }
+    }
+
+    /// A result that passed its checks on arrival but cannot be folded: the task runs again
+    /// (its attempt counts).
+    fn unreadable(&self, task: i64, e: anyhow::Error) -> anyhow::Result<bool> {
+        let message = format!("the result could not be read back: {e:#}");
+        tracing::warn!(task, error = %message, "task queued again");
+        self.store
+            .redo(task, &message, now_ms(), self.config.max_attempts)?;
+        self.work.notify_waiters();
+        Ok(false)
+    }
+
+    /// Folds a pass's done results in order; when all are in, writes its artifact and queues
+    /// what follows.
+    fn fold_pass(&self, inner: &mut Inner, job: &JobPlan, key: StepKey) -> anyhow::Result<()> {
+        let passes = job.plan.passes();
+        let pass = *passes
+            .get(key.step as usize)
+            .with_context(|| format!("job {} has no pass {}", key.job, key.step))?;
+        let fold = inner
+            .passes
+            .entry((key.job, key.step))
+            .or_insert_with(|| PassFold {
+                next: 0,
+                state: pass.start(),
+            });
+        let total = loop {
+            let (batch, total) = self.store.step_tasks(key, fold.next, BATCH)?;
+            let mut folded = 0;
+            for (id, state, lease, spec) in &batch {
+                let Some(lease) = lease.filter(|_| state == "done") else {
+                    break;
+                };
+                let partial = match read_result(self, job, key, *id, lease, Some(pass)) {
+                    Ok(p) => p,
+                    Err(e) => return self.unreadable(*id, e).map(|_| ()),
+                };
+                pass.fold(fold.state.as_mut(), spec, partial)
+                    .map_err(|e| anyhow::anyhow!("task {id} ({} {}): {e}", spec.kind, spec.index))?;
+                fold.next += 1;
+                folded += 1;
+            }
+            if folded < BATCH {
+                break total;
+            }
+        };
+        if fold.next < total {
+            return Ok(());
+        }
+        let fold = inner
+            .passes
+            .remove(&(key.job, key.step))
+            .context("the pass's fold vanished")?;
+        let (artifact, summary) = pass.finish(fold.state).map_err(anyhow::Error::msg)?;
+        let path = self.artifact_path(pass.key());
+        // Jobs that build the same key at once (reuse disabled) write their own temporary
+        // file; the renames replace one identical artifact with another.
+        let tmp = path.with_extension(format!("{}.tmp", key.job));
+        let header = Header::new("artifact", &pass.schema());
+        {
+            let file = std::fs::File::create(&tmp).with_context(|| tmp.display().to_string())?;
+            artifact.write_to(&header, &mut BufWriter::new(file))?;
+        }
+        std::fs::rename(&tmp, &path)?;
+        let bytes = std::fs::read(&path)?;
+        let entry = CacheEntry {
+            key: pass.key().to_string(),
+            name: pass.name().to_string(),
+            path: self.relative(&path),
+            bytes: bytes.len() as u64,
+            sha256: crate::bundle::hash(&bytes),
+            job: key.job,
+        };
+        drop(bytes);
+        let frames = self.first_steps(key.job, job)?;
+        let frames_queued = self
+            .store
+            .pass_built(key.job, key.step, &entry, &summary, &frames, now_ms())?;
+        for (id, lease) in self.store.step_results(key)? {
+            let _ = std::fs::remove_file(self.result_path(key.job, id, lease));
+        }
+        tracing::info!(job = key.job, pass = pass.name(), key = %pass.key(), bytes = entry.bytes, frames_queued, "{summary}");
+        self.enforce_cache_cap();
+        self.work.notify_waiters();
+        Ok(())
+    }
+
+    /// Every frame's first step, its input written: what a job queues when its passes are
+    /// done.
+    pub(super) fn first_steps(&self, job_id: i64, job: &JobPlan) -> anyhow::Result<Vec<Vec<job::TaskSpec>>> {
+        let mut out = Vec::new();
+        for frame in job.frames.iter() {
+            let step = job.plan.start(frame).map_err(anyhow::Error::msg)?;
+            if let Some(input) = &step.input {
+                let path = self.input_path(job_id, frame, 0);
+                let header = Header::new("input", &job.plan.schema());
+                replace_file(&path, |file| {
+                    input.write_to(&header, &mut BufWriter::new(file))?;
+                    Ok(())
+                })?;
+            }
+            out.push(step.tasks);
+        }
+        Ok(out)
+    }
+}

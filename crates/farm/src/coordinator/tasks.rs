@@ -1,0 +1,300 @@
+//! The worker-facing API: leases, heartbeats, failures, results (streamed to disk, checked,
+//! then folded), artifacts and step inputs.
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering::Relaxed;
+use std::time::{Duration, Instant};
+
+use axum::Json;
+use axum::body::Body;
+use axum::extract::rejection::{JsonRejection, QueryRejection};
+use axum::extract::{Path, Query, State};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use futures_util::StreamExt;
+use serde::Deserialize;
+use tokio::io::AsyncWriteExt;
+
+use super::api::send_file;
+use super::{App, AppError, AppResult, now_ms};
+use crate::bundle;
+use crate::job::TaskSpec;
+use crate::protocol::*;
+use crate::store::{Completion, Retry};
+
+/// Lease the next task (priority, then age). Waits up to `wait_ms` for one; 204 if none.
+#[utoipa::path(post, path = "/v1/tasks/lease", tag = "workers", request_body = LeaseRequest,
+    responses((status = 200, body = LeaseGrant), (status = 204, description = "no task queued")),
+    security(("token" = [])))]
+pub(super) async fn lease_task(
+    State(app): State<Arc<App>>,
+    body: Result<Json<LeaseRequest>, JsonRejection>,
+) -> AppResult<Response> {
+    let Json(req) = body?;
+    let deadline = Instant::now() + Duration::from_millis(req.wait_ms.min(20_000));
+    loop {
+        // Listen before looking, so a job queued in between is not missed.
+        let notified = app.work.notified();
+        tokio::pin!(notified);
+        notified.as_mut().enable();
+        if let Some(mut grant) = app
+            .store
+            .lease(&req.worker, now_ms(), app.config.lease_ms)?
+        {
+            app.metrics.leased.fetch_add(1, Relaxed);
+            let t = &grant.task;
+            if !t.is_pass() && app.input_path(grant.job_id, t.frame, t.step).is_file() {
+                grant.input = Some(format!(
+                    "/v1/jobs/{}/frames/{}/steps/{}/input",
+                    grant.job_id, t.frame, t.step
+                ));
+            }
+            tracing::debug!(job = grant.job_id, task = grant.task_id, lease = grant.lease, worker = %req.worker.name, "task leased");
+            return Ok(Json(grant).into_response());
+        }
+        let left = deadline.saturating_duration_since(Instant::now());
+        let mut stopping = app.stopping.clone();
+        if left.is_zero() || *stopping.borrow() {
+            return Ok(StatusCode::NO_CONTENT.into_response());
+        }
+        tokio::select! {
+            _ = notified => {}
+            _ = tokio::time::sleep(left) => return Ok(StatusCode::NO_CONTENT.into_response()),
+            _ = stopping.changed() => return Ok(StatusCode::NO_CONTENT.into_response()),
+        }
+    }
+}
+
+/// A size in bytes as people read it.
+pub(super) fn size(bytes: u64) -> String {
+    match bytes {
+        b if b >= 1 << 30 && b % (1 << 30) == 0 => format!("{} GiB", b >> 30),
+        b if b >= 1 << 20 => format!("{} MiB", b >> 20),
+        b if b >= 1 << 10 => format!("{} KiB", b >> 10),
+        b => format!("{b} bytes"),
+    }
+}
+
+fn stale(task: i64, lease: i64) -> AppError {
+    AppError::conflict(format!(
+        "lease {lease} is no longer current for task {task} (it expired and the task was reassigned, or the job ended)"
+    ))
+}
+
+/// Renew a lease. 409 when it is no longer current: stop working on the task.
+#[utoipa::path(post, path = "/v1/tasks/{id}/heartbeat", tag = "workers",
+    params(("id" = i64, Path)), request_body = Heartbeat,
+    responses((status = 200, body = Heartbeat), (status = 409, body = ErrorBody)), security(("token" = [])))]
+pub(super) async fn heartbeat(
+    State(app): State<Arc<App>>,
+    Path(id): Path<i64>,
+    body: Result<Json<Heartbeat>, JsonRejection>,
+) -> AppResult<Json<Heartbeat>> {
+    let Json(hb) = body?;
+    if app
+        .store
+        .heartbeat(id, hb.lease, &hb.worker, now_ms(), app.config.lease_ms)?
+    {
+        Ok(Json(hb))
+    } else {
+        Err(stale(id, hb.lease))
+    }
+}
+
+#[derive(Deserialize, utoipa::IntoParams)]
+pub(super) struct ResultQuery {
+    /// The lease the result was rendered under.
+    lease: i64,
+    /// Seconds the worker spent rendering.
+    #[serde(default)]
+    seconds: f64,
+}
+
+/// Checks a result written to `path` against the task it is of: a whole wire stream (length
+/// and CRC), of the task's schema, naming the task. Returns the payload's length.
+fn check_result(app: &App, job: i64, spec: &TaskSpec, path: &std::path::Path) -> anyhow::Result<u64> {
+    let plan = app.job_plan(job)?;
+    let schema = if spec.is_pass() {
+        let passes = plan.plan.passes();
+        let pass = passes
+            .get(spec.step as usize)
+            .ok_or_else(|| anyhow::anyhow!("job {job} has no pass {}", spec.step))?;
+        pass.schema()
+    } else {
+        plan.plan.schema()
+    };
+    let file = std::fs::File::open(path)?;
+    let (reader, header) = tessera_render::wire::Reader::new(std::io::BufReader::new(file))?;
+    if header.what != "result" || header.schema != schema {
+        anyhow::bail!(
+            "expected a result of schema {schema}, got a {} of schema {}",
+            header.what,
+            header.schema
+        );
+    }
+    if header.task.as_ref() != Some(spec) {
+        anyhow::bail!(
+            "the result names task {:?}, the lease is for {spec:?}",
+            header.task
+        );
+    }
+    Ok(reader.verify()?)
+}
+
+/// Upload a task's result: a wire stream (versioned, chunked, zstd-compressed, CRC-checked)
+/// naming its task. Accepted only under the task's current lease, and folded into its frame
+/// or pass as soon as the results before it are.
+#[utoipa::path(put, path = "/v1/tasks/{id}/result", tag = "workers",
+    params(("id" = i64, Path), ResultQuery),
+    request_body(content = Vec<u8>, content_type = "application/octet-stream"),
+    responses((status = 200, description = "accepted"), (status = 400, body = ErrorBody), (status = 409, body = ErrorBody), (status = 413, body = ErrorBody)),
+    security(("token" = [])))]
+pub(super) async fn upload_result(
+    State(app): State<Arc<App>>,
+    Path(id): Path<i64>,
+    query: Result<Query<ResultQuery>, QueryRejection>,
+    body: Body,
+) -> AppResult<StatusCode> {
+    let Query(q) = query?;
+    let Some((job_id, spec)) = app.store.current_lease(id, q.lease)? else {
+        app.metrics.stale_results.fetch_add(1, Relaxed);
+        tracing::warn!(task = id, lease = q.lease, "stale result dropped");
+        return Err(stale(id, q.lease));
+    };
+    let path = app.result_path(job_id, id, q.lease);
+    let tmp = path.with_extension("part");
+    if let Some(dir) = path.parent() {
+        tokio::fs::create_dir_all(dir).await?;
+    }
+    // Streamed to disk in the chunks it arrives in, never held whole.
+    let mut file = tokio::fs::File::create(&tmp).await?;
+    let mut stream = body.into_data_stream();
+    let mut written: u64 = 0;
+    while let Some(chunk) = stream.next().await {
+        let chunk = match chunk {
+            Ok(c) => c,
+            Err(e) => {
+                let _ = tokio::fs::remove_file(&tmp).await;
+                return Err(AppError::bad_request(format!(
+                    "result of task {id}: the upload broke off after {written} bytes: {e}"
+                )));
+            }
+        };
+        written += chunk.len() as u64;
+        if written > app.config.max_result {
+            drop(file);
+            let _ = tokio::fs::remove_file(&tmp).await;
+            return Err(AppError::new(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!(
+                    "result of task {id} is over this coordinator's limit of {} per task result; raise it with `tessera serve --max-result-mib`, or cut the job finer (--samples-per-task, --tile)",
+                    size(app.config.max_result)
+                ),
+            ));
+        }
+        file.write_all(&chunk).await?;
+    }
+    file.flush().await?;
+    drop(file);
+    let app2 = app.clone();
+    let (tmp2, spec2) = (tmp.clone(), spec.clone());
+    let checked = tokio::task::spawn_blocking(move || check_result(&app2, job_id, &spec2, &tmp2)).await?;
+    let payload = match checked {
+        Ok(p) => p,
+        Err(e) => {
+            let _ = tokio::fs::remove_file(&tmp).await;
+            return Err(AppError::bad_request(format!("result of task {id}: {e:#}")));
+        }
+    };
+    tokio::fs::rename(&tmp, &path).await?;
+    match app
+        .store
+        .complete(id, q.lease, q.seconds, (written, payload), now_ms())?
+    {
+        Completion::Stale => {
+            let _ = tokio::fs::remove_file(&path).await;
+            app.metrics.stale_results.fetch_add(1, Relaxed);
+            Err(stale(id, q.lease))
+        }
+        Completion::Accepted { step, .. } => {
+            let method = app
+                .job_plan(job_id)
+                .map(|p| p.plan.method())
+                .unwrap_or("unknown");
+            app.metrics
+                .accepted(method, &spec.kind, (written, payload), spec.pixels(), q.seconds);
+            tracing::debug!(job = job_id, task = id, seconds = q.seconds, bytes = written, "result accepted");
+            app.spawn_fold(step);
+            Ok(StatusCode::OK)
+        }
+    }
+}
+
+/// Report that a task could not be rendered. It is retried a bounded number of times, then
+/// its job fails with this error.
+#[utoipa::path(post, path = "/v1/tasks/{id}/fail", tag = "workers",
+    params(("id" = i64, Path)), request_body = Failure,
+    responses((status = 200, description = "recorded"), (status = 409, body = ErrorBody)), security(("token" = [])))]
+pub(super) async fn fail_task(
+    State(app): State<Arc<App>>,
+    Path(id): Path<i64>,
+    body: Result<Json<Failure>, JsonRejection>,
+) -> AppResult<StatusCode> {
+    let Json(f) = body?;
+    app.metrics.failed.fetch_add(1, Relaxed);
+    match app
+        .store
+        .fail(id, f.lease, &f.error, now_ms(), app.config.max_attempts)?
+    {
+        Retry::Stale => Err(stale(id, f.lease)),
+        Retry::Requeued => {
+            tracing::warn!(task = id, worker = %f.worker, error = %f.error, "task failed; requeued");
+            app.work.notify_waiters();
+            Ok(StatusCode::OK)
+        }
+        Retry::JobFailed(message) => {
+            tracing::error!(task = id, error = %message, "job failed");
+            Ok(StatusCode::OK)
+        }
+    }
+}
+
+/// Download a pass artifact by key (a wire stream).
+#[utoipa::path(get, path = "/v1/artifacts/{key}", tag = "workers",
+    params(("key" = String, Path, description = "the artifact's key (a SHA-256)")),
+    responses((status = 200, content_type = "application/octet-stream", body = Vec<u8>), (status = 404, body = ErrorBody)),
+    security(("token" = [])))]
+pub(super) async fn download_artifact(
+    State(app): State<Arc<App>>,
+    Path(key): Path<String>,
+) -> AppResult<Response> {
+    let entry = if bundle::is_hash(&key) {
+        app.cached(&key)?
+    } else {
+        None
+    };
+    let Some(entry) = entry else {
+        return Err(AppError::not_found(format!("no artifact {key}")));
+    };
+    app.store.touch(&key, now_ms())?;
+    send_file(app.config.data.join(&entry.path), "application/octet-stream").await
+}
+
+/// Download what a step of a frame reads besides the artifacts (a wire stream; an SPPM
+/// iteration's radii, say); there while the step runs.
+#[utoipa::path(get, path = "/v1/jobs/{id}/frames/{frame}/steps/{step}/input", tag = "workers",
+    params(("id" = i64, Path), ("frame" = u32, Path), ("step" = u32, Path)),
+    responses((status = 200, content_type = "application/octet-stream", body = Vec<u8>), (status = 404, body = ErrorBody)),
+    security(("token" = [])))]
+pub(super) async fn step_input(
+    State(app): State<Arc<App>>,
+    Path((id, frame, step)): Path<(i64, u32, u32)>,
+) -> AppResult<Response> {
+    let path = app.input_path(id, frame, step);
+    if !path.is_file() {
+        return Err(AppError::not_found(format!(
+            "job {id} frame {frame} has no input for step {step} (not running, or it reads none)"
+        )));
+    }
+    send_file(path, "application/octet-stream").await
+}

@@ -1,0 +1,430 @@
+//! Jobs in the store: inserting them with their first tasks, their status, their frames'
+//! outputs, and deleting them.
+
+use rusqlite::{OptionalExtension, Transaction, params};
+
+use super::passes::NewPass;
+use super::{Result, SPEC_COLUMNS, Store, StoreError, from_json, json, task_spec};
+use crate::job::{FrameRange, RenderSettings, TaskSpec};
+use crate::protocol::{FrameStatus, JobState, JobStatus, TaskCounts, TaskStatus, WorkerStatus};
+
+/// A job ready to insert: its row and the first step of every frame.
+pub struct NewJob {
+    pub name: String,
+    pub priority: i32,
+    pub bundle: String,
+    pub scene: String,
+    pub settings: RenderSettings,
+    pub frames: FrameRange,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    /// The method that runs.
+    pub method: String,
+    pub decisions: Vec<String>,
+    /// Each frame's first step, in fold order: queued at once, or when the passes are done.
+    pub tasks: Vec<Vec<TaskSpec>>,
+    /// Precomputation passes, in order.
+    pub passes: Vec<NewPass>,
+    /// Tasks expected in all (for progress), counting those queued later.
+    pub planned_tasks: u64,
+}
+
+/// A file the coordinator produced for a frame.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Artifact {
+    /// `exr` or `png`.
+    pub kind: String,
+    /// Relative to the data directory.
+    pub path: String,
+    pub bytes: u64,
+    pub sha256: String,
+}
+
+impl Store {
+    pub fn insert_job(&self, job: &NewJob, now: i64) -> Result<i64> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        tx.execute(
+            "INSERT INTO jobs (name, state, priority, created_ms, bundle, scene, settings,
+                first_frame, last_frame, width, height, spp, method, decisions, planned_tasks)
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
+            params![
+                job.name,
+                job.priority,
+                now,
+                job.bundle,
+                job.scene,
+                json(&job.settings),
+                job.frames.first,
+                job.frames.last,
+                job.width,
+                job.height,
+                job.spp,
+                job.method,
+                json(&job.decisions),
+                job.planned_tasks as i64,
+            ],
+        )?;
+        let id = tx.last_insert_rowid();
+        {
+            let mut frame = tx.prepare(
+                "INSERT INTO frames (job_id, frame, state) VALUES (?1, ?2, 'queued')",
+            )?;
+            for f in job.frames.iter() {
+                frame.execute(params![id, f])?;
+            }
+        }
+        let frames_now = Self::insert_passes(&tx, id, &job.passes)?;
+        if frames_now {
+            for tasks in &job.tasks {
+                Self::insert_tasks(&tx, id, tasks)?;
+            }
+        }
+        tx.commit()?;
+        Ok(id)
+    }
+
+    /// Queues tasks of a job (at the job's priority, copied for the queue index) and counts
+    /// frame tasks in their frames.
+    pub(super) fn insert_tasks(tx: &Transaction, job: i64, tasks: &[TaskSpec]) -> Result<()> {
+        let mut insert = tx.prepare(&format!(
+            "INSERT INTO tasks (job_id, priority, {SPEC_COLUMNS}, state)
+             SELECT ?1, priority, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, 'queued'
+             FROM jobs WHERE id = ?1"
+        ))?;
+        let mut count = tx.prepare(
+            "UPDATE frames SET tasks_total = tasks_total + 1 WHERE job_id = ?1 AND frame = ?2",
+        )?;
+        for t in tasks {
+            insert.execute(params![
+                job, t.kind, t.frame, t.step, t.index, t.x0, t.y0, t.x1, t.y1, t.start, t.end
+            ])?;
+            if !t.is_pass() {
+                count.execute(params![job, t.frame])?;
+            }
+        }
+        Ok(())
+    }
+
+    /// (bundle, scene, settings, frames) of a job; an error if its settings cannot be read.
+    pub fn job_source(
+        &self,
+        job: i64,
+    ) -> Result<Option<(String, String, RenderSettings, FrameRange)>> {
+        let row: Option<(String, String, String, u32, u32)> = self
+            .conn()
+            .query_row(
+                "SELECT bundle, scene, settings, first_frame, last_frame FROM jobs WHERE id = ?1",
+                [job],
+                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?)),
+            )
+            .optional()?;
+        let Some((bundle, scene, settings, first, last)) = row else {
+            return Ok(None);
+        };
+        let settings = from_json(&settings, &format!("settings of job {job}"))?;
+        Ok(Some((bundle, scene, settings, FrameRange { first, last })))
+    }
+
+    pub fn job(&self, id: i64) -> Result<Option<JobStatus>> {
+        Ok(self.jobs_where("WHERE j.id = ?1", [id], true)?.pop())
+    }
+
+    /// Every job, newest first, without per-frame detail.
+    pub fn jobs(&self) -> Result<Vec<JobStatus>> {
+        self.jobs_where("", [], false)
+    }
+
+    fn jobs_where<P: rusqlite::Params>(
+        &self,
+        filter: &str,
+        p: P,
+        frames: bool,
+    ) -> Result<Vec<JobStatus>> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(&format!(
+            "SELECT j.id, j.name, j.state, j.priority, j.created_ms, j.finished_ms, j.bundle, j.scene,
+                j.settings, j.first_frame, j.last_frame, j.width, j.height, j.spp, j.decisions, j.error,
+                COUNT(t.id),
+                SUM(t.state = 'queued'), SUM(t.state = 'leased'), SUM(t.state = 'done'),
+                SUM(t.state = 'failed'), SUM(t.state = 'cancelled'), SUM(t.attempts),
+                j.planned_tasks, j.method
+             FROM jobs j LEFT JOIN tasks t ON t.job_id = j.id {filter}
+             GROUP BY j.id ORDER BY j.id DESC"
+        ))?;
+        let rows: Vec<(JobStatus, String, String)> = stmt
+            .query_map(p, |r| {
+                let count = |i: usize| -> rusqlite::Result<u64> {
+                    Ok(r.get::<_, Option<i64>>(i)?.unwrap_or(0) as u64)
+                };
+                let tasks = TaskCounts {
+                    total: count(16)?,
+                    queued: count(17)?,
+                    leased: count(18)?,
+                    done: count(19)?,
+                    failed: count(20)?,
+                    cancelled: count(21)?,
+                    planned: count(23)?,
+                };
+                let expected = tasks.total.max(tasks.planned);
+                let status = JobStatus {
+                    id: r.get(0)?,
+                    name: r.get(1)?,
+                    state: JobState::parse(&r.get::<_, String>(2)?),
+                    priority: r.get(3)?,
+                    created_ms: r.get(4)?,
+                    finished_ms: r.get(5)?,
+                    bundle: r.get(6)?,
+                    scene: r.get(7)?,
+                    method: r.get(24)?,
+                    settings: RenderSettings::default(),
+                    frames: FrameRange {
+                        first: r.get(9)?,
+                        last: r.get(10)?,
+                    },
+                    width: r.get(11)?,
+                    height: r.get(12)?,
+                    spp: r.get(13)?,
+                    decisions: Vec::new(),
+                    error: r.get(15)?,
+                    progress: if expected == 0 {
+                        0.0
+                    } else {
+                        tasks.done as f64 / expected as f64
+                    },
+                    attempts: count(22)?,
+                    tasks,
+                    frame_status: Vec::new(),
+                    passes: Vec::new(),
+                };
+                Ok((status, r.get(8)?, r.get(14)?))
+            })?
+            .collect::<rusqlite::Result<_>>()?;
+        let mut jobs = Vec::with_capacity(rows.len());
+        for (mut job, settings, decisions) in rows {
+            job.settings = from_json(&settings, &format!("settings of job {}", job.id))?;
+            job.decisions = from_json(&decisions, &format!("decisions of job {}", job.id))?;
+            jobs.push(job);
+        }
+        if frames {
+            let mut stmt = conn.prepare(
+                "SELECT f.frame, f.state, f.tasks_done, f.tasks_total, a.sha256, f.estimated_rel_mse, f.step
+                 FROM frames f
+                 LEFT JOIN artifacts a ON a.job_id = f.job_id AND a.frame = f.frame AND a.kind = 'exr'
+                 WHERE f.job_id = ?1 ORDER BY f.frame",
+            )?;
+            for job in jobs.iter_mut() {
+                job.passes = Self::job_passes(&conn, job.id)?;
+                job.frame_status = stmt
+                    .query_map([job.id], |r| {
+                        let frame: u32 = r.get(0)?;
+                        let state: String = r.get(1)?;
+                        Ok(FrameStatus {
+                            frame,
+                            exr: (state == "done")
+                                .then(|| format!("/v1/jobs/{}/frames/{frame}/exr", job.id)),
+                            state,
+                            step: r.get(6)?,
+                            tasks_done: r.get::<_, i64>(2)? as u64,
+                            tasks_total: r.get::<_, i64>(3)? as u64,
+                            exr_sha256: r.get(4)?,
+                            estimated_rel_mse: r.get(5)?,
+                        })
+                    })?
+                    .collect::<rusqlite::Result<_>>()?;
+            }
+        }
+        Ok(jobs)
+    }
+
+    pub fn tasks(&self, job: i64) -> Result<Vec<TaskStatus>> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(&format!(
+            "SELECT id, state, attempts, worker, seconds, error, result_bytes, payload_bytes, {SPEC_COLUMNS}
+             FROM tasks WHERE job_id = ?1 ORDER BY id"
+        ))?;
+        let out = stmt
+            .query_map([job], |r| {
+                Ok(TaskStatus {
+                    id: r.get(0)?,
+                    state: r.get(1)?,
+                    attempts: r.get(2)?,
+                    worker: r.get(3)?,
+                    seconds: r.get(4)?,
+                    error: r.get(5)?,
+                    result_bytes: r.get::<_, Option<i64>>(6)?.map(|b| b as u64),
+                    payload_bytes: r.get::<_, Option<i64>>(7)?.map(|b| b as u64),
+                    spec: task_spec(r, 8)?,
+                })
+            })?
+            .collect::<rusqlite::Result<_>>()?;
+        Ok(out)
+    }
+
+    /// Whether a job exists.
+    pub fn job_exists(&self, job: i64) -> Result<bool> {
+        Ok(self
+            .conn()
+            .query_row("SELECT 1 FROM jobs WHERE id = ?1", [job], |_| Ok(()))
+            .optional()?
+            .is_some())
+    }
+
+    /// A job's state, if it exists.
+    pub fn job_state(&self, job: i64) -> Result<Option<JobState>> {
+        Ok(self
+            .conn()
+            .query_row("SELECT state FROM jobs WHERE id = ?1", [job], |r| {
+                r.get::<_, String>(0)
+            })
+            .optional()?
+            .map(|s| JobState::parse(&s)))
+    }
+
+    /// A frame's state (queued, running, done), if the job has that frame.
+    pub fn frame_state(&self, job: i64, frame: u32) -> Result<Option<String>> {
+        Ok(self
+            .conn()
+            .query_row(
+                "SELECT state FROM frames WHERE job_id = ?1 AND frame = ?2",
+                params![job, frame],
+                |r| r.get(0),
+            )
+            .optional()?)
+    }
+
+    /// Marks a finished frame done with its files, and the job done when it was its last
+    /// frame. Returns whether the job is now done.
+    pub fn frame_stitched(
+        &self,
+        job: i64,
+        frame: u32,
+        files: &[Artifact],
+        estimated_rel_mse: Option<f64>,
+        now: i64,
+    ) -> Result<bool> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        for a in files {
+            tx.execute(
+                "INSERT OR REPLACE INTO artifacts (job_id, frame, kind, path, bytes, sha256, created_ms)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+                params![job, frame, a.kind, a.path, a.bytes as i64, a.sha256, now],
+            )?;
+        }
+        tx.execute(
+            "UPDATE frames SET state = 'done', finished_ms = ?3, estimated_rel_mse = ?4
+             WHERE job_id = ?1 AND frame = ?2",
+            params![job, frame, now, estimated_rel_mse],
+        )?;
+        let left: i64 = tx.query_row(
+            "SELECT COUNT(*) FROM frames WHERE job_id = ?1 AND state != 'done'",
+            [job],
+            |r| r.get(0),
+        )?;
+        let done = left == 0
+            && tx.execute(
+                "UPDATE jobs SET state = 'done', finished_ms = ?2
+                 WHERE id = ?1 AND state IN ('queued', 'running')",
+                params![job, now],
+            )? == 1;
+        tx.commit()?;
+        Ok(done)
+    }
+
+    /// Deletes a job that has ended, with every row of it; returns its bundle's hash if no
+    /// other job uses that bundle any more (and forgets the bundle), `None` if the job has not
+    /// ended or does not exist.
+    pub fn delete_job(&self, job: i64) -> Result<Option<Option<String>>> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        let row: Option<(String, String)> = tx
+            .query_row(
+                "SELECT state, bundle FROM jobs WHERE id = ?1",
+                [job],
+                |r| Ok((r.get(0)?, r.get(1)?)),
+            )
+            .optional()?;
+        let Some((state, bundle)) = row else {
+            return Ok(None);
+        };
+        if !JobState::parse(&state).is_final() {
+            return Ok(None);
+        }
+        tx.execute(
+            "DELETE FROM attempts WHERE task_id IN (SELECT id FROM tasks WHERE job_id = ?1)",
+            [job],
+        )?;
+        for table in ["tasks", "frames", "artifacts", "passes"] {
+            tx.execute(&format!("DELETE FROM {table} WHERE job_id = ?1"), [job])?;
+        }
+        tx.execute("DELETE FROM jobs WHERE id = ?1", [job])?;
+        let used: i64 = tx.query_row(
+            "SELECT COUNT(*) FROM jobs WHERE bundle = ?1",
+            [&bundle],
+            |r| r.get(0),
+        )?;
+        let orphan = used == 0;
+        if orphan {
+            tx.execute("DELETE FROM bundles WHERE hash = ?1", [&bundle])?;
+        }
+        tx.commit()?;
+        Ok(Some(orphan.then_some(bundle)))
+    }
+
+    /// Jobs that ended before `before` (ms since the epoch), oldest first.
+    pub fn ended_before(&self, before: i64) -> Result<Vec<i64>> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(
+            "SELECT id FROM jobs WHERE state IN ('done', 'failed', 'cancelled')
+               AND finished_ms IS NOT NULL AND finished_ms < ?1 ORDER BY id",
+        )?;
+        let ids = stmt
+            .query_map([before], |r| r.get(0))?
+            .collect::<rusqlite::Result<_>>()?;
+        Ok(ids)
+    }
+
+    /// Workers, most recently seen first; alive if seen within `alive_ms`.
+    pub fn workers(&self, now: i64, alive_ms: i64) -> Result<Vec<WorkerStatus>> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(
+            "SELECT w.id, w.name, w.host, w.slots, w.version, w.first_seen_ms, w.last_seen_ms,
+                w.scene_builds, w.tasks_done, w.pid,
+                (SELECT group_concat(t.id) FROM tasks t WHERE t.worker = w.id AND t.state = 'leased')
+             FROM workers w ORDER BY w.last_seen_ms DESC",
+        )?;
+        let out = stmt
+            .query_map([], |r| {
+                let last: i64 = r.get(6)?;
+                let leased: Option<String> = r.get(10)?;
+                Ok(WorkerStatus {
+                    id: r.get(0)?,
+                    name: r.get(1)?,
+                    host: r.get(2)?,
+                    pid: r.get(9)?,
+                    slots: r.get(3)?,
+                    version: r.get(4)?,
+                    first_seen_ms: r.get(5)?,
+                    last_seen_ms: last,
+                    alive: now - last <= alive_ms,
+                    scene_builds: r.get::<_, i64>(7)? as u64,
+                    tasks_done: r.get::<_, i64>(8)? as u64,
+                    leased_tasks: leased
+                        .unwrap_or_default()
+                        .split(',')
+                        .filter_map(|s| s.parse().ok())
+                        .collect(),
+                })
+            })?
+            .collect::<rusqlite::Result<_>>()?;
+        Ok(out)
+    }
+}
+
+impl From<StoreError> for String {
+    fn from(e: StoreError) -> String {
+        e.to_string()
+    }
+}

@@ -1,0 +1,690 @@
+//! Tasks in the store: the queue, fenced leases, results, retries, and a frame's steps.
+
+use rusqlite::{OptionalExtension, Transaction, params};
+
+use super::{Result, SPEC_COLUMNS, Store, StoreError, from_json, task_spec};
+use crate::job::TaskSpec;
+use crate::protocol::{LeaseGrant, WorkerInfo};
+
+/// A step of a job: a frame's (frame ≥ 1) or a pass's (frame 0, step = the pass's position).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct StepKey {
+    pub job: i64,
+    pub frame: u32,
+    pub step: u32,
+}
+
+/// What became of a result.
+#[derive(Debug, PartialEq, Eq)]
+pub enum Completion {
+    /// The lease was not current (expired and reassigned, or the job ended): dropped.
+    Stale,
+    /// Accepted; `complete` when it was the last of its step to be done.
+    Accepted { step: StepKey, complete: bool },
+}
+
+/// What became of a failure report or an expired lease.
+#[derive(Debug, PartialEq, Eq)]
+pub enum Retry {
+    Stale,
+    Requeued,
+    /// Out of attempts: the job failed with this error.
+    JobFailed(String),
+}
+
+/// Queue gauges for `/metrics` and `/healthz`.
+pub struct Gauges {
+    pub queued: u64,
+    pub leased: u64,
+    /// Jobs by state.
+    pub jobs: Vec<(String, u64)>,
+}
+
+impl Store {
+    fn upsert_worker(tx: &Transaction, w: &WorkerInfo, now: i64) -> Result<()> {
+        tx.execute(
+            "INSERT INTO workers (id, name, host, pid, slots, version, first_seen_ms, last_seen_ms, scene_builds)
+             VALUES (?1, ?2, ?3, ?8, ?4, ?5, ?6, ?6, ?7)
+             ON CONFLICT (id) DO UPDATE SET last_seen_ms = ?6, scene_builds = ?7, slots = ?4",
+            params![w.id, w.name, w.host, w.slots, w.version, now, w.scene_builds as i64, w.pid],
+        )?;
+        Ok(())
+    }
+
+    /// Grants the next task (priority, then job age, then task order) to `worker`. A job whose
+    /// stored settings cannot be read fails with that reason, and the next task is looked at.
+    pub fn lease(
+        &self,
+        worker: &WorkerInfo,
+        now: i64,
+        lease_ms: u64,
+    ) -> Result<Option<LeaseGrant>> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        Self::upsert_worker(&tx, worker, now)?;
+        loop {
+            let next: Option<(i64, i64)> = tx
+                .query_row(
+                    "SELECT id, job_id FROM tasks WHERE state = 'queued'
+                     ORDER BY priority DESC, job_id, id LIMIT 1",
+                    [],
+                    |r| Ok((r.get(0)?, r.get(1)?)),
+                )
+                .optional()?;
+            let Some((task_id, job_id)) = next else {
+                tx.commit()?;
+                return Ok(None);
+            };
+            let (bundle, scene, settings, spec): (String, String, String, TaskSpec) = tx
+                .query_row(
+                    &format!(
+                        "SELECT j.bundle, j.scene, j.settings, {SPEC_COLUMNS}
+                         FROM tasks t JOIN jobs j ON j.id = t.job_id WHERE t.id = ?1"
+                    ),
+                    [task_id],
+                    |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, task_spec(r, 3)?)),
+                )?;
+            let settings = match from_json(&settings, &format!("settings of job {job_id}")) {
+                Ok(s) => s,
+                Err(e) => {
+                    Self::end_job(&tx, job_id, "failed", Some(&e.to_string()), now)?;
+                    continue;
+                }
+            };
+            tx.execute(
+                "INSERT INTO attempts (task_id, worker, started_ms) VALUES (?1, ?2, ?3)",
+                params![task_id, worker.id, now],
+            )?;
+            let lease = tx.last_insert_rowid();
+            tx.execute(
+                "UPDATE tasks SET state = 'leased', attempts = attempts + 1, lease = ?2, worker = ?3,
+                    lease_expires_ms = ?4 WHERE id = ?1",
+                params![task_id, lease, worker.id, now + lease_ms as i64],
+            )?;
+            tx.execute(
+                "UPDATE jobs SET state = 'running' WHERE id = ?1 AND state = 'queued'",
+                [job_id],
+            )?;
+            let artifacts = Self::artifacts_for(&tx, job_id, &spec)?;
+            tx.commit()?;
+            return Ok(Some(LeaseGrant {
+                task_id,
+                lease,
+                lease_ms,
+                job_id,
+                bundle,
+                scene,
+                settings,
+                task: spec,
+                artifacts,
+                input: None,
+            }));
+        }
+    }
+
+    /// Renews a lease; false if it is no longer the task's current lease.
+    pub fn heartbeat(
+        &self,
+        task: i64,
+        lease: i64,
+        worker: &str,
+        now: i64,
+        lease_ms: u64,
+    ) -> Result<bool> {
+        let conn = self.conn();
+        conn.execute(
+            "UPDATE workers SET last_seen_ms = ?2 WHERE id = ?1",
+            params![worker, now],
+        )?;
+        let n = conn.execute(
+            "UPDATE tasks SET lease_expires_ms = ?3
+             WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
+            params![task, lease, now + lease_ms as i64],
+        )?;
+        Ok(n == 1)
+    }
+
+    /// The task a lease is for, if the lease is current: (job, spec).
+    pub fn current_lease(&self, task: i64, lease: i64) -> Result<Option<(i64, TaskSpec)>> {
+        Ok(self
+            .conn()
+            .query_row(
+                &format!(
+                    "SELECT job_id, {SPEC_COLUMNS} FROM tasks
+                     WHERE id = ?1 AND lease = ?2 AND state = 'leased'"
+                ),
+                params![task, lease],
+                |r| Ok((r.get(0)?, task_spec(r, 1)?)),
+            )
+            .optional()?)
+    }
+
+    /// Marks a task done with its result (already on disk), if the lease is still current.
+    pub fn complete(
+        &self,
+        task: i64,
+        lease: i64,
+        seconds: f64,
+        sizes: (u64, u64),
+        now: i64,
+    ) -> Result<Completion> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        let n = tx.execute(
+            "UPDATE tasks SET state = 'done', seconds = ?3, lease_expires_ms = NULL,
+                result_bytes = ?4, payload_bytes = ?5
+             WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
+            params![task, lease, seconds, sizes.0 as i64, sizes.1 as i64],
+        )?;
+        if n == 0 {
+            tx.execute(
+                "UPDATE attempts SET ended_ms = ?2, outcome = 'stale' WHERE id = ?1 AND outcome IS NULL",
+                params![lease, now],
+            )?;
+            tx.commit()?;
+            return Ok(Completion::Stale);
+        }
+        tx.execute(
+            "UPDATE attempts SET ended_ms = ?2, outcome = 'done' WHERE id = ?1",
+            params![lease, now],
+        )?;
+        tx.execute(
+            "UPDATE workers SET tasks_done = tasks_done + 1, last_seen_ms = ?2
+             WHERE id = (SELECT worker FROM attempts WHERE id = ?1)",
+            params![lease, now],
+        )?;
+        let (job, frame, step): (i64, u32, u32) = tx.query_row(
+            "SELECT job_id, frame, step FROM tasks WHERE id = ?1",
+            [task],
+            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
+        )?;
+        if frame == 0 {
+            tx.execute(
+                "UPDATE passes SET tasks_done = tasks_done + 1 WHERE job_id = ?1 AND step = ?2",
+                params![job, step],
+            )?;
+        } else {
+            tx.execute(
+                "UPDATE frames SET tasks_done = tasks_done + 1, state = 'running'
+                 WHERE job_id = ?1 AND frame = ?2",
+                params![job, frame],
+            )?;
+        }
+        let open: i64 = tx.query_row(
+            "SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3 AND state != 'done'",
+            params![job, frame, step],
+            |r| r.get(0),
+        )?;
+        tx.commit()?;
+        Ok(Completion::Accepted {
+            step: StepKey { job, frame, step },
+            complete: open == 0,
+        })
+    }
+
+    /// Ends an attempt that failed (`outcome` "failed") or whose lease expired ("expired"):
+    /// requeues the task, or fails the job once the task has had `max_attempts` leases.
+    fn retry(
+        tx: &Transaction,
+        task: i64,
+        lease: i64,
+        outcome: &str,
+        error: &str,
+        now: i64,
+        max_attempts: u32,
+    ) -> Result<Retry> {
+        let row: Option<(i64, u32, TaskSpec, String)> = tx
+            .query_row(
+                &format!(
+                    "SELECT t.job_id, t.attempts, {SPEC_COLUMNS}, COALESCE(a.worker, '')
+                     FROM tasks t LEFT JOIN attempts a ON a.id = t.lease
+                     WHERE t.id = ?1 AND t.lease = ?2 AND t.state = 'leased'"
+                ),
+                params![task, lease],
+                |r| Ok((r.get(0)?, r.get(1)?, task_spec(r, 2)?, r.get(12)?)),
+            )
+            .optional()?;
+        let Some((job, attempts, spec, worker)) = row else {
+            return Ok(Retry::Stale);
+        };
+        tx.execute(
+            "UPDATE attempts SET ended_ms = ?2, outcome = ?3, error = ?4 WHERE id = ?1",
+            params![lease, now, outcome, error],
+        )?;
+        if attempts < max_attempts {
+            tx.execute(
+                "UPDATE tasks SET state = 'queued', lease = NULL, worker = NULL,
+                    lease_expires_ms = NULL, error = ?2 WHERE id = ?1",
+                params![task, error],
+            )?;
+            return Ok(Retry::Requeued);
+        }
+        let place = if spec.is_pass() {
+            format!("pass {}", spec.step)
+        } else {
+            format!("frame {}, step {}", spec.frame, spec.step)
+        };
+        let message = format!(
+            "task {task} ({} {} of {place}) failed {attempts} times; last attempt on worker {worker}: {error}",
+            spec.kind, spec.index
+        );
+        tx.execute(
+            "UPDATE tasks SET state = 'failed', lease_expires_ms = NULL, error = ?2 WHERE id = ?1",
+            params![task, error],
+        )?;
+        Self::end_job(tx, job, "failed", Some(&message), now)?;
+        Ok(Retry::JobFailed(message))
+    }
+
+    /// A worker reports that it could not render a task.
+    pub fn fail(
+        &self,
+        task: i64,
+        lease: i64,
+        error: &str,
+        now: i64,
+        max_attempts: u32,
+    ) -> Result<Retry> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        let r = Self::retry(&tx, task, lease, "failed", error, now, max_attempts)?;
+        tx.commit()?;
+        Ok(r)
+    }
+
+    /// A done task whose result could not be read back: it is queued again (its attempt
+    /// counting), or the job fails once it has had `max_attempts`.
+    pub fn redo(&self, task: i64, error: &str, now: i64, max_attempts: u32) -> Result<Retry> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        let lease: Option<i64> = tx
+            .query_row(
+                "SELECT lease FROM tasks WHERE id = ?1 AND state = 'done'",
+                [task],
+                |r| r.get(0),
+            )
+            .optional()?
+            .flatten();
+        let Some(lease) = lease else {
+            return Ok(Retry::Stale);
+        };
+        let (job, frame): (i64, u32) = tx.query_row(
+            "SELECT job_id, frame FROM tasks WHERE id = ?1",
+            [task],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )?;
+        tx.execute(
+            "UPDATE tasks SET state = 'leased' WHERE id = ?1",
+            [task],
+        )?;
+        let table = if frame == 0 { "passes" } else { "frames" };
+        let by = if frame == 0 { "step" } else { "frame" };
+        tx.execute(
+            &format!(
+                "UPDATE {table} SET tasks_done = tasks_done - 1 WHERE job_id = ?1
+                 AND {by} = (SELECT {by} FROM tasks WHERE id = ?2)"
+            ),
+            params![job, task],
+        )?;
+        let r = Self::retry(&tx, task, lease, "unreadable", error, now, max_attempts)?;
+        tx.commit()?;
+        Ok(r)
+    }
+
+    /// Takes back every lease that expired before `now`. Returns what became of each.
+    pub fn expire(&self, now: i64, max_attempts: u32) -> Result<Vec<(i64, Retry)>> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        let expired: Vec<(i64, i64)> = tx
+            .prepare(
+                "SELECT id, lease FROM tasks WHERE state = 'leased' AND lease_expires_ms < ?1",
+            )?
+            .query_map([now], |r| Ok((r.get(0)?, r.get(1)?)))?
+            .collect::<rusqlite::Result<_>>()?;
+        let mut out = Vec::with_capacity(expired.len());
+        for (task, lease) in expired {
+            let r = Self::retry(
+                &tx,
+                task,
+                lease,
+                "expired",
+                "the lease expired: the worker stopped renewing it (died, hung or lost the network)",
+                now,
+                max_attempts,
+            )?;
+            out.push((task, r));
+        }
+        tx.commit()?;
+        Ok(out)
+    }
+
+    /// Ends a job that has not ended (`cancelled` or `failed`, with an error), cancelling its
+    /// open tasks; false if it had ended.
+    pub(super) fn end_job(
+        tx: &Transaction,
+        job: i64,
+        state: &str,
+        error: Option<&str>,
+        now: i64,
+    ) -> Result<bool> {
+        let n = tx.execute(
+            "UPDATE jobs SET state = ?2, error = COALESCE(?3, error), finished_ms = ?4
+             WHERE id = ?1 AND state IN ('queued', 'running')",
+            params![job, state, error, now],
+        )?;
+        if n == 1 {
+            tx.execute(
+                "UPDATE tasks SET state = 'cancelled', lease_expires_ms = NULL
+                 WHERE job_id = ?1 AND state IN ('queued', 'leased')",
+                [job],
+            )?;
+        }
+        Ok(n == 1)
+    }
+
+    /// Cancels a job that has not ended; false if it had.
+    pub fn cancel(&self, job: i64, now: i64) -> Result<bool> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        let ended = Self::end_job(&tx, job, "cancelled", None, now)?;
+        tx.commit()?;
+        Ok(ended)
+    }
+
+    /// Fails a job that has not ended (a frame that could not be written, say).
+    pub fn fail_job(&self, job: i64, error: &str, now: i64) -> Result<()> {
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        Self::end_job(&tx, job, "failed", Some(error), now)?;
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// Queues a frame's next step (its tasks all carry the step's number) and moves the frame
+    /// to it; nothing if that step's tasks exist already (a repeated advance after a restart),
+    /// or if the job has ended.
+    pub fn add_step(&self, job: i64, frame: u32, tasks: &[TaskSpec]) -> Result<()> {
+        let Some(step) = tasks.first().map(|t| t.step) else {
+            return Ok(());
+        };
+        if tasks.iter().any(|t| t.step != step || t.frame != frame) {
+            return Err(StoreError::Corrupt(format!(
+                "a step of frame {frame} whose tasks are not all of frame {frame}, step {step}"
+            )));
+        }
+        let mut conn = self.conn();
+        let tx = conn.transaction()?;
+        let running: bool = tx
+            .prepare("SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running')")?
+            .exists([job])?;
+        let exists: bool = tx
+            .prepare("SELECT 1 FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3")?
+            .exists(params![job, frame, step])?;
+        if running && !exists {
+            Self::insert_tasks(&tx, job, tasks)?;
+            tx.execute(
+                "UPDATE frames SET step = ?3 WHERE job_id = ?1 AND frame = ?2",
+                params![job, frame, step],
+            )?;
+        }
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// A frame's current step.
+    pub fn frame_step(&self, job: i64, frame: u32) -> Result<Option<u32>> {
+        Ok(self
+            .conn()
+            .query_row(
+                "SELECT step FROM frames WHERE job_id = ?1 AND frame = ?2",
+                params![job, frame],
+                |r| r.get(0),
+            )
+            .optional()?)
+    }
+
+    /// A step's tasks in fold order from position `from` on, at most `limit` of them:
+    /// (task id, state, lease, spec); and how many tasks the step has in all.
+    pub fn step_tasks(
+        &self,
+        key: StepKey,
+        from: usize,
+        limit: usize,
+    ) -> Result<(Vec<(i64, String, Option<i64>, TaskSpec)>, usize)> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare_cached(&format!(
+            "SELECT id, state, lease, {SPEC_COLUMNS} FROM tasks
+             WHERE job_id = ?1 AND frame = ?2 AND step = ?3 ORDER BY idx LIMIT ?4 OFFSET ?5"
+        ))?;
+        let out = stmt
+            .query_map(
+                params![key.job, key.frame, key.step, limit as i64, from as i64],
+                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, task_spec(r, 3)?)),
+            )?
+            .collect::<rusqlite::Result<_>>()?;
+        let total: i64 = conn
+            .prepare_cached("SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3")?
+            .query_row(params![key.job, key.frame, key.step], |r| r.get(0))?;
+        Ok((out, total as usize))
+    }
+
+    /// The results of a step's done tasks: (task id, lease).
+    pub fn step_results(&self, key: StepKey) -> Result<Vec<(i64, i64)>> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(
+            "SELECT id, lease FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3 AND state = 'done'",
+        )?;
+        let out = stmt
+            .query_map(params![key.job, key.frame, key.step], |r| {
+                Ok((r.get(0)?, r.get(1)?))
+            })?
+            .collect::<rusqlite::Result<_>>()?;
+        Ok(out)
+    }
+
+    /// The done results of a job's tasks as (task, lease), for deleting their files.
+    pub fn results_of(&self, job: i64, frame: u32) -> Result<Vec<(i64, i64)>> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(
+            "SELECT id, lease FROM tasks WHERE job_id = ?1 AND frame = ?2 AND state = 'done'",
+        )?;
+        let out = stmt
+            .query_map(params![job, frame], |r| Ok((r.get(0)?, r.get(1)?)))?
+            .collect::<rusqlite::Result<_>>()?;
+        Ok(out)
+    }
+
+    /// Steps of running jobs whose tasks are all done but which were not folded on (a restart
+    /// in between): frames at their current step, and passes still running.
+    pub fn finished_steps(&self) -> Result<Vec<StepKey>> {
+        let conn = self.conn();
+        let mut stmt = conn.prepare(
+            "SELECT f.job_id, f.frame, f.step FROM frames f JOIN jobs j ON j.id = f.job_id
+             WHERE f.state != 'done' AND j.state IN ('queued', 'running')
+               AND EXISTS (SELECT 1 FROM tasks t WHERE t.job_id = f.job_id AND t.frame = f.frame AND t.step = f.step)
+               AND NOT EXISTS (SELECT 1 FROM tasks t WHERE t.job_id = f.job_id AND t.frame = f.frame
+                               AND t.step = f.step AND t.state != 'done')
+             UNION ALL
+             SELECT p.job_id, 0, p.step FROM passes p JOIN jobs j ON j.id = p.job_id
+             WHERE p.state = 'running' AND p.tasks_done = p.tasks_total
+               AND j.state IN ('queued', 'running')",
+        )?;
+        let out = stmt
+            .query_map([], |r| {
+                Ok(StepKey {
+                    job: r.get(0)?,
+                    frame: r.get(1)?,
+                    step: r.get(2)?,
+                })
+            })?
+            .collect::<rusqlite::Result<_>>()?;
+        Ok(out)
+    }
+
+    /// Tasks queued and leased over all jobs, and jobs by state.
+    pub fn gauges(&self) -> Result<Gauges> {
+        let conn = self.conn();
+        let (queued, leased): (i64, i64) = conn.query_row(
+            "SELECT (SELECT COUNT(*) FROM tasks WHERE state = 'queued'),
+                    (SELECT COUNT(*) FROM tasks WHERE state = 'leased')",
+            [],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )?;
+        let mut stmt = conn.prepare("SELECT state, COUNT(*) FROM jobs GROUP BY state")?;
+        let jobs = stmt
+            .query_map([], |r| Ok((r.get(0)?, r.get::<_, i64>(1)? as u64)))?
+            .collect::<rusqlite::Result<_>>()?;
+        Ok(Gauges {
+            queued: queued as u64,
+            leased: leased as u64,
+            jobs,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::tests::{store, task, worker};
+    use super::*;
+    use crate::protocol::JobState;
+
+    #[test]
+    fn leases_go_by_priority_then_age_then_task_order() {
+        let (_d, s, jobs) = store(&[0, 5, 5], 2);
+        let order: Vec<(i64, u32)> = (0..6)
+            .map(|_| {
+                let g = s
+                    .lease(&worker("w"), 0, 1000)
+                    .expect("lease")
+                    .expect("a task");
+                (g.job_id, g.task.index)
+            })
+            .collect();
+        let (low, high_old, high_new) = (jobs[0], jobs[1], jobs[2]);
+        assert_eq!(
+            order,
+            [
+                (high_old, 0),
+                (high_old, 1),
+                (high_new, 0),
+                (high_new, 1),
+                (low, 0),
+                (low, 1)
+            ]
+        );
+        assert!(s.lease(&worker("w"), 0, 1000).expect("lease").is_none());
+    }
+
+    #[test]
+    fn a_stale_lease_cannot_heartbeat_or_complete_after_reassignment() {
+        let (_d, s, jobs) = store(&[0], 1);
+        let first = s.lease(&worker("a"), 0, 100).expect("lease").expect("task");
+        // The lease expires and the task goes to another worker.
+        assert_eq!(s.expire(50, 3).expect("expire"), vec![]);
+        assert_eq!(
+            s.expire(101, 3).expect("expire"),
+            vec![(first.task_id, Retry::Requeued)]
+        );
+        let second = s
+            .lease(&worker("b"), 102, 100)
+            .expect("lease")
+            .expect("task");
+        assert_eq!(second.task_id, first.task_id);
+        assert_ne!(second.lease, first.lease);
+        assert!(
+            !s.heartbeat(first.task_id, first.lease, "a", 103, 100)
+                .expect("hb")
+        );
+        assert!(
+            s.current_lease(first.task_id, first.lease)
+                .expect("q")
+                .is_none()
+        );
+        assert_eq!(
+            s.complete(first.task_id, first.lease, 1.0, (1, 1), 104).expect("c"),
+            Completion::Stale
+        );
+        // The current holder completes; its step is then complete.
+        assert!(
+            s.heartbeat(second.task_id, second.lease, "b", 105, 100)
+                .expect("hb")
+        );
+        let key = StepKey {
+            job: jobs[0],
+            frame: 1,
+            step: 0,
+        };
+        assert_eq!(
+            s.complete(second.task_id, second.lease, 1.0, (1, 1), 106)
+                .expect("c"),
+            Completion::Accepted {
+                step: key,
+                complete: true
+            }
+        );
+        assert_eq!(
+            s.complete(second.task_id, second.lease, 1.0, (1, 1), 107)
+                .expect("c"),
+            Completion::Stale
+        );
+        let job = s.job(jobs[0]).expect("q").expect("job");
+        assert_eq!((job.tasks.done, job.attempts), (1, 2));
+        // A later step (an adaptive round) queues once, however often it is added.
+        let round = [TaskSpec {
+            step: 1,
+            ..task(1, 0)
+        }];
+        s.add_step(jobs[0], 1, &round).expect("add");
+        s.add_step(jobs[0], 1, &round).expect("add again");
+        assert_eq!(s.frame_step(jobs[0], 1).expect("q"), Some(1));
+        let g = s
+            .lease(&worker("b"), 110, 100)
+            .expect("lease")
+            .expect("the new round");
+        assert_eq!(g.task.step, 1);
+        assert!(s.lease(&worker("b"), 110, 100).expect("lease").is_none());
+        assert_eq!(
+            s.complete(g.task_id, g.lease, 1.0, (1, 1), 111).expect("c"),
+            Completion::Accepted {
+                step: StepKey { step: 1, ..key },
+                complete: true
+            }
+        );
+        assert_eq!(s.step_tasks(StepKey { step: 1, ..key }, 0, 10).expect("q").1, 1);
+    }
+
+    #[test]
+    fn a_task_failing_max_attempts_times_fails_its_job_with_the_error() {
+        let (_d, s, jobs) = store(&[0], 2);
+        for attempt in 1..=3 {
+            let g = s
+                .lease(&worker("w"), 0, 1000)
+                .expect("lease")
+                .expect("task");
+            assert_eq!(g.task.index, 0, "the failed task is retried first");
+            let r = s
+                .fail(g.task_id, g.lease, &format!("boom {attempt}"), 1, 3)
+                .expect("fail");
+            if attempt < 3 {
+                assert_eq!(r, Retry::Requeued);
+            } else {
+                assert!(
+                    matches!(&r, Retry::JobFailed(m) if m.contains("boom 3") && m.contains("3 times")),
+                    "{r:?}"
+                );
+            }
+        }
+        let job = s.job(jobs[0]).expect("q").expect("job");
+        assert_eq!(job.state, JobState::Failed);
+        assert!(
+            job.error
+                .as_deref()
+                .unwrap_or("")
+                .contains("worker w: boom 3"),
+            "{:?}",
+            job.error
+        );
+        assert_eq!((job.tasks.failed, job.tasks.cancelled), (1, 1));
+        assert!(s.lease(&worker("w"), 2, 1000).expect("lease").is_none());
+    }
+}

@@ -1,0 +1,229 @@
+//! The Metropolis renderers as frame methods: primary-sample-space MLT (Kelemen et al. 2002,
+//! multiplexed over BDPT's strategies as Hachisuka et al. 2014) and path-space MLT (Veach &
+//! Guibas 1997: bidirectional, lens subpath, lens and caustic perturbation mutations; pinhole
+//! cameras and lights at finite distance only). Both leave direct light to BDPT, in sample
+//! ranges over the whole film (as [`super::ranges`]), and run their chains in
+//! [`GROUPS`](crate::integrator::metropolis::GROUPS) tasks, each a group of chains with its
+//! share of the brightness samples and bootstrap paths. The chains' image is scaled by the
+//! brightness b, the mean over every group's samples, once all are folded.
+
+use serde::{Deserialize, Serialize};
+
+use super::film::{Splats, add_splats, splats_from_fixed};
+use super::ranges::{RangeFrame, RangePartial, Ranges};
+use std::time::Duration;
+
+use super::registry::MethodInfo;
+use super::{Finished, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
+use crate::film::Image;
+use crate::integrator::RayStats;
+use crate::integrator::metropolis::{GROUPS, Metropolis};
+
+/// Kind of the direct-light tasks.
+pub const DIRECT: &str = "direct";
+/// Kind of the chain tasks.
+pub const CHAINS: &str = "chains";
+
+/// A Metropolis method's task result.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum MetroPartial {
+    /// The AOVs or a range of direct light.
+    Direct(RangePartial),
+    /// A group of chains: their splats (Σ f / f* × acceptance per pixel) and the group's
+    /// brightness samples (sum and count).
+    Chains {
+        splats: Splats,
+        brightness: f64,
+        count: u64,
+        stats: RayStats,
+    },
+}
+
+/// A Metropolis method's frame.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct MetroFrame {
+    direct: RangeFrame,
+    chain: Vec<[f32; 3]>,
+    brightness: f64,
+    count: u64,
+    exposure: f32,
+}
+
+pub static PSSMLT: MethodInfo = MethodInfo {
+    name: "pssmlt",
+    summary: "primary-sample-space Metropolis light transport (Kelemen), multiplexed over BDPT's strategies",
+    spp: "mutations per pixel",
+    params: &["sampler"],
+    plan: |job| Ok(Box::new(MetropolisMethod::plan(job, "pssmlt")?) as Box<dyn Plan>),
+};
+
+pub static MLT: MethodInfo = MethodInfo {
+    name: "mlt",
+    summary: "Metropolis light transport in path space (Veach & Guibas): bidirectional, lens and caustic mutations",
+    spp: "mutations per pixel",
+    params: &[],
+    plan: |job| Ok(Box::new(MetropolisMethod::plan(job, "mlt")?) as Box<dyn Plan>),
+};
+
+pub struct MetropolisMethod {
+    name: &'static str,
+    m: Metropolis,
+    ranges: Ranges,
+    mutations: u32,
+}
+
+impl MetropolisMethod {
+    fn plan(job: &Job, name: &'static str) -> Result<Self, String> {
+        super::refuse_translucent(&job.desc, name)?;
+        if name == "mlt" {
+            refuse_for_mlt(&job.desc)?;
+        }
+        let m = Metropolis::new(name, &job.desc)
+            .ok_or_else(|| format!("{name} is not a Metropolis renderer"))?;
+        let ranges = Ranges::new(job, name, DIRECT)?;
+        Ok(MetropolisMethod {
+            name,
+            m,
+            mutations: ranges.spp(),
+            ranges,
+        })
+    }
+}
+
+/// What path-space MLT does not support, refused before anything is queued.
+fn refuse_for_mlt(d: &tessera_scene::SceneDesc) -> Result<(), String> {
+    use tessera_scene::{Lens, LightDesc};
+    if d.lights.iter().any(|l| {
+        matches!(
+            l,
+            LightDesc::Directional { .. } | LightDesc::Environment { .. }
+        )
+    }) {
+        return Err("integrator.type: mlt does not support lights at infinity (environment, directional); use pssmlt or bdpt".into());
+    }
+    if matches!(d.camera.lens, Lens::Thin { aperture_radius, .. } if aperture_radius > 0.0) {
+        return Err("integrator.type: mlt supports pinhole cameras only; use pssmlt or bdpt".into());
+    }
+    Ok(())
+}
+
+impl Method for MetropolisMethod {
+    type Partial = MetroPartial;
+    type Frame = MetroFrame;
+
+    fn name(&self) -> &'static str {
+        self.name
+    }
+
+    fn decisions(&self) -> Vec<String> {
+        vec![format!(
+            "{}: Markov chains wander over the whole film, so a frame's chains are {GROUPS} tasks, each a group with its share of the brightness samples and bootstrap paths, beside direct light by BDPT in sample ranges over the film ({})",
+            self.name,
+            self.m.describe(self.mutations)
+        )]
+    }
+
+    fn start(&self, frame: u32) -> Result<Step, String> {
+        let mut step = self.ranges.start(frame);
+        let first = step.tasks.len() as u32;
+        let film = self.ranges.film();
+        step.tasks.extend((0..GROUPS).map(|g| {
+            TaskSpec::new(CHAINS, frame, 0, first + g)
+                .with_rect(film)
+                .with_range(g, g + 1)
+        }));
+        Ok(step)
+    }
+
+    fn new_frame(&self, frame: u32) -> MetroFrame {
+        let direct = self.ranges.new_frame(frame);
+        MetroFrame {
+            direct,
+            chain: vec![[0.0; 3]; self.ranges.film().pixel_count()],
+            brightness: 0.0,
+            count: 0,
+            exposure: self.ranges.camera(frame).exposure,
+        }
+    }
+
+    fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<MetroPartial, String> {
+        let camera = self.ranges.camera(task.frame);
+        match task.kind.as_str() {
+            aov::KIND => Ok(MetroPartial::Direct(RangePartial::Aov(aov::execute(
+                ctx.scene,
+                &camera,
+                task.tile(),
+                task.samples(),
+            )))),
+            DIRECT => {
+                self.ranges.check(task)?;
+                let (sums, stats) = self.m.direct(ctx.scene, &camera, task.samples())?;
+                ctx.progress(task.pixels() * task.samples().len() as u64);
+                Ok(MetroPartial::Direct(RangePartial::from_sums(&sums, stats)))
+            }
+            CHAINS => {
+                self.ranges.check(task)?;
+                let (sums, stats) = self.m.chains(
+                    ctx.scene,
+                    &camera,
+                    self.mutations,
+                    task.start,
+                    &|n| ctx.progress(n),
+                )?;
+                Ok(MetroPartial::Chains {
+                    splats: splats_from_fixed(&sums.splats),
+                    brightness: sums.brightness.0 as f64 / 4_294_967_296.0,
+                    count: sums.brightness.1,
+                    stats,
+                })
+            }
+            other => Err(format!("{} has no {other} tasks", self.m.name())),
+        }
+    }
+
+    fn fold(&self, f: &mut MetroFrame, task: &TaskSpec, p: MetroPartial) -> Result<(), String> {
+        match p {
+            MetroPartial::Direct(d) => self.ranges.fold(&mut f.direct, task, d),
+            MetroPartial::Chains {
+                splats,
+                brightness,
+                count,
+                stats,
+            } => {
+                add_splats(&mut f.chain, &splats)?;
+                f.brightness += brightness;
+                f.count += count;
+                Ranges::stats(&mut f.direct).add(&stats);
+                Ok(())
+            }
+        }
+    }
+
+    fn advance(&self, _frame: u32, f: &mut MetroFrame, _: Duration) -> Result<Next, String> {
+        let image = self.image(f);
+        Ok(match self.ranges.advance(&mut f.direct) {
+            Next::Done(done) => Next::Done(Finished { image, ..done }),
+            next => next,
+        })
+    }
+
+    fn preview(&self, _frame: u32, f: &MetroFrame) -> Image {
+        self.image(f)
+    }
+}
+
+impl MetropolisMethod {
+    /// Direct light plus the chains' splats, which are f / f* per mutation: b per mutation of
+    /// the film makes them radiance.
+    fn image(&self, f: &MetroFrame) -> Image {
+        let mut image = self.ranges.image(&f.direct);
+        let b = f.brightness / f.count.max(1) as f64;
+        let scale = b * f.exposure as f64 / self.mutations.max(1) as f64;
+        for (px, s) in image.pixels.iter_mut().zip(&f.chain) {
+            for c in 0..3 {
+                px.rgb[c] += (s[c] as f64 * scale) as f32;
+            }
+        }
+        image
+    }
+}

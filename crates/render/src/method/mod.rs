@@ -1,0 +1,608 @@
+//! Frame methods (DESIGN: "the unit of extension is a frame method"): how each rendering
+//! method makes a frame, in pieces a farm can move.
+//!
+//! A method is one type implementing [`Method`]: it plans a frame as *steps* of *tasks*
+//! ([`TaskSpec`]), runs one task into a compact partial result, folds partial results in a
+//! fixed order into the frame's state, and after each step says what follows — another step
+//! (an adaptive round, an SPPM iteration) or the finished image. View-independent
+//! precomputation is a [`Pass`] with a content key (photon maps, the irradiance cache, the
+//! subsurface point cloud): its tasks fold into an artifact that every frame and every later
+//! job with the same key reads.
+//!
+//! One registry ([`METHODS`]) names every method; the CLI, the bench, the farm's API,
+//! coordinator and worker find methods there and see them only through the object-safe
+//! [`Plan`]. Partial results, artifacts, step inputs and frame checkpoints cross processes in
+//! the one [`crate::wire`] format. A task is a pure function of (job, task, the artifacts and
+//! step input it reads), and the fold order is the plan's, so a frame is the same bits
+//! whoever ran its tasks and whenever their results arrived.
+
+pub mod aov;
+mod auto;
+mod bdpt;
+pub mod film;
+pub mod local;
+mod metropolis;
+pub mod passes;
+mod path;
+mod photon;
+mod ranges;
+mod registry;
+mod sppm;
+mod tiles;
+mod vcm;
+
+use std::any::Any;
+use std::io::{Read, Write};
+use std::ops::RangeInclusive;
+use std::sync::Arc;
+use std::time::Duration;
+
+use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
+use tessera_scene::SceneDesc;
+
+use crate::film::{Image, SampleRange, Tile};
+use crate::scene::Scene;
+use crate::wire::{self, Header, Sizes, WireError};
+
+pub use registry::{METHODS, MethodInfo, lookup, names, plan};
+pub use tiles::Adaptive;
+
+/// A unit of work of a frame or of a pass: what it computes, where it folds, and the pixels
+/// and index range it covers. Methods give the fields their meaning; the farm stores, leases
+/// and orders tasks by them without knowing it.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct TaskSpec {
+    /// What the task computes, in its method's words (`tile`, `aov`, `photons`, …).
+    pub kind: String,
+    /// The frame (from 1), or 0 for a pass's task.
+    pub frame: u32,
+    /// The frame's step (an adaptive round, an SPPM iteration), or the pass's position in
+    /// the job's list of passes.
+    pub step: u32,
+    /// Position in fold order within the step (or pass).
+    pub index: u32,
+    /// Pixels [x0, x1) × [y0, y1) it covers (empty for a pass's task).
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+    /// Index range [start, end): samples, iterations, photons, points or chains.
+    pub start: u32,
+    pub end: u32,
+}
+
+impl TaskSpec {
+    /// A task covering no pixels and an empty range.
+    pub fn new(kind: &str, frame: u32, step: u32, index: u32) -> Self {
+        TaskSpec {
+            kind: kind.into(),
+            frame,
+            step,
+            index,
+            x0: 0,
+            y0: 0,
+            x1: 0,
+            y1: 0,
+            start: 0,
+            end: 0,
+        }
+    }
+
+    pub fn with_rect(mut self, t: Tile) -> Self {
+        (self.x0, self.y0, self.x1, self.y1) = (t.x0, t.y0, t.x1, t.y1);
+        self
+    }
+
+    pub fn with_range(mut self, start: u32, end: u32) -> Self {
+        (self.start, self.end) = (start, end);
+        self
+    }
+
+    pub fn tile(&self) -> Tile {
+        Tile {
+            x0: self.x0,
+            y0: self.y0,
+            x1: self.x1.max(self.x0),
+            y1: self.y1.max(self.y0),
+        }
+    }
+
+    pub fn samples(&self) -> SampleRange {
+        SampleRange {
+            start: self.start,
+            end: self.end.max(self.start),
+        }
+    }
+
+    /// Pixels it covers.
+    pub fn pixels(&self) -> u64 {
+        self.tile().pixel_count() as u64
+    }
+
+    /// An estimate of its work: pixels × samples, or the items of its range.
+    pub fn work(&self) -> u64 {
+        self.pixels().max(1) * self.samples().len().max(1) as u64
+    }
+
+    /// Whether this is a pass's task.
+    pub fn is_pass(&self) -> bool {
+        self.frame == 0
+    }
+}
+
+/// A job as methods see it: the scene with the job's settings applied, the frames to render,
+/// and how the job wants its work cut.
+#[derive(Debug, Clone)]
+pub struct Job {
+    pub desc: SceneDesc,
+    pub frames: RangeInclusive<u32>,
+    /// Side of a tile, pixels (does not change the image).
+    pub tile: u32,
+    /// Samples (or iterations) per task where a method cuts its frames by samples.
+    pub samples_per_task: Option<u32>,
+    /// Adaptive sampling: stop when the estimated relMSE is at most this.
+    pub target_error: Option<f64>,
+    /// Adaptive sampling: start no new round after this long (in-process renders only: it
+    /// depends on the machine).
+    pub time_limit: Option<Duration>,
+}
+
+impl Job {
+    /// One frame of `desc` with default cutting.
+    pub fn new(desc: SceneDesc, frame: u32) -> Self {
+        Job {
+            desc,
+            frames: frame..=frame,
+            tile: DEFAULT_TILE,
+            samples_per_task: None,
+            target_error: None,
+            time_limit: None,
+        }
+    }
+}
+
+/// Tile side when a job does not say.
+pub const DEFAULT_TILE: u32 = 32;
+/// Largest tile side.
+pub const MAX_TILE: u32 = 256;
+
+/// A loaded artifact, step input or memo: typed by whoever asked for it.
+pub type Loaded = Arc<dyn Any + Send + Sync>;
+/// Loads a value from a wire stream.
+pub type LoadFn<'a> = &'a dyn Fn(&mut dyn Read) -> Result<Loaded, String>;
+
+/// What a task reads besides the scene, provided by whoever runs it: a worker downloads
+/// artifacts and step inputs and keeps what it loaded; `tessera render` has them in memory.
+pub trait Resources: Sync {
+    /// The artifact with this key, loaded by `load` from its stream (once per process).
+    fn artifact(&self, key: &str, load: LoadFn) -> Result<Loaded, String>;
+    /// The input of the task's step, loaded by `load` (once per process and step).
+    fn input(&self, load: LoadFn) -> Result<Loaded, String>;
+    /// A value made by `make` once per process for the task's step and this name (work that
+    /// every task of a step shares, such as SPPM's camera paths).
+    fn memo(&self, name: &str, make: &dyn Fn() -> Result<Loaded, String>)
+    -> Result<Loaded, String>;
+    /// `work` more units of the task done (for progress bars; units are the task's pixels ×
+    /// samples, or its photons or points).
+    fn progress(&self, _work: u64) {}
+}
+
+/// What a task runs with.
+pub struct TaskCtx<'a> {
+    pub scene: &'a Scene,
+    pub desc: &'a SceneDesc,
+    pub resources: &'a dyn Resources,
+}
+
+impl TaskCtx<'_> {
+    /// The loaded artifact of `pass`.
+    pub fn artifact<P: Pass>(&self, pass: &P) -> Result<Arc<P::Loaded>, String> {
+        let load = |r: &mut dyn Read| -> Result<Loaded, String> {
+            let (header, artifact): (Header, P::Artifact) = wire::read(r).map_err(|e| {
+                format!("the {} artifact {}: {e}", pass.name(), short(pass.key()))
+            })?;
+            check_schema(&header, &pass_schema(pass.name()))?;
+            Ok(Arc::new(pass.load(artifact)?))
+        };
+        self.resources
+            .artifact(pass.key(), &load)?
+            .downcast::<P::Loaded>()
+            .map_err(|_| format!("artifact {} is not a {}", short(pass.key()), pass.name()))
+    }
+
+    /// The input of the task's step.
+    pub fn input<T: DeserializeOwned + Send + Sync + 'static>(&self) -> Result<Arc<T>, String> {
+        let load = |r: &mut dyn Read| -> Result<Loaded, String> {
+            let (_, v): (Header, T) =
+                wire::read(r).map_err(|e| format!("the step's input: {e}"))?;
+            Ok(Arc::new(v))
+        };
+        self.resources
+            .input(&load)?
+            .downcast::<T>()
+            .map_err(|_| "the step's input is not of the type its tasks read".to_string())
+    }
+
+    /// A value made once per process for the task's step.
+    pub fn memo<T: Send + Sync + 'static>(
+        &self,
+        name: &str,
+        make: impl Fn() -> Result<T, String>,
+    ) -> Result<Arc<T>, String> {
+        let make = || -> Result<Loaded, String> { Ok(Arc::new(make()?)) };
+        self.resources
+            .memo(name, &make)?
+            .downcast::<T>()
+            .map_err(|_| format!("memo {name} has another type"))
+    }
+
+    pub fn progress(&self, work: u64) {
+        self.resources.progress(work);
+    }
+}
+
+/// Refuses translucent materials for a method that does not render them.
+pub(crate) fn refuse_translucent(desc: &SceneDesc, name: &str) -> Result<(), String> {
+    let translucent = desc.translucent_materials();
+    if translucent.is_empty() {
+        return Ok(());
+    }
+    Err(format!(
+        "integrator.type: {name} does not render translucent (subsurface) materials yet ({}); expected path, direct or auto",
+        translucent.join(", ")
+    ))
+}
+
+/// The first 12 characters of a key, for messages.
+pub fn short(key: &str) -> &str {
+    &key[..key.len().min(12)]
+}
+
+/// A value that crosses processes: a task's partial result, an artifact, a step input or a
+/// frame's state.
+pub trait Payload: Any + Send + Sync {
+    /// Writes it as a wire stream with `header`.
+    fn write_to(&self, header: &Header, out: &mut dyn Write) -> Result<Sizes, WireError>;
+    /// Writes it into the payload of a stream being written (after other values, say).
+    fn encode(&self, payload: &mut dyn Write) -> Result<(), WireError>;
+    fn into_any(self: Box<Self>) -> Box<dyn Any + Send + Sync>;
+    fn as_any(&self) -> &dyn Any;
+    fn as_any_mut(&mut self) -> &mut dyn Any;
+}
+
+impl<T: Serialize + Send + Sync + 'static> Payload for T {
+    fn write_to(&self, header: &Header, out: &mut dyn Write) -> Result<Sizes, WireError> {
+        Ok(wire::write(out, header, self)?.1)
+    }
+    fn encode(&self, payload: &mut dyn Write) -> Result<(), WireError> {
+        wire::encode_into(self, payload)
+    }
+    fn into_any(self: Box<Self>) -> Box<dyn Any + Send + Sync> {
+        self
+    }
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}
+
+/// Takes a payload back as the type it was made as.
+pub fn downcast<T: 'static>(p: Box<dyn Payload>) -> Result<T, String> {
+    p.into_any()
+        .downcast::<T>()
+        .map(|b| *b)
+        .map_err(|_| format!("expected a {}", std::any::type_name::<T>()))
+}
+
+/// A step of a frame: its tasks, in fold order, and what they read besides the scene and the
+/// job's artifacts.
+pub struct Step {
+    pub tasks: Vec<TaskSpec>,
+    pub input: Option<Box<dyn Payload>>,
+}
+
+impl Step {
+    pub fn tasks(tasks: Vec<TaskSpec>) -> Self {
+        Step { tasks, input: None }
+    }
+}
+
+/// A finished frame.
+pub struct Finished {
+    pub image: Image,
+    pub stats: crate::RayStats,
+    /// EXR header entries the method adds (settings, the adaptive rule's outcome).
+    pub metadata: Vec<(String, String)>,
+    /// The relMSE the frame estimates for itself, where the method estimates one.
+    pub estimated_rel_mse: Option<f64>,
+}
+
+/// What follows a step.
+pub enum Next {
+    Step(Step),
+    Done(Finished),
+}
+
+/// A method planned for one job, as its implementor writes it. [`Plan`] is its object-safe
+/// face, implemented for every `Method`.
+pub trait Method: Send + Sync + 'static {
+    /// One task's result: only what the fold needs.
+    type Partial: Serialize + DeserializeOwned + Send + Sync + 'static;
+    /// A frame's state between folds, and a step's checkpoint.
+    type Frame: Serialize + DeserializeOwned + Send + Sync + 'static;
+
+    /// The name of the method that runs (the registry's).
+    fn name(&self) -> &'static str;
+    /// What was decided for this job, with reasons (job status, logs, EXR header).
+    fn decisions(&self) -> Vec<String>;
+    /// EXR header entries.
+    fn metadata(&self) -> Vec<(String, String)> {
+        Vec::new()
+    }
+    /// The job's passes, in the order they are built.
+    fn passes(&self) -> Vec<&dyn DynPass> {
+        Vec::new()
+    }
+    /// The first step of `frame`.
+    fn start(&self, frame: u32) -> Result<Step, String>;
+    /// Tasks of a frame's later steps where the method knows them in advance (for progress;
+    /// adaptive rounds are not known).
+    fn later_tasks(&self) -> u64 {
+        0
+    }
+    /// Tasks that take a finished frame on to `spp` samples per pixel (iterations), folded into
+    /// the same state; `None` where the method cannot continue a frame (Markov chains).
+    fn more(&self, _frame: u32, _state: &mut Self::Frame, _spp: u32) -> Option<Step> {
+        None
+    }
+    fn new_frame(&self, frame: u32) -> Self::Frame;
+    fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Self::Partial, String>;
+    /// Folds a task's result into its frame; called in the step's task order.
+    fn fold(&self, state: &mut Self::Frame, task: &TaskSpec, p: Self::Partial)
+    -> Result<(), String>;
+    /// After every task of a step was folded: the next step, or the finished frame.
+    /// `elapsed` is the frame's wall time so far (zero on a farm).
+    fn advance(
+        &self,
+        frame: u32,
+        state: &mut Self::Frame,
+        elapsed: Duration,
+    ) -> Result<Next, String>;
+    /// The frame as it stands (for previews while it renders).
+    fn preview(&self, frame: u32, state: &Self::Frame) -> Image;
+}
+
+/// A precomputation pass, as its implementor writes it; [`DynPass`] is its object-safe face.
+pub trait Pass: Send + Sync + 'static {
+    type Partial: Serialize + DeserializeOwned + Send + Sync + 'static;
+    /// What its tasks' results fold into (in memory; refolded from results after a restart).
+    type State: Send + Sync + 'static;
+    /// What is stored under the key and read by later tasks.
+    type Artifact: Serialize + DeserializeOwned + Send + Sync + 'static;
+    /// The artifact as tasks use it (trees built, tables filled), once per process.
+    type Loaded: Send + Sync + 'static;
+
+    fn name(&self) -> &'static str;
+    /// A hash of everything that determines the artifact (never the camera, for
+    /// view-independent data): equal keys, equal artifacts.
+    fn key(&self) -> &str;
+    /// Its tasks, for a pass at position `step` among the job's.
+    fn tasks(&self, step: u32) -> Vec<TaskSpec>;
+    fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Self::Partial, String>;
+    fn start(&self) -> Self::State;
+    fn fold(&self, state: &mut Self::State, task: &TaskSpec, p: Self::Partial)
+    -> Result<(), String>;
+    fn finish(&self, state: Self::State) -> Result<Self::Artifact, String>;
+    fn load(&self, artifact: Self::Artifact) -> Result<Self::Loaded, String>;
+    /// What the artifact holds, for the job status.
+    fn describe(&self, artifact: &Self::Artifact) -> String;
+}
+
+/// The schema string of a pass's payloads.
+fn pass_schema(name: &str) -> String {
+    format!("{name}/{}", wire::VERSION)
+}
+
+fn check_schema(header: &Header, schema: &str) -> Result<(), String> {
+    if header.schema != schema {
+        return Err(format!(
+            "expected a {schema} payload, got {}",
+            header.schema
+        ));
+    }
+    Ok(())
+}
+
+/// A pass as the farm and the runner see it.
+pub trait DynPass: Send + Sync {
+    fn name(&self) -> &'static str;
+    fn key(&self) -> &str;
+    /// The schema of its results and artifact.
+    fn schema(&self) -> String {
+        pass_schema(self.name())
+    }
+    fn tasks(&self, step: u32) -> Vec<TaskSpec>;
+    fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Box<dyn Payload>, String>;
+    /// Reads a task's result from the payload of its stream.
+    fn decode(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError>;
+    fn start(&self) -> Box<dyn Any + Send + Sync>;
+    fn fold(
+        &self,
+        state: &mut (dyn Any + Send + Sync),
+        task: &TaskSpec,
+        p: Box<dyn Payload>,
+    ) -> Result<(), String>;
+    /// The artifact and a line saying what it holds.
+    fn finish(&self, state: Box<dyn Any + Send + Sync>)
+    -> Result<(Box<dyn Payload>, String), String>;
+    /// The artifact, as made by [`Self::finish`], loaded for tasks to read.
+    fn load(&self, artifact: Box<dyn Payload>) -> Result<Loaded, String>;
+}
+
+impl<P: Pass> DynPass for P {
+    fn name(&self) -> &'static str {
+        Pass::name(self)
+    }
+    fn key(&self) -> &str {
+        Pass::key(self)
+    }
+    fn tasks(&self, step: u32) -> Vec<TaskSpec> {
+        Pass::tasks(self, step)
+    }
+    fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Box<dyn Payload>, String> {
+        Ok(Box::new(Pass::execute(self, ctx, task)?))
+    }
+    fn decode(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError> {
+        Ok(Box::new(wire::decode_from::<P::Partial>(payload)?))
+    }
+    fn start(&self) -> Box<dyn Any + Send + Sync> {
+        Box::new(Pass::start(self))
+    }
+    fn fold(
+        &self,
+        state: &mut (dyn Any + Send + Sync),
+        task: &TaskSpec,
+        p: Box<dyn Payload>,
+    ) -> Result<(), String> {
+        let state = state
+            .downcast_mut::<P::State>()
+            .ok_or("a pass state of another pass")?;
+        Pass::fold(self, state, task, downcast(p)?)
+    }
+    fn finish(
+        &self,
+        state: Box<dyn Any + Send + Sync>,
+    ) -> Result<(Box<dyn Payload>, String), String> {
+        let state = state
+            .downcast::<P::State>()
+            .map_err(|_| "a pass state of another pass")?;
+        let artifact = Pass::finish(self, *state)?;
+        let line = self.describe(&artifact);
+        Ok((Box::new(artifact), line))
+    }
+    fn load(&self, artifact: Box<dyn Payload>) -> Result<Loaded, String> {
+        Ok(Arc::new(Pass::load(self, downcast(artifact)?)?))
+    }
+}
+
+/// A method planned for one job, as the farm, the CLI and the bench hold it.
+pub trait Plan: Send + Sync {
+    /// The method that runs (for `auto`, the one it chose).
+    fn method(&self) -> &'static str;
+    /// The schema of its task results and frame checkpoints.
+    fn schema(&self) -> String {
+        format!("{}/{}", self.method(), wire::VERSION)
+    }
+    fn decisions(&self) -> Vec<String>;
+    fn metadata(&self) -> Vec<(String, String)>;
+    fn passes(&self) -> Vec<&dyn DynPass>;
+    fn start(&self, frame: u32) -> Result<Step, String>;
+    /// Tasks of a frame's later steps where known in advance (see [`Method::later_tasks`]).
+    fn later_tasks(&self) -> u64;
+    fn more(&self, frame: u32, state: &mut dyn Payload, spp: u32) -> Option<Step>;
+    /// Runs a frame's or a pass's task.
+    fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Box<dyn Payload>, String>;
+    /// Reads a frame task's result from the payload of its stream.
+    fn decode(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError>;
+    fn new_frame(&self, frame: u32) -> Box<dyn Payload>;
+    /// Reads a frame's checkpoint from the payload of its stream.
+    fn decode_frame(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError>;
+    fn fold(
+        &self,
+        state: &mut dyn Payload,
+        task: &TaskSpec,
+        p: Box<dyn Payload>,
+    ) -> Result<(), String>;
+    fn advance(
+        &self,
+        frame: u32,
+        state: &mut dyn Payload,
+        elapsed: Duration,
+    ) -> Result<Next, String>;
+    fn preview(&self, frame: u32, state: &dyn Payload) -> Image;
+}
+
+fn frame_state<'a, M: Method>(state: &'a dyn Payload) -> Result<&'a M::Frame, String> {
+    state
+        .as_any()
+        .downcast_ref::<M::Frame>()
+        .ok_or_else(|| format!("a frame state of another method than {}", std::any::type_name::<M>()))
+}
+
+impl<M: Method> Plan for M {
+    fn method(&self) -> &'static str {
+        Method::name(self)
+    }
+    fn decisions(&self) -> Vec<String> {
+        Method::decisions(self)
+    }
+    fn metadata(&self) -> Vec<(String, String)> {
+        Method::metadata(self)
+    }
+    fn passes(&self) -> Vec<&dyn DynPass> {
+        Method::passes(self)
+    }
+    fn start(&self, frame: u32) -> Result<Step, String> {
+        Method::start(self, frame)
+    }
+    fn later_tasks(&self) -> u64 {
+        Method::later_tasks(self)
+    }
+    fn more(&self, frame: u32, state: &mut dyn Payload, spp: u32) -> Option<Step> {
+        let state = state.as_any_mut().downcast_mut::<M::Frame>()?;
+        Method::more(self, frame, state, spp)
+    }
+    fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Box<dyn Payload>, String> {
+        if task.is_pass() {
+            let passes = Method::passes(self);
+            let pass = passes
+                .get(task.step as usize)
+                .ok_or_else(|| format!("the job has no pass {}", task.step))?;
+            return pass.execute(ctx, task);
+        }
+        Ok(Box::new(Method::execute(self, ctx, task)?))
+    }
+    fn decode(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError> {
+        Ok(Box::new(wire::decode_from::<M::Partial>(payload)?))
+    }
+    fn new_frame(&self, frame: u32) -> Box<dyn Payload> {
+        Box::new(Method::new_frame(self, frame))
+    }
+    fn decode_frame(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError> {
+        Ok(Box::new(wire::decode_from::<M::Frame>(payload)?))
+    }
+    fn fold(
+        &self,
+        state: &mut dyn Payload,
+        task: &TaskSpec,
+        p: Box<dyn Payload>,
+    ) -> Result<(), String> {
+        let state = state
+            .as_any_mut()
+            .downcast_mut::<M::Frame>()
+            .ok_or("a frame state of another method")?;
+        Method::fold(self, state, task, downcast(p)?)
+    }
+    fn advance(
+        &self,
+        frame: u32,
+        state: &mut dyn Payload,
+        elapsed: Duration,
+    ) -> Result<Next, String> {
+        let state = state
+            .as_any_mut()
+            .downcast_mut::<M::Frame>()
+            .ok_or("a frame state of another method")?;
+        Method::advance(self, frame, state, elapsed)
+    }
+    fn preview(&self, frame: u32, state: &dyn Payload) -> Image {
+        match frame_state::<M>(state) {
+            Ok(s) => Method::preview(self, frame, s),
+            Err(_) => Image::new(0, 0),
+        }
+    }
+}

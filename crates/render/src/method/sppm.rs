@@ -1,0 +1,322 @@
+//! Stochastic progressive photon mapping (Hachisuka & Jensen 2009) as a frame method: a
+//! frame's iterations are its steps, one after another (each pixel's radius comes from the
+//! iteration before: the step's input), and each iteration is a camera task (every pixel's
+//! emitted and direct light) and photon tasks, chunks of the iteration's photons gathered at
+//! every pixel's visible point. Each process traces an iteration's camera paths once and keeps
+//! them for the chunks it runs.
+
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+use tessera_scene::SceneDesc;
+
+use super::film::AovAcc;
+use super::refuse_translucent;
+use super::registry::MethodInfo;
+use super::{Finished, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
+use crate::analysis::analyze;
+use crate::camera::Camera;
+use crate::film::{Image, Tile};
+use crate::integrator::RayStats;
+use crate::integrator::sppm::{self, Sppm, SppmSettings, SppmState, VisiblePoints, radius2};
+use crate::photon::PhotonSettings;
+
+pub static SPPM: MethodInfo = MethodInfo {
+    name: "sppm",
+    summary: "stochastic progressive photon mapping (Hachisuka & Jensen): consistent photon mapping",
+    spp: "iterations (one camera sample per pixel and photon_map.photons photons each)",
+    params: &["photon_map.photons", "photon_map.radius", "photon_map.alpha"],
+    plan: |job| Ok(Box::new(SppmMethod::plan(job)?) as Box<dyn Plan>),
+};
+
+const CAMERA: &str = "camera";
+const PHOTONS: &str = "photons";
+
+pub struct SppmMethod {
+    desc: SceneDesc,
+    photon: PhotonSettings,
+    settings: SppmSettings,
+}
+
+/// An SPPM task's result.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum SppmPartial {
+    Aov(super::film::AovSums),
+    /// Every pixel's emitted and direct light (times the filter weight) and filter weight,
+    /// and the camera paths' counters.
+    Camera {
+        ld: Vec<[f32; 3]>,
+        w: Vec<f32>,
+        stats: RayStats,
+    },
+    /// What a chunk of photons left at the pixels it reached: pixel, M, Φ.
+    Photons {
+        pixels: Vec<u32>,
+        m: Vec<u32>,
+        phi: Vec<[f32; 3]>,
+    },
+}
+
+/// An SPPM frame: the state between iterations, and the running iteration's sums.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SppmFrame {
+    state: SppmState,
+    ld: Vec<[f32; 3]>,
+    w: Vec<f32>,
+    phi: Vec<[f64; 3]>,
+    m: Vec<u64>,
+    aov: AovAcc,
+    stats: RayStats,
+    /// Iterations to render.
+    target: u32,
+    exposure: f32,
+}
+
+impl SppmMethod {
+    fn plan(job: &Job) -> Result<Self, String> {
+        let d = &job.desc;
+        refuse_translucent(d, "sppm")?;
+        if job.target_error.is_some() || job.time_limit.is_some() {
+            return Err("target_error: sppm refines every pixel each iteration; give spp (its iterations) instead".into());
+        }
+        if d.integrator.photon.alpha.is_some_and(|a| !(a > 0.0 && a < 1.0)) {
+            return Err("integrator.photon_map.alpha: expected a fraction in (0, 1)".into());
+        }
+        let (photon, settings) = SppmSettings::resolve(d, &analyze(d));
+        if settings.photons == 0 {
+            return Err(
+                "integrator.photon_map.photons: sppm needs at least 1 photon per iteration".into(),
+            );
+        }
+        // Photon indices are u32: every iteration's photons must have one.
+        if settings.iterations as u64 * settings.photons as u64 > u32::MAX as u64 {
+            return Err(format!(
+                "spp: sppm's iterations × photons per iteration must stay below 2^32 (photon indices), got {} × {}",
+                settings.iterations, settings.photons
+            ));
+        }
+        Ok(SppmMethod {
+            desc: d.clone(),
+            photon,
+            settings,
+        })
+    }
+
+    fn camera(&self, frame: u32) -> Camera {
+        Camera::new(&self.desc.camera_at(frame), &self.desc.film)
+    }
+
+    fn pixels(&self) -> usize {
+        self.desc.film.width as usize * self.desc.film.height as usize
+    }
+
+    /// The tasks of iteration `t` of `frame`, numbered from `first`: the camera paths, then
+    /// the photon chunks.
+    fn iteration(&self, frame: u32, t: u32, first: u32) -> Vec<TaskSpec> {
+        let film = Tile {
+            x0: 0,
+            y0: 0,
+            x1: self.desc.film.width,
+            y1: self.desc.film.height,
+        };
+        let mut out = vec![TaskSpec::new(CAMERA, frame, t, first).with_rect(film)];
+        for (i, c) in sppm::chunks(self.settings.photons).into_iter().enumerate() {
+            out.push(
+                TaskSpec::new(PHOTONS, frame, t, first + 1 + i as u32)
+                    .with_rect(film)
+                    .with_range(c.start, c.end),
+            );
+        }
+        out
+    }
+
+    /// The step of iteration `t` after the iterations in `f`: its tasks and its radii.
+    fn next_step(&self, frame: u32, f: &SppmFrame) -> Step {
+        Step {
+            tasks: self.iteration(frame, f.state.iterations, 0),
+            input: Some(Box::new(f.state.radii2())),
+        }
+    }
+
+    /// Iteration `task.step`'s camera paths, traced once per process.
+    fn visible_points(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<std::sync::Arc<VisiblePoints>, String> {
+        ctx.memo("visible points", || {
+            let sppm = Sppm::new(ctx.scene, &self.photon, self.settings);
+            Ok(sppm.visible_points_parallel(&self.camera(task.frame), task.step))
+        })
+    }
+}
+
+impl Method for SppmMethod {
+    type Partial = SppmPartial;
+    type Frame = SppmFrame;
+
+    fn name(&self) -> &'static str {
+        "sppm"
+    }
+
+    fn decisions(&self) -> Vec<String> {
+        vec![format!(
+            "{} — each frame's iterations run in turn (each one's radii come from the one before), each iteration a camera task and {} photon tasks",
+            self.settings.describe(),
+            sppm::chunks(self.settings.photons).len()
+        )]
+    }
+
+    fn metadata(&self) -> Vec<(String, String)> {
+        vec![("sppm".into(), self.settings.describe())]
+    }
+
+    fn start(&self, frame: u32) -> Result<Step, String> {
+        let f = &self.desc.film;
+        let mut tasks = aov::tasks(f.width, f.height, self.settings.iterations, frame, 0);
+        let first = tasks.len() as u32;
+        tasks.extend(self.iteration(frame, 0, first));
+        Ok(Step::tasks(tasks))
+    }
+
+    fn later_tasks(&self) -> u64 {
+        let per_iteration = 1 + sppm::chunks(self.settings.photons).len() as u64;
+        self.settings.iterations.saturating_sub(1) as u64 * per_iteration
+    }
+
+    fn more(&self, frame: u32, f: &mut SppmFrame, spp: u32) -> Option<Step> {
+        f.target = spp;
+        (f.state.iterations < spp).then(|| self.next_step(frame, f))
+    }
+
+    fn new_frame(&self, frame: u32) -> SppmFrame {
+        let f = &self.desc.film;
+        SppmFrame {
+            state: SppmState::new(f.width, f.height, self.settings.initial_radius),
+            ld: Vec::new(),
+            w: Vec::new(),
+            phi: Vec::new(),
+            m: Vec::new(),
+            aov: AovAcc::new(f.width, f.height),
+            stats: RayStats::default(),
+            target: self.settings.iterations,
+            exposure: self.camera(frame).exposure,
+        }
+    }
+
+    fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<SppmPartial, String> {
+        match task.kind.as_str() {
+            aov::KIND => Ok(SppmPartial::Aov(aov::execute(
+                ctx.scene,
+                &self.camera(task.frame),
+                task.tile(),
+                task.samples(),
+            ))),
+            CAMERA => {
+                let vps = self.visible_points(ctx, task)?;
+                ctx.progress(self.pixels() as u64);
+                Ok(SppmPartial::Camera {
+                    ld: vps.camera.ld.iter().map(|l| l.to_array()).collect(),
+                    w: vps.camera.w.clone(),
+                    stats: vps.camera.stats,
+                })
+            }
+            PHOTONS => {
+                let vps = self.visible_points(ctx, task)?;
+                let r2 = if task.step == 0 {
+                    std::sync::Arc::new(vec![
+                        radius2(self.settings.initial_radius as f64);
+                        self.pixels()
+                    ])
+                } else {
+                    ctx.input::<Vec<f32>>()?
+                };
+                if r2.len() != self.pixels() {
+                    return Err(format!(
+                        "sppm radii for {} pixels, the film has {}",
+                        r2.len(),
+                        self.pixels()
+                    ));
+                }
+                let sppm = Sppm::new(ctx.scene, &self.photon, self.settings);
+                let photons = sppm.shoot(task.step, task.start..task.end, true);
+                let sums = sppm.gather_parallel(&vps, &r2, &photons);
+                ctx.progress((task.end - task.start) as u64);
+                Ok(SppmPartial::Photons {
+                    pixels: sums.iter().map(|s| s.pixel).collect(),
+                    m: sums.iter().map(|s| s.m).collect(),
+                    phi: sums.iter().map(|s| s.phi.map(|v| v as f32)).collect(),
+                })
+            }
+            other => Err(format!("sppm has no {other} tasks")),
+        }
+    }
+
+    fn fold(&self, f: &mut SppmFrame, _task: &TaskSpec, p: SppmPartial) -> Result<(), String> {
+        let n = self.pixels();
+        match p {
+            SppmPartial::Aov(a) => f.aov.fold(&a),
+            SppmPartial::Camera { ld, w, stats } => {
+                if ld.len() != n || w.len() != n {
+                    return Err(format!("sppm camera paths for {} pixels, the film has {n}", ld.len()));
+                }
+                f.ld = ld;
+                f.w = w;
+                f.stats.add(&stats);
+                Ok(())
+            }
+            SppmPartial::Photons { pixels, m, phi } => {
+                if m.len() != pixels.len() || phi.len() != pixels.len() {
+                    return Err("sppm sums with columns of different lengths".into());
+                }
+                if f.phi.is_empty() {
+                    f.phi = vec![[0.0; 3]; n];
+                    f.m = vec![0; n];
+                }
+                let mut last = None;
+                for ((&p, &mi), ph) in pixels.iter().zip(&m).zip(&phi) {
+                    if p as usize >= n || last.is_some_and(|l| l >= p) {
+                        return Err(format!(
+                            "sppm sums: pixel {p} out of order or off the {n}-pixel film"
+                        ));
+                    }
+                    last = Some(p);
+                    let i = p as usize;
+                    for c in 0..3 {
+                        f.phi[i][c] += ph[c] as f64;
+                    }
+                    f.m[i] += mi as u64;
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn advance(&self, frame: u32, f: &mut SppmFrame, _: Duration) -> Result<Next, String> {
+        if f.ld.len() != self.pixels() {
+            return Err(format!(
+                "sppm iteration {} of frame {frame} ended without its camera paths",
+                f.state.iterations
+            ));
+        }
+        if f.phi.is_empty() {
+            f.phi = vec![[0.0; 3]; self.pixels()];
+            f.m = vec![0; self.pixels()];
+        }
+        f.state.add_sums(&f.ld, &f.w, &f.phi, &f.m, self.settings.alpha);
+        f.ld = Vec::new();
+        f.w = Vec::new();
+        f.phi = Vec::new();
+        f.m = Vec::new();
+        if f.state.iterations < f.target {
+            return Ok(Next::Step(self.next_step(frame, f)));
+        }
+        Ok(Next::Done(Finished {
+            image: Method::preview(self, frame, f),
+            stats: f.stats,
+            metadata: Vec::new(),
+            estimated_rel_mse: None,
+        }))
+    }
+
+    fn preview(&self, _frame: u32, f: &SppmFrame) -> Image {
+        let sppm = f.state.image(f.exposure);
+        f.aov.image(|i| (sppm.pixels[i].rgb, [0.0; 3]))
+    }
+}
