@@ -481,7 +481,10 @@ fn photon_maps_are_reused_by_an_unchanged_scene_and_rebuilt_when_a_material_chan
         ("reused".into(), Some(first.id), photons_key.clone())
     );
     assert_eq!(pass(&again, records).0, "reused");
-    assert_eq!(again.tasks.total, 2, "one 32×32 tile and its AOVs, no pass tasks");
+    assert_eq!(
+        again.tasks.total, 2,
+        "one 32×32 tile and its AOVs, no pass tasks"
+    );
     assert!(rt.block_on(client.frame_exr(again.id, 1)).expect("frame") == farm);
 
     // One material changed: a new key, both passes built by the new job.
@@ -541,7 +544,11 @@ fn an_sppm_job_runs_its_iterations_as_tasks_survives_a_restart_and_equals_tesser
 
     let job = wait_for(&rt, &client, id, Duration::from_secs(180));
     assert_eq!(job.state, JobState::Done, "{:?}", job.error);
-    assert_eq!(job.tasks.total, 8 * 9 + 1, "8 iterations of 9 tasks, and the AOVs");
+    assert_eq!(
+        job.tasks.total,
+        8 * 9 + 1,
+        "8 iterations of 9 tasks, and the AOVs"
+    );
     assert!(
         job.decisions
             .iter()
@@ -581,7 +588,11 @@ fn whole_film_jobs_are_split_into_tasks_and_bit_identical_on_one_worker_and_on_t
     // film. PSSMLT and MLT: direct light the same way, and a task per group of chains.
     for (integrator, total, said) in [
         ("bdpt", 4, "light tracing splats anywhere"),
-        ("vcm", 4, "light tracing splats and merges reach the whole film"),
+        (
+            "vcm",
+            4,
+            "light tracing splats and merges reach the whole film",
+        ),
         ("pssmlt", 12, "Markov chains wander over the whole film"),
         ("mlt", 12, "Markov chains wander over the whole film"),
     ] {
@@ -668,12 +679,24 @@ fn every_method_renders_through_local_workers_as_tessera_render_does_and_leaves_
         let o = Command::new(exe())
             .arg("submit")
             .arg(&scene)
-            .args(["--coordinator", &url, "--token", CLIENT_TOKEN, "--wait", "-q", "-o"])
+            .args([
+                "--coordinator",
+                &url,
+                "--token",
+                CLIENT_TOKEN,
+                "--wait",
+                "-q",
+                "-o",
+            ])
             .arg(&out)
             .args(args)
             .output()
             .expect("run tessera submit");
-        assert!(o.status.success(), "{method}: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            o.status.success(),
+            "{method}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         let id: i64 = String::from_utf8_lossy(&o.stdout)
             .split_whitespace()
             .nth(1)
@@ -681,7 +704,10 @@ fn every_method_renders_through_local_workers_as_tessera_render_does_and_leaves_
             .expect("job id");
         let farm = std::fs::read(out.join("frame_0001.exr")).expect("downloaded frame");
         let local = render_locally(&scene, &args, &dir.path().join(format!("{method}.exr")));
-        assert!(farm == local, "{method}: the farm's frame differs from tessera render's");
+        assert!(
+            farm == local,
+            "{method}: the farm's frame differs from tessera render's"
+        );
         let png = rt.block_on(client.frame_preview(id, 1)).expect("preview");
         output += (farm.len() + png.len()) as u64;
         ids.push(id);
@@ -697,13 +723,28 @@ fn every_method_renders_through_local_workers_as_tessera_render_does_and_leaves_
     // Deleted jobs leave nothing of theirs.
     for id in &ids {
         let o = Command::new(exe())
-            .args(["delete", &id.to_string(), "--coordinator", &url, "--token", CLIENT_TOKEN])
+            .args([
+                "delete",
+                &id.to_string(),
+                "--coordinator",
+                &url,
+                "--token",
+                CLIENT_TOKEN,
+            ])
             .output()
             .expect("run tessera delete");
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
-    assert_eq!(disk_use(&data.join("jobs")), 0, "files of deleted jobs remain");
-    assert_eq!(disk_use(&data.join("bundles")), 0, "the bundle of deleted jobs remains");
+    assert_eq!(
+        disk_use(&data.join("jobs")),
+        0,
+        "files of deleted jobs remain"
+    );
+    assert_eq!(
+        disk_use(&data.join("bundles")),
+        0,
+        "the bundle of deleted jobs remains"
+    );
     assert!(rt.block_on(client.job(ids[0])).is_err());
 }
 
@@ -716,7 +757,12 @@ fn a_capped_cache_evicts_artifacts_that_no_running_job_reads_and_old_jobs_expire
     let rt = runtime();
     let first = {
         // A cache of 0 bytes keeps an artifact only while a job reads it.
-        let (_serve, url) = serve_with(&data, "127.0.0.1:0", "30", &["--local-workers", "1", "--cache-max-gib", "0"]);
+        let (_serve, url) = serve_with(
+            &data,
+            "127.0.0.1:0",
+            "30",
+            &["--local-workers", "1", "--cache-max-gib", "0"],
+        );
         let client = Client::new(&url, CLIENT_TOKEN).expect("client");
         let mut built_by = Vec::new();
         for _ in 0..2 {
@@ -726,7 +772,11 @@ fn a_capped_cache_evicts_artifacts_that_no_running_job_reads_and_old_jobs_expire
             assert_eq!(pass(&job, "photons").0, "built", "evicted, so built again");
             built_by.push(id);
         }
-        assert_eq!(disk_use(&data.join("cache")), 0, "artifacts outlived their jobs");
+        assert_eq!(
+            disk_use(&data.join("cache")),
+            0,
+            "artifacts outlived their jobs"
+        );
         built_by
     };
     // A coordinator that keeps finished jobs for a millisecond deletes them when it starts.
@@ -735,7 +785,10 @@ fn a_capped_cache_evicts_artifacts_that_no_running_job_reads_and_old_jobs_expire
     let client = Client::new(&url, CLIENT_TOKEN).expect("client");
     let start = Instant::now();
     while first.iter().any(|&id| rt.block_on(client.job(id)).is_ok()) {
-        assert!(start.elapsed() < Duration::from_secs(30), "the old jobs were kept");
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "the old jobs were kept"
+        );
         std::thread::sleep(Duration::from_millis(50));
     }
     assert_eq!(disk_use(&data.join("jobs")), 0);

@@ -74,7 +74,9 @@ impl Bundle {
             header.set_entry_type(tar::EntryType::Regular);
             builder
                 .append_data(&mut header, path, data.as_slice())
-                .map_err(|e| format!("cannot pack {} into the scene bundle: {e}", path.display()))?;
+                .map_err(|e| {
+                    format!("cannot pack {} into the scene bundle: {e}", path.display())
+                })?;
         }
         builder
             .into_inner()
@@ -141,6 +143,27 @@ pub fn hash(bytes: &[u8]) -> String {
         .collect()
 }
 
+/// SHA-256 of a file's bytes, in lower-case hex, read in chunks; and its length.
+pub fn hash_file(path: &Path) -> std::io::Result<(String, u64)> {
+    use std::io::Read;
+    let mut file = std::fs::File::open(path)?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 16];
+    let mut len = 0u64;
+    loop {
+        let n = file.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        h.update(&buf[..n]);
+        len += n as u64;
+    }
+    Ok((
+        h.finalize().iter().map(|b| format!("{b:02x}")).collect(),
+        len,
+    ))
+}
+
 /// Whether `s` looks like a bundle hash (64 hex digits), so it is safe in a file name.
 pub fn is_hash(s: &str) -> bool {
     s.len() == 64
@@ -166,7 +189,11 @@ mod tests {
         );
         assert!(!bundle.files.keys().any(|k| k.ends_with("reference.exr")));
         let tar = bundle.to_tar().expect("packs");
-        assert_eq!(hash(&tar), hash(&bundle.to_tar().expect("packs")), "deterministic");
+        assert_eq!(
+            hash(&tar),
+            hash(&bundle.to_tar().expect("packs")),
+            "deterministic"
+        );
         let back = Bundle::from_tar(&tar).expect("unpack");
         let again = back.load(&name).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(again.meshes.len(), desc.meshes.len());
@@ -179,7 +206,11 @@ mod tests {
             files: [(PathBuf::from(&long), b"v 0 0 0\n".to_vec())].into(),
         };
         let back = Bundle::from_tar(&bundle.to_tar().expect("packs")).expect("unpacks");
-        assert!(back.files.contains_key(Path::new(&long)), "{:?}", back.files.keys());
+        assert!(
+            back.files.contains_key(Path::new(&long)),
+            "{:?}",
+            back.files.keys()
+        );
         // A scene naming a file its bundle lacks is refused with that file's name.
         let scene = r#"{ "units": "m", "camera": { "type": "pinhole", "position": [0, 0, -3], "look_at": [0, 0, 0], "fov_deg": 40 },
             "film": { "width": 8, "height": 8 }, "materials": { "m": { "type": "diffuse", "albedo": 0.5 } },
@@ -188,7 +219,10 @@ mod tests {
             files: [(PathBuf::from("scene.json"), scene.as_bytes().to_vec())].into(),
         };
         let e = bundle.load("scene.json").unwrap_err().to_string();
-        assert!(e.contains("gone.obj") && e.contains("shapes[0].file"), "{e}");
+        assert!(
+            e.contains("gone.obj") && e.contains("shapes[0].file"),
+            "{e}"
+        );
     }
 
     #[test]

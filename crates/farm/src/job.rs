@@ -6,13 +6,13 @@
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
+use tessera_render::film::MAX_SPP;
 use tessera_render::method::{self, Finished, Job, Plan};
 use tessera_render::output::{ExrMetadata, write_exr, write_png};
-use tessera_render::film::MAX_SPP;
 use tessera_scene::SceneDesc;
 use utoipa::ToSchema;
 
-pub use tessera_render::method::{DEFAULT_TILE, MAX_TILE, TaskSpec};
+pub use tessera_render::method::{MAX_TILE, TaskSpec};
 
 /// Render settings a job gives on top of its scene. Every field is optional.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
@@ -25,7 +25,8 @@ pub struct RenderSettings {
     /// Random seed (default: the scene's `integrator.seed`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub seed: Option<u64>,
-    /// Tile side in pixels (default 32). Does not change the image.
+    /// Tile side in pixels (default: 32, doubled until a frame has at most 600 tiles). Does
+    /// not change the image, but for adaptive sampling, which refines tiles.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tile: Option<u32>,
     /// Samples per task where a method cuts frames by samples (default: the method's).
@@ -205,10 +206,13 @@ pub fn apply(
 
 /// The core's view of a job whose settings were applied to `desc`.
 pub fn job(desc: SceneDesc, settings: &RenderSettings, frames: FrameRange) -> Job {
+    let tile = settings
+        .tile
+        .unwrap_or_else(|| method::default_tile(desc.film.width, desc.film.height));
     Job {
         desc,
         frames: frames.first..=frames.last,
-        tile: settings.tile.unwrap_or(DEFAULT_TILE),
+        tile,
         samples_per_task: settings.samples_per_task,
         target_error: settings.target_error,
         time_limit: None,
@@ -228,7 +232,12 @@ pub fn plan(
 
 /// The EXR metadata of a finished frame: what determines it and what was dropped. No times or
 /// hosts, so the file's bytes depend only on the job.
-pub fn frame_metadata(desc: &SceneDesc, plan: &dyn Plan, frame: u32, done: &Finished) -> ExrMetadata {
+pub fn frame_metadata(
+    desc: &SceneDesc,
+    plan: &dyn Plan,
+    frame: u32,
+    done: &Finished,
+) -> ExrMetadata {
     let i = &desc.integrator;
     let analysis = tessera_render::analysis::analyze(desc);
     let integrator = if i.method == "auto" {
@@ -332,7 +341,10 @@ pub(crate) mod tests {
             apply(&mut cornell(), &settings, frames, limits).unwrap_err()
         };
         let err = run(RenderSettings::default(), FrameRange::single(1), &limits);
-        assert!(err.contains("film") && err.contains("16×16") && err.contains("--max-resolution"), "{err}");
+        assert!(
+            err.contains("film") && err.contains("16×16") && err.contains("--max-resolution"),
+            "{err}"
+        );
         let zero = RenderSettings {
             spp: Some(0),
             ..Default::default()
@@ -350,7 +362,10 @@ pub(crate) mod tests {
             ..Default::default()
         };
         let err = run(unknown, FrameRange::single(1), &Limits::default());
-        assert!(err.contains("integrator.type") && err.contains("bdpt") && err.contains("raytrace"), "{err}");
+        assert!(
+            err.contains("integrator.type") && err.contains("bdpt") && err.contains("raytrace"),
+            "{err}"
+        );
         assert_eq!(
             FrameRange::parse("2-24"),
             Ok(FrameRange { first: 2, last: 24 })

@@ -151,9 +151,7 @@ impl Resources for TaskResources<'_> {
     ) -> Result<Loaded, String> {
         let t = &self.grant.task;
         let key = (self.grant.job_id, t.frame, t.step, name.to_string());
-        entry(&self.worker.memos, key, 2)
-            .get_or_init(make)
-            .clone()
+        entry(&self.worker.memos, key, 2).get_or_init(make).clone()
     }
 }
 
@@ -406,7 +404,12 @@ impl Worker {
         let seconds = start.elapsed().as_secs_f64();
         beat.abort();
         if lost.load(Relaxed) {
-            tracing::warn!(job, task, lease, "lease lost while rendering; result dropped");
+            tracing::warn!(
+                job,
+                task,
+                lease,
+                "lease lost while rendering; result dropped"
+            );
             if let Ok(path) = &outcome {
                 let _ = std::fs::remove_file(path);
             }

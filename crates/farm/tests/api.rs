@@ -48,7 +48,8 @@ fn bundle(files: &[(&str, &str)]) -> Vec<u8> {
             .map(|(p, d)| (PathBuf::from(p), d.as_bytes().to_vec()))
             .collect(),
     }
-    .to_tar().expect("packs")
+    .to_tar()
+    .expect("packs")
 }
 
 struct Api {
@@ -369,16 +370,33 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
         &["not finished"],
     )
     .await;
-    let bundles_before = std::fs::read_dir(dir.path().join("bundles")).expect("bundles").count();
-    let r = c.delete(&this_job).bearer_auth(CLIENT).send().await.expect("delete");
+    let bundles_before = std::fs::read_dir(dir.path().join("bundles"))
+        .expect("bundles")
+        .count();
+    let r = c
+        .delete(&this_job)
+        .bearer_auth(CLIENT)
+        .send()
+        .await
+        .expect("delete");
     assert_eq!(r.status(), StatusCode::NO_CONTENT);
-    api.expect(c.get(&this_job).bearer_auth(CLIENT), StatusCode::NOT_FOUND, &["no job"])
-        .await;
-    api.expect(c.delete(&this_job).bearer_auth(CLIENT), StatusCode::NOT_FOUND, &["no job"])
-        .await;
+    api.expect(
+        c.get(&this_job).bearer_auth(CLIENT),
+        StatusCode::NOT_FOUND,
+        &["no job"],
+    )
+    .await;
+    api.expect(
+        c.delete(&this_job).bearer_auth(CLIENT),
+        StatusCode::NOT_FOUND,
+        &["no job"],
+    )
+    .await;
     assert!(!dir.path().join("jobs").join(job["id"].to_string()).exists());
     // Its bundle went with it (no other job used it).
-    let bundles_after = std::fs::read_dir(dir.path().join("bundles")).expect("bundles").count();
+    let bundles_after = std::fs::read_dir(dir.path().join("bundles"))
+        .expect("bundles")
+        .count();
     assert_eq!(bundles_after + 1, bundles_before);
     running.stop().await.expect("stop");
 }
@@ -405,7 +423,8 @@ async fn the_methods_are_the_registry_in_the_api_and_its_document() {
         .json()
         .await
         .expect("JSON");
-    let listed = &doc["components"]["schemas"]["RenderSettings"]["properties"]["integrator"]["enum"];
+    let listed =
+        &doc["components"]["schemas"]["RenderSettings"]["properties"]["integrator"]["enum"];
     let listed: Vec<&str> = listed
         .as_array()
         .expect("the integrator's names in the document")

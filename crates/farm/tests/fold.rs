@@ -66,8 +66,13 @@ fn worker_info() -> WorkerInfo {
 /// The job's frame rendered in this process, as `tessera render` writes it.
 fn local_frame(settings: &RenderSettings, dir: &Path) -> Vec<u8> {
     let mut desc = tessera_scene::load(&cornell()).expect("scene");
-    let plan = job::plan(&mut desc, settings, FrameRange::single(1), &Limits::default())
-        .expect("plan");
+    let plan = job::plan(
+        &mut desc,
+        settings,
+        FrameRange::single(1),
+        &Limits::default(),
+    )
+    .expect("plan");
     let scene = tessera_render::Scene::build(&desc);
     let noop = |_| {};
     let local = Local::new(plan.as_ref(), &scene, &desc, 2, &noop);
@@ -79,7 +84,13 @@ fn local_frame(settings: &RenderSettings, dir: &Path) -> Vec<u8> {
 }
 
 /// Runs a leased task here and writes its result as a worker does.
-fn result_file(plan: &dyn Plan, scene: &tessera_render::Scene, desc: &tessera_scene::SceneDesc, g: &LeaseGrant, dir: &Path) -> std::path::PathBuf {
+fn result_file(
+    plan: &dyn Plan,
+    scene: &tessera_render::Scene,
+    desc: &tessera_scene::SceneDesc,
+    g: &LeaseGrant,
+    dir: &Path,
+) -> std::path::PathBuf {
     let ctx = TaskCtx {
         scene,
         desc,
@@ -104,27 +115,42 @@ async fn results_arriving_in_any_order_fold_to_the_frame_one_process_renders() {
     let client = Client::new(&url, CLIENT).expect("client");
     let worker = Client::new(&url, WORKER).expect("worker client");
     let (bundle, _, scene_name) = Bundle::pack_scene(&cornell()).expect("bundle");
-    let hash = client.upload_bundle(bundle.to_tar().expect("packs")).await.expect("upload").hash;
+    let hash = client
+        .upload_bundle(bundle.to_tar().expect("packs"))
+        .await
+        .expect("upload")
+        .hash;
     let cases = [
-        ("bdpt", RenderSettings {
-            integrator: Some("bdpt".into()),
-            size: Some([40, 30]),
-            spp: Some(6),
-            samples_per_task: Some(1),
-            ..Default::default()
-        }),
-        ("path", RenderSettings {
-            integrator: Some("path".into()),
-            size: Some([40, 30]),
-            spp: Some(3),
-            tile: Some(8),
-            ..Default::default()
-        }),
+        (
+            "bdpt",
+            RenderSettings {
+                integrator: Some("bdpt".into()),
+                size: Some([40, 30]),
+                spp: Some(6),
+                samples_per_task: Some(1),
+                ..Default::default()
+            },
+        ),
+        (
+            "path",
+            RenderSettings {
+                integrator: Some("path".into()),
+                size: Some([40, 30]),
+                spp: Some(3),
+                tile: Some(8),
+                ..Default::default()
+            },
+        ),
     ];
     for (shuffle, (name, settings)) in cases.into_iter().enumerate() {
         let mut desc = tessera_scene::load(&cornell()).expect("scene");
-        let plan = job::plan(&mut desc, &settings, FrameRange::single(1), &Limits::default())
-            .expect("plan");
+        let plan = job::plan(
+            &mut desc,
+            &settings,
+            FrameRange::single(1),
+            &Limits::default(),
+        )
+        .expect("plan");
         let scene = tessera_render::Scene::build(&desc);
         let job = client
             .submit(&JobRequest {
@@ -151,9 +177,16 @@ async fn results_arriving_in_any_order_fold_to_the_frame_one_process_renders() {
             grants.reverse();
         } else {
             // A fixed permutation: odd positions first, then even, each backwards.
-            let (odd, even): (Vec<_>, Vec<_>) =
-                grants.into_iter().enumerate().partition(|(i, _)| i % 2 == 1);
-            grants = odd.into_iter().rev().chain(even.into_iter().rev()).map(|(_, g)| g).collect();
+            let (odd, even): (Vec<_>, Vec<_>) = grants
+                .into_iter()
+                .enumerate()
+                .partition(|(i, _)| i % 2 == 1);
+            grants = odd
+                .into_iter()
+                .rev()
+                .chain(even.into_iter().rev())
+                .map(|(_, g)| g)
+                .collect();
         }
         for g in &grants {
             let path = result_file(plan.as_ref(), &scene, &desc, g, dir.path());
@@ -168,15 +201,25 @@ async fn results_arriving_in_any_order_fold_to_the_frame_one_process_renders() {
             if s.state.is_final() {
                 break s;
             }
-            assert!(start.elapsed() < Duration::from_secs(60), "{name}: not folded");
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "{name}: not folded"
+            );
             tokio::time::sleep(Duration::from_millis(20)).await;
         };
         assert_eq!(status.state, JobState::Done, "{name}: {:?}", status.error);
         let farm = client.frame_exr(job.id, 1).await.expect("frame");
         let local = local_frame(&settings, dir.path());
-        assert!(farm == local, "{name}: the frame depends on the order results arrived in");
+        assert!(
+            farm == local,
+            "{name}: the frame depends on the order results arrived in"
+        );
         // The results are gone once the frame is written.
-        let results = dir.path().join("data/jobs").join(job.id.to_string()).join("results");
+        let results = dir
+            .path()
+            .join("data/jobs")
+            .join(job.id.to_string())
+            .join("results");
         let left = std::fs::read_dir(&results).map(|d| d.count()).unwrap_or(0);
         assert_eq!(left, 0, "{name}: results left on disk");
     }
@@ -191,7 +234,11 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
     let client = Client::new(&url, CLIENT).expect("client");
     let worker = Client::new(&url, WORKER).expect("worker client");
     let (bundle, _, scene_name) = Bundle::pack_scene(&cornell()).expect("bundle");
-    let hash = client.upload_bundle(bundle.to_tar().expect("packs")).await.expect("upload").hash;
+    let hash = client
+        .upload_bundle(bundle.to_tar().expect("packs"))
+        .await
+        .expect("upload")
+        .hash;
     // One job of one 128×128 tile (a result of some 150 KiB), one of one 8×8 tile.
     let big = RenderSettings {
         size: Some([128, 128]),
@@ -236,22 +283,38 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
     };
     let run = |settings: &RenderSettings, g: &LeaseGrant| {
         let mut desc = tessera_scene::load(&cornell()).expect("scene");
-        let plan = job::plan(&mut desc, settings, FrameRange::single(1), &Limits::default())
-            .expect("plan");
+        let plan = job::plan(
+            &mut desc,
+            settings,
+            FrameRange::single(1),
+            &Limits::default(),
+        )
+        .expect("plan");
         let scene = tessera_render::Scene::build(&desc);
         result_file(plan.as_ref(), &scene, &desc, g, dir.path())
     };
     // Over this coordinator's limit: which limit, and how to raise it.
     let path = run(&big, &g_big);
-    let (status, message) =
-        status_of(worker.upload_result(g_big.task_id, g_big.lease, 0.0, &path).await.unwrap_err());
+    let (status, message) = status_of(
+        worker
+            .upload_result(g_big.task_id, g_big.lease, 0.0, &path)
+            .await
+            .unwrap_err(),
+    );
     assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE, "{message}");
-    assert!(message.contains("64 KiB") && message.contains("--max-result-mib"), "{message}");
+    assert!(
+        message.contains("64 KiB") && message.contains("--max-result-mib"),
+        "{message}"
+    );
     // Not a wire stream at all.
     let junk = dir.path().join("junk");
     std::fs::write(&junk, b"hello").expect("write");
-    let (status, message) =
-        status_of(worker.upload_result(g_small.task_id, g_small.lease, 0.0, &junk).await.unwrap_err());
+    let (status, message) = status_of(
+        worker
+            .upload_result(g_small.task_id, g_small.lease, 0.0, &junk)
+            .await
+            .unwrap_err(),
+    );
     assert_eq!(status, StatusCode::BAD_REQUEST);
     assert!(message.contains("TSWF"), "{message}");
     // A whole stream, but of another task.
@@ -263,8 +326,12 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
         ..g_small.clone()
     };
     let path = run(&small, &other);
-    let (status, message) =
-        status_of(worker.upload_result(g_small.task_id, g_small.lease, 0.0, &path).await.unwrap_err());
+    let (status, message) = status_of(
+        worker
+            .upload_result(g_small.task_id, g_small.lease, 0.0, &path)
+            .await
+            .unwrap_err(),
+    );
     assert_eq!(status, StatusCode::BAD_REQUEST);
     assert!(message.contains("names task"), "{message}");
     // Its own, cut short.
@@ -272,8 +339,12 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
     let mut bytes = std::fs::read(&path).expect("read");
     bytes.truncate(bytes.len() - 5);
     std::fs::write(&path, &bytes).expect("write");
-    let (status, message) =
-        status_of(worker.upload_result(g_small.task_id, g_small.lease, 0.0, &path).await.unwrap_err());
+    let (status, message) = status_of(
+        worker
+            .upload_result(g_small.task_id, g_small.lease, 0.0, &path)
+            .await
+            .unwrap_err(),
+    );
     assert_eq!(status, StatusCode::BAD_REQUEST);
     assert!(message.contains("cut short"), "{message}");
     // And whole: accepted.

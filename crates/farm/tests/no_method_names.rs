@@ -78,7 +78,10 @@ fn sources(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
 #[test]
 fn the_farm_names_no_method() {
     let mut files = Vec::new();
-    sources(&Path::new(env!("CARGO_MANIFEST_DIR")).join("src"), &mut files);
+    sources(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("src"),
+        &mut files,
+    );
     assert!(files.len() > 10, "{files:?}");
     let words = forbidden();
     let mut found = Vec::new();
@@ -91,12 +94,18 @@ fn the_farm_names_no_method() {
             }
         }
     }
-    assert!(found.is_empty(), "method names in the farm's code: {found:#?}");
+    assert!(
+        found.is_empty(),
+        "method names in the farm's code: {found:#?}"
+    );
 }
 
 #[test]
 fn the_check_finds_a_name_in_code_but_not_in_comments_or_tests() {
     let text = "fn a() { let m = \"bdpt\"; }\n// sppm here\n#[cfg(test)]\nmod tests {\n    fn t() { vcm(); }\n}\n";
     let c = code(text);
-    assert!(c.contains("bdpt") && !c.contains("sppm") && !c.contains("vcm"), "{c}");
+    assert!(
+        c.contains("bdpt") && !c.contains("sppm") && !c.contains("vcm"),
+        "{c}"
+    );
 }

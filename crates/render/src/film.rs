@@ -7,6 +7,8 @@
 //! (DESIGN: tiles carry Σw·L and Σw).
 
 use glam::{UVec2, Vec3A};
+use half::bf16;
+use serde::{Deserialize, Serialize};
 
 use crate::spectrum::Spectrum;
 
@@ -300,6 +302,165 @@ impl Image {
             self.pixels[(p.y * self.width + p.x) as usize] = s.resolve();
         }
     }
+}
+
+/// A rectangle of pixels [x0, x1) × [y0, y1), as compact sums carry it.
+pub type Rect = [u32; 4];
+
+fn rect_of(t: &Tile) -> Rect {
+    [t.x0, t.y0, t.x1, t.y1]
+}
+
+/// A task's camera-side sums over a rectangle of pixels, row-major.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FilmSums {
+    pub rect: Rect,
+    /// Samples per pixel (every pixel of the rectangle took as many).
+    pub samples: u32,
+    /// Σ w·L: exposed radiance times the film filter's weight f/pdf.
+    pub sum: Vec<[f32; 3]>,
+    /// Σ w.
+    pub weight: Vec<f32>,
+    /// Σ (w·L − mean)²; empty where the camera side is not the whole estimate.
+    pub m2: Vec<[bf16; 3]>,
+}
+
+impl FilmSums {
+    /// From a tile's fixed-point sums; with the second moment if `variance`.
+    pub fn from_tile(t: &TileSums, variance: bool) -> Self {
+        let mut out = FilmSums {
+            rect: rect_of(&t.tile),
+            samples: t.samples.len(),
+            sum: Vec::with_capacity(t.pixels.len()),
+            weight: Vec::with_capacity(t.pixels.len()),
+            m2: Vec::with_capacity(if variance { t.pixels.len() } else { 0 }),
+        };
+        for p in &t.pixels {
+            let (s, w, m2) = p.moments();
+            out.sum.push(s.map(|v| v as f32));
+            out.weight.push(w as f32);
+            if variance {
+                out.m2.push(m2.map(|v| bf16::from_f64(v)));
+            }
+        }
+        out
+    }
+}
+
+impl FilmSums {
+    /// No samples yet over `rect`.
+    pub fn empty(rect: Tile, variance: bool) -> Self {
+        let n = rect.pixel_count();
+        FilmSums {
+            rect: rect_of(&rect),
+            samples: 0,
+            sum: vec![[0.0; 3]; n],
+            weight: vec![0.0; n],
+            m2: if variance {
+                vec![[bf16::ZERO; 3]; n]
+            } else {
+                Vec::new()
+            },
+        }
+    }
+
+    /// The rectangle.
+    pub fn tile(&self) -> Tile {
+        let [x0, y0, x1, y1] = self.rect;
+        Tile { x0, y0, x1, y1 }
+    }
+
+    /// Copies the sums of `part`, a rectangle inside this one, into place (its samples must
+    /// be this one's).
+    pub fn put(&mut self, part: &FilmSums) {
+        let (t, p) = (self.tile(), part.tile());
+        let w = t.width() as usize;
+        for (k, px) in p.pixels().enumerate() {
+            let i = (px.y - t.y0) as usize * w + (px.x - t.x0) as usize;
+            self.sum[i] = part.sum[k];
+            self.weight[i] = part.weight[k];
+            if !self.m2.is_empty() && !part.m2.is_empty() {
+                self.m2[i] = part.m2[k];
+            }
+        }
+    }
+
+    /// Adds another range of samples of the same rectangle (in f32; the second moment is not
+    /// kept).
+    pub fn add(&mut self, other: &FilmSums) {
+        for (a, b) in self.sum.iter_mut().zip(&other.sum) {
+            for c in 0..3 {
+                a[c] += b[c];
+            }
+        }
+        for (a, b) in self.weight.iter_mut().zip(&other.weight) {
+            *a += b;
+        }
+        self.m2.clear();
+        self.samples += other.samples;
+    }
+
+    /// Pixel `k`'s estimate Σ w·L / Σ w (0 without weight).
+    pub fn mean(&self, k: usize) -> [f32; 3] {
+        let w = self.weight[k] as f64;
+        if w == 0.0 {
+            return [0.0; 3];
+        }
+        self.sum[k].map(|s| (s as f64 / w) as f32)
+    }
+}
+
+/// Per pixel Σ w·L and Σ w in f64 over a rectangle, for sums a task keeps across many passes
+/// of its own (VCM's iterations): 32 bytes a pixel, deterministic where each pixel's samples
+/// are added by one thread in a fixed order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TileF64 {
+    pub tile: Tile,
+    pub samples: u32,
+    pub sum: Vec<[f64; 3]>,
+    pub weight: Vec<f64>,
+}
+
+impl TileF64 {
+    pub fn new(tile: Tile) -> Self {
+        let n = tile.pixel_count();
+        TileF64 {
+            tile,
+            samples: 0,
+            sum: vec![[0.0; 3]; n],
+            weight: vec![0.0; n],
+        }
+    }
+
+    /// Adds pixel `k`'s sample of radiance `l` (already finite) and filter weight `w`.
+    #[inline]
+    pub fn add(&mut self, k: usize, w: f32, l: Spectrum) {
+        let w = w as f64;
+        for c in 0..3 {
+            self.sum[k][c] += w * l[c] as f64;
+        }
+        self.weight[k] += w;
+    }
+
+    /// As compact sums.
+    pub fn to_sums(&self) -> FilmSums {
+        FilmSums {
+            rect: rect_of(&self.tile),
+            samples: self.samples,
+            sum: self.sum.iter().map(|s| s.map(|v| v as f32)).collect(),
+            weight: self.weight.iter().map(|&w| w as f32).collect(),
+            m2: Vec::new(),
+        }
+    }
+}
+
+/// Splats from the core's fixed-point sums (units of 2⁻³²).
+pub fn splats_from_fixed(fixed: &[[i64; 3]]) -> Vec<[f32; 3]> {
+    let scale = 1.0 / 4_294_967_296.0;
+    fixed
+        .iter()
+        .map(|s| s.map(|v| (v as f64 * scale) as f32))
+        .collect()
 }
 
 #[cfg(test)]

@@ -139,7 +139,8 @@ impl<W: Write> Writer<W> {
         self.flush_chunk()?;
         self.out.write_all(&0u32.to_le_bytes())?;
         self.out.write_all(&self.sizes.payload.to_le_bytes())?;
-        self.out.write_all(&self.crc.clone().finalize().to_le_bytes())?;
+        self.out
+            .write_all(&self.crc.clone().finalize().to_le_bytes())?;
         self.out.flush()?;
         self.sizes.written += 16;
         Ok((self.out, self.sizes))
@@ -174,7 +175,10 @@ pub fn write<W: Write, T: Serialize + ?Sized>(
 }
 
 /// Writes `value` into the payload of a stream being written (after other values, say).
-pub fn encode_into<T: Serialize + ?Sized>(value: &T, payload: &mut dyn Write) -> Result<(), WireError> {
+pub fn encode_into<T: Serialize + ?Sized>(
+    value: &T,
+    payload: &mut dyn Write,
+) -> Result<(), WireError> {
     postcard::to_io(value, payload).map_err(|e| WireError::Payload(e.to_string()))?;
     Ok(())
 }
@@ -453,7 +457,10 @@ mod tests {
         ));
         // A payload of another type than the reader expects.
         let e = read::<_, (String, u64)>(bytes.as_slice()).unwrap_err();
-        assert!(matches!(e, WireError::Payload(_) | WireError::Corrupt(_)), "{e}");
+        assert!(
+            matches!(e, WireError::Payload(_) | WireError::Corrupt(_)),
+            "{e}"
+        );
         // Bytes after the value are refused too.
         let two = to_vec(&h, &(vec![[1.0f32; 3]], 5u8)).expect("encode");
         let e = read::<_, Vec<[f32; 3]>>(two.as_slice()).unwrap_err();

@@ -68,11 +68,7 @@ fn unbiased_integrators_agree_with_the_reference_within_their_noise() {
         let range = SampleRange { start: 0, end: SPP };
         pool.install(|| render_frame(&scene, &camera, integ.as_ref(), 8, range).0)
     };
-    for (kind, seed) in [
-        ("path", 1),
-        ("path", 2),
-        ("auto", 3),
-    ] {
+    for (kind, seed) in [("path", 1), ("path", 2), ("auto", 3)] {
         let img = run(kind, seed);
         let rate = pass_rate(&img, &reference, z);
         assert!(

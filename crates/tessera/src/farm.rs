@@ -347,7 +347,11 @@ pub fn methods() -> anyhow::Result<()> {
     for m in tessera_render::method::METHODS {
         text += &format!("{:<8} {}\n{:<8} spp: {}\n", m.name, m.summary, "", m.spp);
         if !m.params.is_empty() {
-            text += &format!("{:<8} reads integrator.{}\n", "", m.params.join(", integrator."));
+            text += &format!(
+                "{:<8} reads integrator.{}\n",
+                "",
+                m.params.join(", integrator.")
+            );
         }
     }
     crate::print(&text)

@@ -54,7 +54,7 @@ pub fn run(args: ReferenceArgs) -> anyhow::Result<()> {
         spp: Some(args.max_spp),
         threads: args.threads,
         // Small tiles: finer adaptive steering, and parallelism on small films.
-        tile: 8,
+        tile: Some(8),
         samples_per_task: None,
         seed: None,
         // Unbiased whatever the scene asks for: references judge the biased methods.

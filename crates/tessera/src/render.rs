@@ -6,8 +6,8 @@ use std::time::Instant;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use tessera_farm::job::{self, FrameRange, Limits, RenderSettings};
-use tessera_render::method::local::{Local, Progress};
 use tessera_render::method::Plan;
+use tessera_render::method::local::{Local, Progress};
 use tessera_scene::{Problem, SceneDesc, SceneError};
 
 #[derive(clap::Args)]
@@ -24,9 +24,11 @@ pub struct RenderArgs {
     /// Worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Tile size in pixels; it does not change the image, only the work units.
-    #[arg(long, default_value_t = job::DEFAULT_TILE)]
-    pub tile: u32,
+    /// Tile size in pixels (default: 32, doubled until a frame has at most 600 tiles); it does
+    /// not change the image, only the work units (but for adaptive sampling, which refines
+    /// tiles).
+    #[arg(long)]
+    pub tile: Option<u32>,
     /// Samples (iterations) per task where the method cuts frames by samples, as a farm job
     /// may ask (each task's sums are rounded to f32 once, so the same job cut alike is the
     /// same image on a farm and here).
@@ -109,7 +111,7 @@ pub fn planned(args: &RenderArgs) -> anyhow::Result<(SceneDesc, Box<dyn Plan>)> 
     let settings = RenderSettings {
         spp: args.spp,
         seed: args.seed,
-        tile: Some(args.tile),
+        tile: args.tile,
         samples_per_task: args.samples_per_task,
         size: args.size.map(|s| s.0),
         target_error: args.target_error,
@@ -133,7 +135,8 @@ pub fn planned(args: &RenderArgs) -> anyhow::Result<(SceneDesc, Box<dyn Plan>)> 
 
 /// Sizes the rayon pool that tasks which parallelise themselves use (once per process).
 pub fn threads(threads: Option<usize>) -> anyhow::Result<usize> {
-    let threads = threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let threads =
+        threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     anyhow::ensure!(threads >= 1, "--threads: expected at least 1");
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -224,7 +227,12 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     job::write_frame(&output, &desc, plan.as_ref(), args.frame, &done)?;
     let preview = output.with_extension("png");
 
-    let meta = |k: &str| done.metadata.iter().find(|(key, _)| key == k).map(|(_, v)| v.as_str());
+    let meta = |k: &str| {
+        done.metadata
+            .iter()
+            .find(|(key, _)| key == k)
+            .map(|(_, v)| v.as_str())
+    };
     let spp_text = match (meta("adaptive_spp_min"), meta("adaptive_spp_max")) {
         (Some(lo), Some(hi)) => format!(
             "adaptive {lo}–{hi} spp in {} rounds ({}; estimated relMSE {})",
@@ -263,6 +271,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
             "dropped {} non-finite samples (NaN/Inf) before the film\n",
             stats.nonfinite
         );
+    }
+    if let Some(mib) = peak_rss_mib() {
+        report += &format!("peak resident memory {mib:.0} MiB\n");
     }
     report += &format!("wrote {} and {}\n", output.display(), preview.display());
     crate::print(&report)
@@ -307,6 +318,14 @@ fn default_output(scene: &Path) -> PathBuf {
         })
         .unwrap_or_else(|| "render".into());
     PathBuf::from(name).with_extension("exr")
+}
+
+/// Peak resident memory of this process (`VmHWM`), MiB, where the platform tells it.
+pub(crate) fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
 }
 
 /// CPU time of this process (user + system), where the platform tells it.

@@ -52,8 +52,8 @@ struct MethodNames;
 
 impl utoipa::Modify for MethodNames {
     fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
-        use utoipa::openapi::schema::{Object, Schema, SchemaType, Type};
         use utoipa::openapi::RefOr;
+        use utoipa::openapi::schema::{Object, Schema, SchemaType, Type};
         let Some(components) = openapi.components.as_mut() else {
             return;
         };
@@ -455,7 +455,10 @@ fn frame_state(app: &App, id: i64, frame: u32) -> AppResult<String> {
 }
 
 /// A file as a response body, streamed.
-pub(super) async fn send_file(path: std::path::PathBuf, content_type: &'static str) -> AppResult<Response> {
+pub(super) async fn send_file(
+    path: std::path::PathBuf,
+    content_type: &'static str,
+) -> AppResult<Response> {
     let file = tokio::fs::File::open(&path).await?;
     let len = file.metadata().await?.len();
     let body = axum::body::Body::from_stream(tokio_util::io::ReaderStream::new(file));
@@ -499,14 +502,13 @@ async fn frame_preview(
     let bytes = if state == "done" {
         tokio::fs::read(app.frame_path(id, frame).with_extension("png")).await?
     } else {
-        let app = app.clone();
-        tokio::task::spawn_blocking(move || -> AppResult<Vec<u8>> {
-            let image = app
-                .preview(id, frame)
-                .map_err(|e| AppError::internal(format!("{e:#}")))?;
-            tessera_render::output::encode_png(&image).map_err(AppError::internal)
-        })
-        .await??
+        let image = app
+            .preview_of(id, frame)
+            .await
+            .map_err(|e| AppError::internal(format!("{e:#}")))?;
+        tokio::task::spawn_blocking(move || tessera_render::output::encode_png(&image))
+            .await?
+            .map_err(AppError::internal)?
     };
     Ok(([(header::CONTENT_TYPE, "image/png")], bytes).into_response())
 }

@@ -32,8 +32,7 @@ impl App {
         self.forget_job(job);
         let dir = self.job_dir(job);
         if dir.exists() {
-            std::fs::remove_dir_all(&dir)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
+            std::fs::remove_dir_all(&dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
         }
         if let Some(bundle) = orphan {
             let _ = std::fs::remove_file(self.bundle_path(&bundle));

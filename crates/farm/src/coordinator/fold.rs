@@ -75,8 +75,8 @@ fn read_result(
 ) -> anyhow::Result<Box<dyn Payload>> {
     let path = app.result_path(key.job, id, lease);
     let file = std::fs::File::open(&path).with_context(|| path.display().to_string())?;
-    let (mut reader, _header) = wire::Reader::new(BufReader::new(file))
-        .with_context(|| path.display().to_string())?;
+    let (mut reader, _header) =
+        wire::Reader::new(BufReader::new(file)).with_context(|| path.display().to_string())?;
     let partial = match pass {
         Some(p) => p.decode(&mut reader),
         None => job.plan.decode(&mut reader),
@@ -88,24 +88,81 @@ fn read_result(
     Ok(partial)
 }
 
-impl App {
-    /// Folds in the results of `key`'s step that are done and next in order (in the
-    /// background); a failure fails the job with its reason.
-    pub(super) fn spawn_fold(self: &Arc<Self>, key: StepKey) {
-        let app = self.clone();
-        tokio::task::spawn_blocking(move || {
-            if let Err(e) = app.fold(key) {
-                let place = if key.frame == 0 {
-                    format!("pass {}", key.step)
-                } else {
-                    format!("frame {}", key.frame)
-                };
-                let message = format!("folding {place}: {e:#}");
-                tracing::error!(job = key.job, error = %message, "fold failed");
-                let _ = app.store.fail_job(key.job, &message, now_ms());
-                app.forget_job(key.job);
+/// What the fold thread is asked.
+pub(super) enum FoldRequest {
+    /// Fold what can be folded of a step.
+    Step(StepKey),
+    /// The frame as it stands.
+    Preview(
+        i64,
+        u32,
+        tokio::sync::oneshot::Sender<anyhow::Result<tessera_render::Image>>,
+    ),
+}
+
+/// Starts the fold thread: every fold and preview runs on it, one at a time, so the large
+/// allocations of frames (states, images, EXR writing) come from one thread's heap.
+pub(super) fn start_thread(
+    app: &Arc<App>,
+    requests: std::sync::mpsc::Receiver<FoldRequest>,
+) -> anyhow::Result<()> {
+    let app = app.clone();
+    std::thread::Builder::new()
+        .name("tessera-fold".into())
+        .spawn(move || {
+            for request in requests {
+                match request {
+                    FoldRequest::Step(key) => app.fold_or_fail(key),
+                    FoldRequest::Preview(job, frame, reply) => {
+                        let _ = reply.send(app.preview(job, frame));
+                    }
+                }
             }
-        });
+        })?;
+    Ok(())
+}
+
+impl App {
+    /// Asks the fold thread to fold in the results of `key`'s step that are done and next in
+    /// order; a failure fails the job with its reason.
+    pub(super) fn spawn_fold(&self, key: StepKey) {
+        let sent = self
+            .fold_requests
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .send(FoldRequest::Step(key));
+        if sent.is_err() {
+            tracing::error!(job = key.job, "the fold thread is gone");
+        }
+    }
+
+    /// A frame as it stands, from the fold thread.
+    pub(super) async fn preview_of(
+        &self,
+        job: i64,
+        frame: u32,
+    ) -> anyhow::Result<tessera_render::Image> {
+        let (tx, rx) = tokio::sync::oneshot::channel();
+        self.fold_requests
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .send(FoldRequest::Preview(job, frame, tx))
+            .map_err(|_| anyhow::anyhow!("the fold thread is gone"))?;
+        rx.await?
+    }
+
+    fn fold_or_fail(&self, key: StepKey) {
+        if let Err(e) = self.fold(key) {
+            let place = if key.frame == 0 {
+                format!("pass {}", key.step)
+            } else {
+                format!("frame {}", key.frame)
+            };
+            let message = format!("folding {place}: {e:#}");
+            tracing::error!(job = key.job, error = %message, "fold failed");
+            let _ = self.store.fail_job(key.job, &message, now_ms());
+            self.forget_job(key.job);
+        }
     }
 
     /// Folds what can be folded of `key`'s frame or pass (blocking).
@@ -118,19 +175,22 @@ impl App {
         if key.frame == 0 {
             self.fold_pass(&mut inner, &job, key)
         } else {
-            self.fold_frame(&mut inner, &job, key.job, key.frame).map(|_| ())
+            self.fold_frame(&mut inner, &job, key.job, key.frame)
+                .map(|_| ())
         }
     }
 
     /// The frame as it stands, folded as far as its results allow (blocking).
-    pub(super) fn preview(&self, job_id: i64, frame: u32) -> anyhow::Result<tessera_render::Image> {
+    fn preview(&self, job_id: i64, frame: u32) -> anyhow::Result<tessera_render::Image> {
         let job = self.job_plan(job_id)?;
         let mut inner = self.folds.lock();
         self.fold_frame(&mut inner, &job, job_id, frame)?;
-        Ok(match inner.frames.iter().find(|(k, _)| *k == (job_id, frame)) {
-            Some((_, f)) => job.plan.preview(frame, f.state.as_ref()),
-            None => tessera_render::Image::new(job.desc.film.width, job.desc.film.height),
-        })
+        Ok(
+            match inner.frames.iter().find(|(k, _)| *k == (job_id, frame)) {
+                Some((_, f)) => job.plan.preview(frame, f.state.as_ref()),
+                None => tessera_render::Image::new(job.desc.film.width, job.desc.film.height),
+            },
+        )
     }
 
     /// The fold of a frame, moved to the back of the LRU list: kept, or rebuilt from its
@@ -213,7 +273,9 @@ impl App {
                     };
                     job.plan
                         .fold(f.state.as_mut(), spec, partial)
-                        .map_err(|e| anyhow::anyhow!("task {id} ({} {}): {e}", spec.kind, spec.index))?;
+                        .map_err(|e| {
+                            anyhow::anyhow!("task {id} ({} {}): {e}", spec.kind, spec.index)
+                        })?;
                     f.next += 1;
                     folded += 1;
                 }
@@ -224,10 +286,17 @@ impl App {
             if total == 0 || f.next < total {
                 return Ok(false);
             }
-            match job.plan.advance(frame, f.state.as_mut(), Duration::ZERO).map_err(anyhow::Error::msg)? {
+            match job
+                .plan
+                .advance(frame, f.state.as_mut(), Duration::ZERO)
+                .map_err(anyhow::Error::msg)?
+            {
                 Next::Step(step) => {
                     let Some(number) = step.tasks.first().map(|t| t.step) else {
-                        anyhow::bail!("step {} of frame {frame} led to a step without tasks", f.step);
+                        anyhow::bail!(
+                            "step {} of frame {frame} led to a step without tasks",
+                            f.step
+                        );
                     };
                     if let Some(input) = &step.input {
                         let path = self.input_path(job_id, frame, number);
@@ -251,7 +320,13 @@ impl App {
                         let _ = std::fs::remove_file(self.result_path(job_id, id, lease));
                     }
                     let _ = std::fs::remove_file(self.input_path(job_id, frame, f.step));
-                    tracing::debug!(job = job_id, frame, step = number, tasks = step.tasks.len(), "step queued");
+                    tracing::debug!(
+                        job = job_id,
+                        frame,
+                        step = number,
+                        tasks = step.tasks.len(),
+                        "step queued"
+                    );
                     f.step = number;
                     f.next = 0;
                     self.work.notify_waiters();
@@ -263,13 +338,14 @@ impl App {
                     std::fs::rename(tmp.with_extension("png"), path.with_extension("png"))?;
                     std::fs::rename(&tmp, &path)?;
                     let mut files = Vec::new();
-                    for (kind, file) in [("exr", path.clone()), ("png", path.with_extension("png"))] {
-                        let bytes = std::fs::read(&file)?;
+                    for (kind, file) in [("exr", path.clone()), ("png", path.with_extension("png"))]
+                    {
+                        let (sha256, bytes) = crate::bundle::hash_file(&file)?;
                         files.push(Artifact {
                             kind: kind.into(),
                             path: self.relative(&file),
-                            bytes: bytes.len() as u64,
-                            sha256: crate::bundle::hash(&bytes),
+                            bytes,
+                            sha256,
                         });
                     }
                     self.metrics.count_frame();
@@ -335,8 +411,9 @@ impl App {
                     Ok(p) => p,
                     Err(e) => return self.unreadable(*id, e).map(|_| ()),
                 };
-                pass.fold(fold.state.as_mut(), spec, partial)
-                    .map_err(|e| anyhow::anyhow!("task {id} ({} {}): {e}", spec.kind, spec.index))?;
+                pass.fold(fold.state.as_mut(), spec, partial).map_err(|e| {
+                    anyhow::anyhow!("task {id} ({} {}): {e}", spec.kind, spec.index)
+                })?;
                 fold.next += 1;
                 folded += 1;
             }
@@ -362,20 +439,19 @@ impl App {
             artifact.write_to(&header, &mut BufWriter::new(file))?;
         }
         std::fs::rename(&tmp, &path)?;
-        let bytes = std::fs::read(&path)?;
+        let (sha256, bytes) = crate::bundle::hash_file(&path)?;
         let entry = CacheEntry {
             key: pass.key().to_string(),
             name: pass.name().to_string(),
             path: self.relative(&path),
-            bytes: bytes.len() as u64,
-            sha256: crate::bundle::hash(&bytes),
+            bytes,
+            sha256,
             job: key.job,
         };
-        drop(bytes);
         let frames = self.first_steps(key.job, job)?;
-        let frames_queued = self
-            .store
-            .pass_built(key.job, key.step, &entry, &summary, &frames, now_ms())?;
+        let frames_queued =
+            self.store
+                .pass_built(key.job, key.step, &entry, &summary, &frames, now_ms())?;
         for (id, lease) in self.store.step_results(key)? {
             let _ = std::fs::remove_file(self.result_path(key.job, id, lease));
         }
@@ -387,7 +463,11 @@ impl App {
 
     /// Every frame's first step, its input written: what a job queues when its passes are
     /// done.
-    pub(super) fn first_steps(&self, job_id: i64, job: &JobPlan) -> anyhow::Result<Vec<Vec<job::TaskSpec>>> {
+    pub(super) fn first_steps(
+        &self,
+        job_id: i64,
+        job: &JobPlan,
+    ) -> anyhow::Result<Vec<Vec<job::TaskSpec>>> {
         let mut out = Vec::new();
         for frame in job.frames.iter() {
             let step = job.plan.start(frame).map_err(anyhow::Error::msg)?;

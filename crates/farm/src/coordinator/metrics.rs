@@ -70,8 +70,18 @@ impl Metrics {
             }
         };
         let one = |v: u64| vec![(String::new(), v as f64)];
-        metric("queue_depth", "gauge", "Tasks waiting for a worker.", &one(g.queued));
-        metric("tasks_in_flight", "gauge", "Tasks leased to a worker now.", &one(g.leased));
+        metric(
+            "queue_depth",
+            "gauge",
+            "Tasks waiting for a worker.",
+            &one(g.queued),
+        );
+        metric(
+            "tasks_in_flight",
+            "gauge",
+            "Tasks leased to a worker now.",
+            &one(g.leased),
+        );
         metric(
             "workers_alive",
             "gauge",
@@ -84,8 +94,18 @@ impl Metrics {
             .map(|(s, n)| (format!("{{state=\"{s}\"}}"), *n as f64))
             .collect();
         metric("jobs", "gauge", "Jobs by state.", &jobs);
-        metric("tasks_leased_total", "counter", "Leases granted.", &one(self.leased.load(Relaxed)));
-        metric("tasks_done_total", "counter", "Task results accepted.", &one(self.done.load(Relaxed)));
+        metric(
+            "tasks_leased_total",
+            "counter",
+            "Leases granted.",
+            &one(self.leased.load(Relaxed)),
+        );
+        metric(
+            "tasks_done_total",
+            "counter",
+            "Task results accepted.",
+            &one(self.done.load(Relaxed)),
+        );
         metric(
             "tasks_failed_total",
             "counter",
@@ -116,7 +136,11 @@ impl Metrics {
             "Seconds workers spent rendering accepted tasks.",
             &[(String::new(), self.task_micros.load(Relaxed) as f64 / 1e6)],
         );
-        let results = self.results.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        let results = self
+            .results
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
         let by = |f: &dyn Fn(&ResultSizes) -> f64| -> Vec<(String, f64)> {
             results
                 .iter()
@@ -157,7 +181,13 @@ impl Metrics {
             "result_payload_bytes_per_pixel",
             "gauge",
             "Mean payload bytes per pixel a task covers, by method and task kind (tasks over pixels).",
-            &by(&|s| if s.pixels == 0 { 0.0 } else { s.payload as f64 / s.pixels as f64 }),
+            &by(&|s| {
+                if s.pixels == 0 {
+                    0.0
+                } else {
+                    s.payload as f64 / s.pixels as f64
+                }
+            }),
         );
         out
     }

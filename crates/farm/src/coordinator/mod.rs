@@ -100,6 +100,8 @@ pub struct App {
     jobs: Mutex<HashMap<i64, Arc<JobPlan>>>,
     /// Frames and passes being folded.
     folds: Folds,
+    /// To the fold thread.
+    fold_requests: Mutex<std::sync::mpsc::Sender<fold::FoldRequest>>,
 }
 
 /// A job's scene with its settings applied, and its method's plan.
@@ -112,7 +114,10 @@ pub struct JobPlan {
 
 /// Writes `path` whole or not at all (a temporary file renamed over it), creating its
 /// directory.
-fn replace_file(path: &Path, write: impl FnOnce(&mut std::fs::File) -> anyhow::Result<()>) -> anyhow::Result<()> {
+fn replace_file(
+    path: &Path,
+    write: impl FnOnce(&mut std::fs::File) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
     }
@@ -150,7 +155,9 @@ impl App {
     }
     /// A frame's checkpoint between steps.
     fn checkpoint_path(&self, job: i64, frame: u32) -> PathBuf {
-        self.job_dir(job).join("steps").join(format!("{frame}.state"))
+        self.job_dir(job)
+            .join("steps")
+            .join(format!("{frame}.state"))
     }
     fn frame_path(&self, job: i64, frame: u32) -> PathBuf {
         self.job_dir(job).join(job::frame_file_name(frame))
@@ -293,6 +300,7 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         .with_context(|| format!("cannot listen on {}", config.listen))?;
     let addr = listener.local_addr()?;
     let (shutdown, mut stop) = tokio::sync::watch::channel(false);
+    let (fold_tx, fold_rx) = std::sync::mpsc::channel();
     let app = Arc::new(App {
         stopping: shutdown.subscribe(),
         config,
@@ -301,11 +309,18 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         work: Notify::new(),
         jobs: Mutex::new(HashMap::new()),
         folds: Folds::default(),
+        fold_requests: Mutex::new(fold_tx),
     });
+    fold::start_thread(&app, fold_rx)?;
 
     // Resume: steps whose last task arrived just before a restart.
     for key in app.store.finished_steps()? {
-        tracing::info!(job = key.job, frame = key.frame, step = key.step, "folding a step finished before the restart");
+        tracing::info!(
+            job = key.job,
+            frame = key.frame,
+            step = key.step,
+            "folding a step finished before the restart"
+        );
         app.spawn_fold(key);
     }
 

@@ -112,7 +112,12 @@ pub(super) struct ResultQuery {
 
 /// Checks a result written to `path` against the task it is of: a whole wire stream (length
 /// and CRC), of the task's schema, naming the task. Returns the payload's length.
-fn check_result(app: &App, job: i64, spec: &TaskSpec, path: &std::path::Path) -> anyhow::Result<u64> {
+fn check_result(
+    app: &App,
+    job: i64,
+    spec: &TaskSpec,
+    path: &std::path::Path,
+) -> anyhow::Result<u64> {
     let plan = app.job_plan(job)?;
     let schema = if spec.is_pass() {
         let passes = plan.plan.passes();
@@ -198,7 +203,8 @@ pub(super) async fn upload_result(
     drop(file);
     let app2 = app.clone();
     let (tmp2, spec2) = (tmp.clone(), spec.clone());
-    let checked = tokio::task::spawn_blocking(move || check_result(&app2, job_id, &spec2, &tmp2)).await?;
+    let checked =
+        tokio::task::spawn_blocking(move || check_result(&app2, job_id, &spec2, &tmp2)).await?;
     let payload = match checked {
         Ok(p) => p,
         Err(e) => {
@@ -221,9 +227,20 @@ pub(super) async fn upload_result(
                 .job_plan(job_id)
                 .map(|p| p.plan.method())
                 .unwrap_or("unknown");
-            app.metrics
-                .accepted(method, &spec.kind, (written, payload), spec.pixels(), q.seconds);
-            tracing::debug!(job = job_id, task = id, seconds = q.seconds, bytes = written, "result accepted");
+            app.metrics.accepted(
+                method,
+                &spec.kind,
+                (written, payload),
+                spec.pixels(),
+                q.seconds,
+            );
+            tracing::debug!(
+                job = job_id,
+                task = id,
+                seconds = q.seconds,
+                bytes = written,
+                "result accepted"
+            );
             app.spawn_fold(step);
             Ok(StatusCode::OK)
         }
@@ -277,7 +294,11 @@ pub(super) async fn download_artifact(
         return Err(AppError::not_found(format!("no artifact {key}")));
     };
     app.store.touch(&key, now_ms())?;
-    send_file(app.config.data.join(&entry.path), "application/octet-stream").await
+    send_file(
+        app.config.data.join(&entry.path),
+        "application/octet-stream",
+    )
+    .await
 }
 
 /// Download what a step of a frame reads besides the artifacts (a wire stream; an SPPM

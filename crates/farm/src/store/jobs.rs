@@ -68,9 +68,8 @@ impl Store {
         )?;
         let id = tx.last_insert_rowid();
         {
-            let mut frame = tx.prepare(
-                "INSERT INTO frames (job_id, frame, state) VALUES (?1, ?2, 'queued')",
-            )?;
+            let mut frame =
+                tx.prepare("INSERT INTO frames (job_id, frame, state) VALUES (?1, ?2, 'queued')")?;
             for f in job.frames.iter() {
                 frame.execute(params![id, f])?;
             }
@@ -340,11 +339,9 @@ impl Store {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         let row: Option<(String, String)> = tx
-            .query_row(
-                "SELECT state, bundle FROM jobs WHERE id = ?1",
-                [job],
-                |r| Ok((r.get(0)?, r.get(1)?)),
-            )
+            .query_row("SELECT state, bundle FROM jobs WHERE id = ?1", [job], |r| {
+                Ok((r.get(0)?, r.get(1)?))
+            })
             .optional()?;
         let Some((state, bundle)) = row else {
             return Ok(None);

@@ -313,7 +313,10 @@ pub(crate) mod tests {
             .expect("old schema");
         drop(conn);
         let e = Store::open(&path).err().expect("refused").to_string();
-        assert!(e.contains("schema version 1") && e.contains("reads version 2"), "{e}");
+        assert!(
+            e.contains("schema version 1") && e.contains("reads version 2"),
+            "{e}"
+        );
         // An empty file is a new store.
         assert!(Store::open(&dir.path().join("new.db")).is_ok());
     }
@@ -339,7 +342,9 @@ pub(crate) mod tests {
         );
         let error: String = s
             .conn()
-            .query_row("SELECT error FROM jobs WHERE id = ?1", [jobs[0]], |r| r.get(0))
+            .query_row("SELECT error FROM jobs WHERE id = ?1", [jobs[0]], |r| {
+                r.get(0)
+            })
             .expect("error");
         assert!(error.contains("settings of job"), "{error}");
     }

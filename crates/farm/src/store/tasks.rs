@@ -313,10 +313,7 @@ impl Store {
             [task],
             |r| Ok((r.get(0)?, r.get(1)?)),
         )?;
-        tx.execute(
-            "UPDATE tasks SET state = 'leased' WHERE id = ?1",
-            [task],
-        )?;
+        tx.execute("UPDATE tasks SET state = 'leased' WHERE id = ?1", [task])?;
         let table = if frame == 0 { "passes" } else { "frames" };
         let by = if frame == 0 { "step" } else { "frame" };
         tx.execute(
@@ -463,7 +460,9 @@ impl Store {
             )?
             .collect::<rusqlite::Result<_>>()?;
         let total: i64 = conn
-            .prepare_cached("SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3")?
+            .prepare_cached(
+                "SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3",
+            )?
             .query_row(params![key.job, key.frame, key.step], |r| r.get(0))?;
         Ok((out, total as usize))
     }
@@ -601,7 +600,8 @@ mod tests {
                 .is_none()
         );
         assert_eq!(
-            s.complete(first.task_id, first.lease, 1.0, (1, 1), 104).expect("c"),
+            s.complete(first.task_id, first.lease, 1.0, (1, 1), 104)
+                .expect("c"),
             Completion::Stale
         );
         // The current holder completes; its step is then complete.
@@ -650,7 +650,12 @@ mod tests {
                 complete: true
             }
         );
-        assert_eq!(s.step_tasks(StepKey { step: 1, ..key }, 0, 10).expect("q").1, 1);
+        assert_eq!(
+            s.step_tasks(StepKey { step: 1, ..key }, 0, 10)
+                .expect("q")
+                .1,
+            1
+        );
     }
 
     #[test]

@@ -137,8 +137,13 @@ fn chain_groups<C: Chains>(
         return (out, RayStats::default());
     }
     let all = (mutations as f64 * super::pssmlt::ctx_area(ctx)) as u64;
-    let (brightness, mut stats) =
-        brightness_samples(ctx, s.max_depth, (all / 16).max(s.bootstrap as u64), s.seed, &groups);
+    let (brightness, mut stats) = brightness_samples(
+        ctx,
+        s.max_depth,
+        (all / 16).max(s.bootstrap as u64),
+        s.seed,
+        &groups,
+    );
     out.brightness = brightness;
     let (boots, st) = bootstrap_cdfs(
         s.bootstrap_paths,

@@ -38,17 +38,26 @@ use crate::spectrum::{Spectrum, is_black};
 /// Specular bounces a gather ray follows before giving up.
 const GATHER_SPECULAR_DEPTH: u32 = 8;
 
-/// Record candidates per side of a record-pass tile.
+/// Record candidates per side of a record-pass tile, at least.
 pub const RECORD_TILE: u32 = 8;
+/// Most record-pass tiles per keyframe: larger films get larger tiles.
+const MAX_RECORD_TILES: usize = 256;
 
 /// The record pass's tiles: the grid of record candidates of a `width`×`height` film (one per
-/// `spacing` pixels) in 8×8 tiles; none without an irradiance cache.
+/// `spacing` pixels) in tiles of 8×8 candidates, doubled until a keyframe has at most 256
+/// tiles; none without an irradiance cache. (A tile makes its records without seeing other
+/// tiles', so the tiling is part of what determines the cache: a function of the film size.)
 pub fn record_tiles(settings: &PhotonSettings, width: u32, height: u32) -> Vec<Tile> {
     let Some(ic) = settings.irradiance_cache else {
         return Vec::new();
     };
     let s = ic.spacing.max(1);
-    crate::film::tiles(width.div_ceil(s), height.div_ceil(s), RECORD_TILE)
+    let (w, h) = (width.div_ceil(s), height.div_ceil(s));
+    let mut side = RECORD_TILE;
+    while (w.div_ceil(side) as usize) * (h.div_ceil(side) as usize) > MAX_RECORD_TILES {
+        side *= 2;
+    }
+    crate::film::tiles(w, h, side)
 }
 
 /// The frames whose cameras make the irradiance records of a job rendering `frames`: every

@@ -140,7 +140,14 @@ impl SppmState {
     /// Folds one iteration in from its per-pixel totals: emitted and direct light `ld` and
     /// filter weight `w` of the camera paths, and Φ and M summed over the iteration's chunks;
     /// then Hachisuka & Jensen's update (see [`Self::add_iteration`]).
-    pub fn add_sums(&mut self, ld: &[[f32; 3]], w: &[f32], phi: &[[f64; 3]], m: &[u64], alpha: f32) {
+    pub fn add_sums(
+        &mut self,
+        ld: &[[f32; 3]],
+        w: &[f32],
+        phi: &[[f64; 3]],
+        m: &[u64],
+        alpha: f32,
+    ) {
         let alpha = alpha as f64;
         for i in 0..self.r.len() {
             if let Some(l) = ld.get(i).filter(|l| l.iter().all(|v| v.is_finite())) {

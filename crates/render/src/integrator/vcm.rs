@@ -30,7 +30,7 @@ use super::{RayStats, consistent};
 use crate::SampleRange;
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
-use crate::film::{TileSums, tiles};
+use crate::film::{FilmSums, TileF64, tiles};
 use crate::photon::hashgrid::HashGrid;
 use crate::photon::kdtree::Positioned;
 use crate::render::camera_ray;
@@ -45,17 +45,15 @@ use crate::spectrum::{Spectrum, is_black};
 /// samples and so gives those merges much of the weight of light sampling, which has far
 /// less variance there (every pixel's merges share the same few nearby light vertices).
 /// Leaving z_1 to the connections — every path that merging at z_1 makes, light sampling
-/// (s = 1) makes too — cut VCM's relMSE on cornell-glass outside the bulb's pixels from
-/// 2.02e-2 to 1.16e-2 at 8 iterations (in all 2.69e-2 → 1.89e-2; 5.5e-3 → 4.3e-3 at 32), and
-/// 1.3–1.4× on the door, 2.5–2.8× on the indirect room (8 and 32 iterations).
+/// (s = 1) makes too — lowers VCM's error on every scene measured (README, VCM figures).
 pub(super) const FIRST_MERGE: usize = 2;
 
 /// Merging takes only light vertices whose surface is within 60° of the camera vertex's
 /// (|cos| of the geometric normals at least this): the merging disc lies in x's tangent plane,
-/// and without the test a disc near a corner took light arriving on the other wall (on the
-/// indirect room, mean/ref 1.014 → 0.998 and relMSE 2.15e-2 → 1.19e-2 at 128 iterations; door
-/// 1.12e-1 → 1.08e-1, cornell-glass unchanged). As r → 0 a disc meets another surface only
-/// ever closer to an edge, a vanishing area, so the estimate stays consistent.
+/// and without the test a disc near a corner takes light arriving on the other wall, a bias
+/// seen as a brighter room lit around corners (README, VCM figures). As r → 0 a disc meets
+/// another surface only ever closer to an edge, a vanishing area, so the estimate stays
+/// consistent.
 const MERGE_COS: f32 = 0.5;
 
 /// The settings VCM runs with.
@@ -99,17 +97,17 @@ impl Vcm {
         let ctx = Ctx::new("vcm", scene, camera, self.rr_depth, true)?;
         let (w, h) = (scene.film.width, scene.film.height);
         let mut splats = Splats::new(w, h);
-        let mut film: Vec<TileSums> = tiles(w, h, 16)
-            .into_iter()
-            .map(|t| TileSums::new(t, range))
-            .collect();
+        // Each pixel's samples are added by one thread in iteration order: f64 sums are as
+        // deterministic as fixed point here, at 32 bytes a pixel.
+        let mut film: Vec<TileF64> = tiles(w, h, 16).into_iter().map(TileF64::new).collect();
         let mut stats = RayStats::default();
         let mut light = LightPaths::new(w * h);
         for k in range.start..range.end {
             stats.add(&self.iteration(&ctx, k, &mut light, &mut film, &mut splats));
             progress(w as u64 * h as u64);
         }
-        Ok((BdptSums::gather(w, h, range, &film, &splats), stats))
+        let sums: Vec<FilmSums> = film.iter().map(TileF64::to_sums).collect();
+        Ok((BdptSums::gather(w, h, range, &sums, &splats), stats))
     }
 
     /// Iteration `k`: the light pass (subpaths, light tracing, the merge grid), then the
@@ -119,7 +117,7 @@ impl Vcm {
         ctx: &Ctx,
         k: u32,
         light: &mut LightPaths,
-        film: &mut [TileSums],
+        film: &mut [TileF64],
         splats: &mut Splats,
     ) -> RayStats {
         let scene = ctx.scene;
@@ -285,7 +283,7 @@ struct CameraPass<'a> {
 }
 
 impl CameraPass<'_> {
-    fn tile(&self, sums: &mut TileSums) -> RayStats {
+    fn tile(&self, sums: &mut TileF64) -> RayStats {
         let ctx = self.ctx;
         let scene = ctx.scene;
         let w = scene.film.width;
@@ -294,7 +292,8 @@ impl CameraPass<'_> {
         let mut sampler = PixelSampler::new(scene.integrator.sampler, scene.integrator.seed);
         let mut cam = Vec::with_capacity(16);
         let tile = sums.tile;
-        for (pixel, acc) in tile.pixels().zip(sums.pixels.iter_mut()) {
+        sums.samples += 1;
+        for (k, pixel) in tile.pixels().enumerate() {
             sampler.start_pixel_sample(pixel, self.k);
             let (ray, fw) = camera_ray(scene, ctx.camera, pixel, &mut sampler);
             ctx.camera_subpath(ray, d + 2, &mut sampler, &mut stats, &mut cam);
@@ -323,7 +322,7 @@ impl CameraPass<'_> {
                 stats.nonfinite += 1;
                 l = Spectrum::ZERO;
             }
-            acc.add(fw, l, None);
+            sums.add(k, fw, l);
         }
         stats
     }

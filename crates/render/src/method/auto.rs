@@ -69,10 +69,20 @@ impl Plan for Auto {
     fn decode_frame(&self, payload: &mut dyn std::io::Read) -> Result<Box<dyn Payload>, WireError> {
         self.inner.decode_frame(payload)
     }
-    fn fold(&self, state: &mut dyn Payload, task: &TaskSpec, p: Box<dyn Payload>) -> Result<(), String> {
+    fn fold(
+        &self,
+        state: &mut dyn Payload,
+        task: &TaskSpec,
+        p: Box<dyn Payload>,
+    ) -> Result<(), String> {
         self.inner.fold(state, task, p)
     }
-    fn advance(&self, frame: u32, state: &mut dyn Payload, elapsed: Duration) -> Result<Next, String> {
+    fn advance(
+        &self,
+        frame: u32,
+        state: &mut dyn Payload,
+        elapsed: Duration,
+    ) -> Result<Next, String> {
         self.inner.advance(frame, state, elapsed)
     }
     fn preview(&self, frame: u32, state: &dyn Payload) -> Image {

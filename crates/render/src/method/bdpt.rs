@@ -3,8 +3,8 @@
 
 use std::time::Duration;
 
-use super::refuse_translucent;
 use super::ranges::{KIND, RangeFrame, RangePartial, Ranges};
+use super::refuse_translucent;
 use super::registry::MethodInfo;
 use super::{Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::film::Image;
@@ -68,12 +68,11 @@ impl Method for BdptMethod {
             ))),
             KIND => {
                 self.ranges.check(task)?;
-                let (sums, stats) = self.bdpt.render_range(
-                    ctx.scene,
-                    &camera,
-                    task.samples(),
-                    &|n| ctx.progress(n * task.samples().len() as u64),
-                )?;
+                let (sums, stats) =
+                    self.bdpt
+                        .render_range(ctx.scene, &camera, task.samples(), &|n| {
+                            ctx.progress(n * task.samples().len() as u64)
+                        })?;
                 Ok(RangePartial::from_sums(&sums, stats))
             }
             other => Err(format!("bdpt has no {other} tasks")),

@@ -11,18 +11,12 @@
 //! The frame folds in the plan's order, in f64 where sums grow (Chan et al.'s pairwise update
 //! for the second moment), so a frame is the same bits however its tasks were spread.
 
-use half::{bf16, f16};
+use half::f16;
 use serde::{Deserialize, Serialize};
 
-use crate::film::{Image, Pixel, TileSums};
+pub use crate::film::{FilmSums, Rect, splats_from_fixed};
+use crate::film::{Image, Pixel};
 use crate::spectrum::Spectrum;
-
-/// A rectangle of pixels [x0, x1) × [y0, y1), as partials carry it.
-pub type Rect = [u32; 4];
-
-fn rect_of(t: &crate::film::Tile) -> Rect {
-    [t.x0, t.y0, t.x1, t.y1]
-}
 
 /// Checks that `rect` lies on a `width`×`height` film and that `len` values cover it.
 fn check_rect(rect: Rect, len: usize, width: u32, height: u32, what: &str) -> Result<(), String> {
@@ -40,43 +34,6 @@ fn check_rect(rect: Rect, len: usize, width: u32, height: u32, what: &str) -> Re
 fn indices(rect: Rect, width: u32) -> impl Iterator<Item = usize> {
     let [x0, y0, x1, y1] = rect;
     (y0..y1).flat_map(move |y| (x0..x1).map(move |x| (y * width + x) as usize))
-}
-
-/// A task's camera-side sums over a rectangle of pixels, row-major.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct FilmSums {
-    pub rect: Rect,
-    /// Samples per pixel (every pixel of the rectangle took as many).
-    pub samples: u32,
-    /// Σ w·L: exposed radiance times the film filter's weight f/pdf.
-    pub sum: Vec<[f32; 3]>,
-    /// Σ w.
-    pub weight: Vec<f32>,
-    /// Σ (w·L − mean)²; empty where the camera side is not the whole estimate.
-    pub m2: Vec<[bf16; 3]>,
-}
-
-impl FilmSums {
-    /// From a tile's fixed-point sums over `samples` samples per pixel; with the second
-    /// moment if `variance`.
-    pub fn from_tile(t: &TileSums, variance: bool) -> Self {
-        let mut out = FilmSums {
-            rect: rect_of(&t.tile),
-            samples: t.samples.len(),
-            sum: Vec::with_capacity(t.pixels.len()),
-            weight: Vec::with_capacity(t.pixels.len()),
-            m2: Vec::with_capacity(if variance { t.pixels.len() } else { 0 }),
-        };
-        for p in &t.pixels {
-            let (s, w, m2) = p.moments();
-            out.sum.push(s.map(|v| v as f32));
-            out.weight.push(w as f32);
-            if variance {
-                out.m2.push(m2.map(|v| bf16::from_f64(v)));
-            }
-        }
-        out
-    }
 }
 
 /// A frame's camera-side sums over the whole film.
@@ -119,10 +76,13 @@ impl FilmAcc {
             if variance && n > 0.0 {
                 for c in 0..3 {
                     let a = if na > 0.0 { self.sum[i][c] / na } else { 0.0 };
-                    let b = if nb > 0.0 { s.sum[k][c] as f64 / nb } else { 0.0 };
+                    let b = if nb > 0.0 {
+                        s.sum[k][c] as f64 / nb
+                    } else {
+                        0.0
+                    };
                     let d = b - a;
-                    let merged =
-                        self.m2[i][c] as f64 + s.m2[k][c].to_f64() + d * d * na * nb / n;
+                    let merged = self.m2[i][c] as f64 + s.m2[k][c].to_f64() + d * d * na * nb / n;
                     self.m2[i][c] = merged as f32;
                 }
             }
@@ -246,15 +206,6 @@ impl AovAcc {
 /// exposed, row-major over the film.
 pub type Splats = Vec<[f32; 3]>;
 
-/// Splats from the core's fixed-point sums (units of 2⁻³²).
-pub fn splats_from_fixed(fixed: &[[i64; 3]]) -> Splats {
-    let scale = 1.0 / 4_294_967_296.0;
-    fixed
-        .iter()
-        .map(|s| s.map(|v| (v as f64 * scale) as f32))
-        .collect()
-}
-
 /// Adds a task's splats to a frame's.
 pub fn add_splats(to: &mut [[f32; 3]], from: &[[f32; 3]]) -> Result<(), String> {
     if to.len() != from.len() {
@@ -331,14 +282,18 @@ pub fn rgb(s: Spectrum) -> [f32; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::film::{SampleRange, Tile};
+    use crate::film::{SampleRange, Tile, TileSums};
 
     fn sums(tile: Tile, range: SampleRange, seed: u32) -> TileSums {
         let mut t = TileSums::new(tile, range);
         for (k, p) in t.pixels.iter_mut().enumerate() {
             for s in range.start..range.end {
                 let x = ((s * 7919 + k as u32 * 104_729 + seed) % 1000) as f32 / 250.0;
-                p.add(0.75 + (s % 3) as f32 * 0.25, Spectrum::new(x, 2.0 * x, 0.1), None);
+                p.add(
+                    0.75 + (s % 3) as f32 * 0.25,
+                    Spectrum::new(x, 2.0 * x, 0.1),
+                    None,
+                );
             }
         }
         t

@@ -13,7 +13,9 @@ use std::time::Instant;
 
 use tessera_scene::SceneDesc;
 
-use super::{Finished, LoadFn, Loaded, Next, Payload, Plan, Resources, Step, TaskCtx, TaskSpec, short};
+use super::{
+    Finished, LoadFn, Loaded, Next, Payload, Plan, Resources, Step, TaskCtx, TaskSpec, short,
+};
 use crate::scene::Scene;
 
 /// What a run has done, for progress bars.
@@ -21,7 +23,10 @@ use crate::scene::Scene;
 pub enum Progress {
     /// A pass (`pass`: Some(its name)) or a frame's step starts, with this much work (the
     /// sum of its tasks' [`TaskSpec::work`]).
-    Start { pass: Option<&'static str>, work: u64 },
+    Start {
+        pass: Option<&'static str>,
+        work: u64,
+    },
     /// This much more of it is done.
     Done(u64),
 }
@@ -69,7 +74,9 @@ impl Resources for TaskResources<'_> {
     }
     fn progress(&self, work: u64) {
         let before = self.reported.fetch_add(work, Ordering::Relaxed);
-        let counted = (before + work).min(self.work).saturating_sub(before.min(self.work));
+        let counted = (before + work)
+            .min(self.work)
+            .saturating_sub(before.min(self.work));
         if counted > 0 {
             (self.step.local.progress)(Progress::Done(counted));
         }
@@ -274,7 +281,10 @@ impl<'a> Local<'a> {
                     let outcome = result.and_then(|p| fold(task, p));
                     if let Err(e) = outcome {
                         stop.store(true, Ordering::Relaxed);
-                        return Err(format!("task {} {} of frame {}: {e}", task.kind, task.index, task.frame));
+                        return Err(format!(
+                            "task {} {} of frame {}: {e}",
+                            task.kind, task.index, task.frame
+                        ));
                     }
                     want += 1;
                 }

@@ -102,7 +102,9 @@ fn refuse_for_mlt(d: &tessera_scene::SceneDesc) -> Result<(), String> {
         return Err("integrator.type: mlt does not support lights at infinity (environment, directional); use pssmlt or bdpt".into());
     }
     if matches!(d.camera.lens, Lens::Thin { aperture_radius, .. } if aperture_radius > 0.0) {
-        return Err("integrator.type: mlt supports pinhole cameras only; use pssmlt or bdpt".into());
+        return Err(
+            "integrator.type: mlt supports pinhole cameras only; use pssmlt or bdpt".into(),
+        );
     }
     Ok(())
 }
@@ -163,13 +165,11 @@ impl Method for MetropolisMethod {
             }
             CHAINS => {
                 self.ranges.check(task)?;
-                let (sums, stats) = self.m.chains(
-                    ctx.scene,
-                    &camera,
-                    self.mutations,
-                    task.start,
-                    &|n| ctx.progress(n),
-                )?;
+                let (sums, stats) =
+                    self.m
+                        .chains(ctx.scene, &camera, self.mutations, task.start, &|n| {
+                            ctx.progress(n)
+                        })?;
                 Ok(MetroPartial::Chains {
                     splats: splats_from_fixed(&sums.splats),
                     brightness: sums.brightness.0 as f64 / 4_294_967_296.0,

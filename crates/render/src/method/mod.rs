@@ -163,8 +163,22 @@ impl Job {
     }
 }
 
-/// Tile side when a job does not say.
+/// Smallest tile side when a job does not say.
 pub const DEFAULT_TILE: u32 = 32;
+/// Most tiles a frame is cut into when a job does not say the tile size.
+const MAX_DEFAULT_TILES: usize = 600;
+
+/// The tile side for a `width`×`height` film when a job does not say: 32 pixels, doubled
+/// until the frame has at most 600 tiles (a task's overhead stays small beside its work).
+pub fn default_tile(width: u32, height: u32) -> u32 {
+    let mut tile = DEFAULT_TILE;
+    while tile < MAX_TILE
+        && (width.div_ceil(tile) as usize) * (height.div_ceil(tile) as usize) > MAX_DEFAULT_TILES
+    {
+        tile *= 2;
+    }
+    tile
+}
 /// Largest tile side.
 pub const MAX_TILE: u32 = 256;
 
@@ -200,9 +214,8 @@ impl TaskCtx<'_> {
     /// The loaded artifact of `pass`.
     pub fn artifact<P: Pass>(&self, pass: &P) -> Result<Arc<P::Loaded>, String> {
         let load = |r: &mut dyn Read| -> Result<Loaded, String> {
-            let (header, artifact): (Header, P::Artifact) = wire::read(r).map_err(|e| {
-                format!("the {} artifact {}: {e}", pass.name(), short(pass.key()))
-            })?;
+            let (header, artifact): (Header, P::Artifact) = wire::read(r)
+                .map_err(|e| format!("the {} artifact {}: {e}", pass.name(), short(pass.key())))?;
             check_schema(&header, &pass_schema(pass.name()))?;
             Ok(Arc::new(pass.load(artifact)?))
         };
@@ -362,8 +375,12 @@ pub trait Method: Send + Sync + 'static {
     fn new_frame(&self, frame: u32) -> Self::Frame;
     fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Self::Partial, String>;
     /// Folds a task's result into its frame; called in the step's task order.
-    fn fold(&self, state: &mut Self::Frame, task: &TaskSpec, p: Self::Partial)
-    -> Result<(), String>;
+    fn fold(
+        &self,
+        state: &mut Self::Frame,
+        task: &TaskSpec,
+        p: Self::Partial,
+    ) -> Result<(), String>;
     /// After every task of a step was folded: the next step, or the finished frame.
     /// `elapsed` is the frame's wall time so far (zero on a farm).
     fn advance(
@@ -394,8 +411,12 @@ pub trait Pass: Send + Sync + 'static {
     fn tasks(&self, step: u32) -> Vec<TaskSpec>;
     fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Self::Partial, String>;
     fn start(&self) -> Self::State;
-    fn fold(&self, state: &mut Self::State, task: &TaskSpec, p: Self::Partial)
-    -> Result<(), String>;
+    fn fold(
+        &self,
+        state: &mut Self::State,
+        task: &TaskSpec,
+        p: Self::Partial,
+    ) -> Result<(), String>;
     fn finish(&self, state: Self::State) -> Result<Self::Artifact, String>;
     fn load(&self, artifact: Self::Artifact) -> Result<Self::Loaded, String>;
     /// What the artifact holds, for the job status.
@@ -437,8 +458,10 @@ pub trait DynPass: Send + Sync {
         p: Box<dyn Payload>,
     ) -> Result<(), String>;
     /// The artifact and a line saying what it holds.
-    fn finish(&self, state: Box<dyn Any + Send + Sync>)
-    -> Result<(Box<dyn Payload>, String), String>;
+    fn finish(
+        &self,
+        state: Box<dyn Any + Send + Sync>,
+    ) -> Result<(Box<dyn Payload>, String), String>;
     /// The artifact, as made by [`Self::finish`], loaded for tasks to read.
     fn load(&self, artifact: Box<dyn Payload>) -> Result<Loaded, String>;
 }
@@ -527,10 +550,12 @@ pub trait Plan: Send + Sync {
 }
 
 fn frame_state<'a, M: Method>(state: &'a dyn Payload) -> Result<&'a M::Frame, String> {
-    state
-        .as_any()
-        .downcast_ref::<M::Frame>()
-        .ok_or_else(|| format!("a frame state of another method than {}", std::any::type_name::<M>()))
+    state.as_any().downcast_ref::<M::Frame>().ok_or_else(|| {
+        format!(
+            "a frame state of another method than {}",
+            std::any::type_name::<M>()
+        )
+    })
 }
 
 impl<M: Method> Plan for M {

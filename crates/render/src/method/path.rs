@@ -118,7 +118,12 @@ impl Method for PathMethod {
         self.tiles.fold(state, task, p)
     }
 
-    fn advance(&self, frame: u32, state: &mut TileFrame, elapsed: Duration) -> Result<Next, String> {
+    fn advance(
+        &self,
+        frame: u32,
+        state: &mut TileFrame,
+        elapsed: Duration,
+    ) -> Result<Next, String> {
         Ok(self.tiles.advance(frame, state, elapsed))
     }
 

@@ -7,7 +7,9 @@ use std::time::Duration;
 use super::passes::{PhotonsPass, RecordsPass};
 use super::registry::MethodInfo;
 use super::tiles::{TileFrame, TilePartial, Tiles, execute_tile};
-use super::{DynPass, Job, refuse_translucent, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov, tiles};
+use super::{
+    DynPass, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov, refuse_translucent, tiles,
+};
 use crate::analysis::analyze;
 use crate::camera::Camera;
 use crate::film::Image;
@@ -127,7 +129,12 @@ impl Method for PhotonMethod {
         self.tiles.fold(state, task, p)
     }
 
-    fn advance(&self, frame: u32, state: &mut TileFrame, elapsed: Duration) -> Result<Next, String> {
+    fn advance(
+        &self,
+        frame: u32,
+        state: &mut TileFrame,
+        elapsed: Duration,
+    ) -> Result<Next, String> {
         Ok(self.tiles.advance(frame, state, elapsed))
     }
 

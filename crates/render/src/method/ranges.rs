@@ -61,7 +61,7 @@ impl RangePartial {
     /// A task's result from the core's fixed-point sums.
     pub fn from_sums(sums: &BdptSums, stats: RayStats) -> Self {
         RangePartial::Samples {
-            camera: FilmSums::from_tile(&sums.sums, false),
+            camera: sums.sums.clone(),
             splats: super::film::splats_from_fixed(&sums.splats),
             stats,
         }
@@ -101,7 +101,13 @@ impl Ranges {
 
     /// Range tasks of `frame`'s step `step` over samples [from, to) in ranges of `chunk`,
     /// numbered from `first`.
-    fn range_tasks(&self, (frame, step, first): (u32, u32, u32), from: u32, to: u32, chunk: u32) -> Vec<TaskSpec> {
+    fn range_tasks(
+        &self,
+        (frame, step, first): (u32, u32, u32),
+        from: u32,
+        to: u32,
+        chunk: u32,
+    ) -> Vec<TaskSpec> {
         (from..to)
             .step_by(chunk.max(1) as usize)
             .enumerate()
@@ -131,7 +137,12 @@ impl Ranges {
         let chunk = self
             .samples_per_task
             .unwrap_or(spp.saturating_sub(f.samples).div_ceil(DEFAULT_TASKS));
-        Some(Step::tasks(self.range_tasks((frame, f.steps, 0), f.samples, spp, chunk)))
+        Some(Step::tasks(self.range_tasks(
+            (frame, f.steps, 0),
+            f.samples,
+            spp,
+            chunk,
+        )))
     }
 
     pub fn new_frame(&self, frame: u32) -> RangeFrame {

@@ -25,7 +25,11 @@ pub static SPPM: MethodInfo = MethodInfo {
     name: "sppm",
     summary: "stochastic progressive photon mapping (Hachisuka & Jensen): consistent photon mapping",
     spp: "iterations (one camera sample per pixel and photon_map.photons photons each)",
-    params: &["photon_map.photons", "photon_map.radius", "photon_map.alpha"],
+    params: &[
+        "photon_map.photons",
+        "photon_map.radius",
+        "photon_map.alpha",
+    ],
     plan: |job| Ok(Box::new(SppmMethod::plan(job)?) as Box<dyn Plan>),
 };
 
@@ -79,7 +83,11 @@ impl SppmMethod {
         if job.target_error.is_some() || job.time_limit.is_some() {
             return Err("target_error: sppm refines every pixel each iteration; give spp (its iterations) instead".into());
         }
-        if d.integrator.photon.alpha.is_some_and(|a| !(a > 0.0 && a < 1.0)) {
+        if d.integrator
+            .photon
+            .alpha
+            .is_some_and(|a| !(a > 0.0 && a < 1.0))
+        {
             return Err("integrator.photon_map.alpha: expected a fraction in (0, 1)".into());
         }
         let (photon, settings) = SppmSettings::resolve(d, &analyze(d));
@@ -139,7 +147,11 @@ impl SppmMethod {
     }
 
     /// Iteration `task.step`'s camera paths, traced once per process.
-    fn visible_points(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<std::sync::Arc<VisiblePoints>, String> {
+    fn visible_points(
+        &self,
+        ctx: &TaskCtx,
+        task: &TaskSpec,
+    ) -> Result<std::sync::Arc<VisiblePoints>, String> {
         ctx.memo("visible points", || {
             let sppm = Sppm::new(ctx.scene, &self.photon, self.settings);
             Ok(sppm.visible_points_parallel(&self.camera(task.frame), task.step))
@@ -254,7 +266,10 @@ impl Method for SppmMethod {
             SppmPartial::Aov(a) => f.aov.fold(&a),
             SppmPartial::Camera { ld, w, stats } => {
                 if ld.len() != n || w.len() != n {
-                    return Err(format!("sppm camera paths for {} pixels, the film has {n}", ld.len()));
+                    return Err(format!(
+                        "sppm camera paths for {} pixels, the film has {n}",
+                        ld.len()
+                    ));
                 }
                 f.ld = ld;
                 f.w = w;
@@ -299,7 +314,8 @@ impl Method for SppmMethod {
             f.phi = vec![[0.0; 3]; self.pixels()];
             f.m = vec![0; self.pixels()];
         }
-        f.state.add_sums(&f.ld, &f.w, &f.phi, &f.m, self.settings.alpha);
+        f.state
+            .add_sums(&f.ld, &f.w, &f.phi, &f.m, self.settings.alpha);
         f.ld = Vec::new();
         f.w = Vec::new();
         f.phi = Vec::new();

@@ -125,7 +125,9 @@ impl Tiles {
     /// adaptive).
     pub fn start(&self, frame: u32) -> Step {
         let mut tasks = aov::tasks(self.width, self.height, self.spp, frame, 0);
-        let end = self.adaptive.map_or(self.spp, |a| a.first_spp.clamp(1, a.max_spp));
+        let end = self
+            .adaptive
+            .map_or(self.spp, |a| a.first_spp.clamp(1, a.max_spp));
         let plan: Vec<(usize, u32, u32)> = (0..self.tiles.len()).map(|i| (i, 0, end)).collect();
         let more = self.tile_tasks(frame, 0, tasks.len() as u32, &plan);
         tasks.extend(more);
@@ -173,7 +175,8 @@ impl Tiles {
                     .iter()
                     .position(|t| *t == task.tile())
                     .ok_or_else(|| format!("task {task:?} is not one of the frame's tiles"))?;
-                if sums.rect != [task.x0, task.y0, task.x1, task.y1] || sums.samples != task.samples().len()
+                if sums.rect != [task.x0, task.y0, task.x1, task.y1]
+                    || sums.samples != task.samples().len()
                 {
                     return Err(format!(
                         "sums of {:?} × {} samples for task {task:?}",
@@ -194,7 +197,13 @@ impl Tiles {
         let Some(rule) = &self.adaptive else {
             return Next::Done(self.finish(f, Vec::new()));
         };
-        match next_round(&self.tile_errors(f), &f.tile_samples, self.pixels(), rule, elapsed) {
+        match next_round(
+            &self.tile_errors(f),
+            &f.tile_samples,
+            self.pixels(),
+            rule,
+            elapsed,
+        ) {
             Round::Render(plan) => {
                 let plan: Vec<(usize, u32, u32)> = plan
                     .into_iter()

@@ -4,8 +4,8 @@
 
 use std::time::Duration;
 
-use super::refuse_translucent;
 use super::ranges::{KIND, RangeFrame, RangePartial, Ranges};
+use super::refuse_translucent;
 use super::registry::MethodInfo;
 use super::{Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::film::Image;

@@ -7,13 +7,9 @@
 //! normal (the distance is |Δ|² + f·(Δ·n)², so photons on a wall around a corner do not leak
 //! into the floor's estimate), a metric that depends on the query, which kiddo's fixed
 //! per-type distance metrics cannot express. Leaves of up to [`LEAF`] points are scanned in
-//! index order and the positions sit in their own array (16 bytes read per point). Measured
-//! (`cargo bench -p tessera-render --bench knn`: the Cornell box's global map, 398k photons,
-//! 99.6k queries within the default radius, plain Euclidean so kiddo 5 can run them too; this
-//! 2-core machine, µs per query, ours / kiddo `ImmutableKdTree` / kiddo `KdTree`): k = 64:
-//! 6.4–7.3 / 7.1–7.8 / 13–15; k = 8: 1.9–2.1 / 3.1–3.7 / 13; k = 1: 0.78–0.89 / 1.35–1.38 /
-//! 11. Builds 70–80 / 43–45 / 65–70 ms. Before leaves and the position array ours took
-//! 18–21 µs at k = 64.
+//! index order and the positions sit in their own array (16 bytes read per point), which
+//! keeps it as fast as kiddo's immutable tree on plain Euclidean queries
+//! (`cargo bench -p tessera-render --bench knn` compares them; figures in the README).
 
 use glam::{Vec3, Vec3A};
 

@@ -83,7 +83,8 @@ fn integrator_kind(name: &str) -> anyhow::Result<(String, Option<SubsurfaceMetho
         ),
         None => (name.trim(), None),
     };
-    let kind = crate::render::parse_method(kind).map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
+    let kind =
+        crate::render::parse_method(kind).map_err(|e| anyhow::anyhow!("--integrators: {e}"))?;
     Ok((kind, method))
 }
 
@@ -246,14 +247,14 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                 }
             }
             let (wall_s, cpu_s) = clock(last, progressive.fresh);
-            let image = progressive
-                .image
-                .as_ref()
-                .context("no image rendered")?;
+            let image = progressive.image.as_ref().context("no image rendered")?;
             let rgb: Vec<glam::Vec3A> = image.pixels.iter().map(|p| p.rgb.into()).collect();
             let e = metrics::compare(&rgb, &reference);
             // Without any per-pixel variance (one batch, SPPM) there is no estimate.
-            let has_variance = image.pixels.iter().any(|p| p.variance.iter().any(|&v| v > 0.0));
+            let has_variance = image
+                .pixels
+                .iter()
+                .any(|p| p.variance.iter().any(|&v| v > 0.0));
             let run = Run {
                 integrator: name.clone(),
                 seed,
@@ -318,8 +319,7 @@ struct Progressive<'a> {
     fresh: bool,
 }
 
-type PlanFor<'a> =
-    dyn Fn(u32) -> anyhow::Result<(tessera_scene::SceneDesc, Box<dyn Plan>)> + 'a;
+type PlanFor<'a> = dyn Fn(u32) -> anyhow::Result<(tessera_scene::SceneDesc, Box<dyn Plan>)> + 'a;
 
 impl Progressive<'_> {
     fn render_to(
@@ -332,7 +332,8 @@ impl Progressive<'_> {
         if !self.fresh {
             match &mut self.state {
                 None => {
-                    let (state, done) = self.local.frame_with_state(1).map_err(anyhow::Error::msg)?;
+                    let (state, done) =
+                        self.local.frame_with_state(1).map_err(anyhow::Error::msg)?;
                     self.state = Some(state);
                     self.image = Some(done.image);
                     self.samples = self.local.desc.integrator.spp;

@@ -80,6 +80,53 @@ pub(super) async fn local_coordinator(
     Ok((running, client))
 }
 
+/// `tessera serve --local-workers N` as a process of its own (so its memory is its own), on a
+/// free port, once its workers have asked for work; with a client of it.
+async fn serve_process(
+    data: &Path,
+    local_workers: u32,
+) -> anyhow::Result<(tokio::process::Child, Client)> {
+    use tokio::io::AsyncBufReadExt;
+    let token = coordinator::random_token()?;
+    let mut child = tokio::process::Command::new(std::env::current_exe()?)
+        .args(["serve", "--listen", "127.0.0.1:0", "--local-workers"])
+        .arg(local_workers.to_string())
+        .arg("--data")
+        .arg(data)
+        .args([
+            "--client-token",
+            &token,
+            "--worker-token",
+            &coordinator::random_token()?,
+        ])
+        .env("RUST_LOG", "warn")
+        .stdout(std::process::Stdio::piped())
+        .kill_on_drop(true)
+        .spawn()
+        .context("starting tessera serve")?;
+    let stdout = child.stdout.take().context("serve's output")?;
+    let mut line = String::new();
+    tokio::io::BufReader::new(stdout)
+        .read_line(&mut line)
+        .await?;
+    let url = line
+        .trim()
+        .rsplit(' ')
+        .next()
+        .filter(|u| u.starts_with("http://"))
+        .with_context(|| format!("no URL in serve's first line {line:?}"))?;
+    let client = Client::new(url, &token)?;
+    let start = Instant::now();
+    while client.workers().await.map_or(0, |w| w.len()) < local_workers as usize {
+        anyhow::ensure!(
+            start.elapsed() < Duration::from_secs(30),
+            "local workers did not start"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    Ok((child, client))
+}
+
 /// Peak resident memory of a process (`VmHWM`), MiB, where the platform tells it.
 pub(super) fn peak_rss_mib(pid: u32) -> Option<f64> {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
@@ -122,7 +169,8 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
     let dir = tempfile_dir()?;
     let exe = std::env::current_exe()?;
     let data = dir.join("data");
-    let (running, client) = local_coordinator(data.clone(), args.workers).await?;
+    let (mut serve, client) = serve_process(&data, args.workers).await?;
+    let serve_pid = serve.id().context("serve's pid")?;
     let (bundle, desc, scene_name) = Bundle::pack_scene(&args.scene)?;
     let tar = bundle.to_tar().map_err(anyhow::Error::msg)?;
     let methods: Vec<String> = if args.methods.is_empty() {
@@ -150,7 +198,12 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
             ..Default::default()
         };
         let mut check = desc.clone();
-        if let Err(e) = job::plan(&mut check, &settings, FrameRange::single(1), &Limits::default()) {
+        if let Err(e) = job::plan(
+            &mut check,
+            &settings,
+            FrameRange::single(1),
+            &Limits::default(),
+        ) {
             crate::print(&format!("{method:>8}: skipped — {e}\n"))?;
             continue;
         }
@@ -165,9 +218,19 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
         if let Some([w, h]) = size {
             cmd.args(["--size", &format!("{w}x{h}")]);
         }
-        let status = cmd.stdout(std::process::Stdio::null()).status().await?;
-        anyhow::ensure!(status.success(), "tessera render --integrator {method} failed");
+        let o = cmd.output().await?;
+        anyhow::ensure!(
+            o.status.success(),
+            "tessera render --integrator {method} failed: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         let render_s = t.elapsed().as_secs_f64();
+        // The render reports its own peak resident memory.
+        let render_mib = String::from_utf8_lossy(&o.stdout)
+            .lines()
+            .find_map(|l| l.strip_prefix("peak resident memory "))
+            .and_then(|l| l.split_whitespace().next())
+            .and_then(|v| v.parse::<f64>().ok());
 
         let t = Instant::now();
         let info = client.upload_bundle(tar.clone()).await?;
@@ -215,12 +278,25 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
             kinds,
             output_bytes: (exr.len() + png.len()) as u64,
         };
+        let workers = client.workers().await?;
+        let worker_peaks: Vec<String> = workers
+            .iter()
+            .filter(|w| w.alive)
+            .filter_map(|w| peak_rss_mib(w.pid).map(|m| format!("{m:.0}")))
+            .collect();
         crate::print(&format!(
-            "{method:>8}: render {:.2} s, farm {:.2} s ({} tasks), EXR {}\n",
+            "{method:>8}: render {:.2} s, farm {:.2} s ({} tasks), EXR {}; peak resident MiB so far: render {}, coordinator {}, workers {}\n",
             run.render_s,
             run.farm_s,
             run.tasks,
-            if identical { "byte-identical" } else { "DIFFERS" }
+            if identical {
+                "byte-identical"
+            } else {
+                "DIFFERS"
+            },
+            render_mib.map_or("?".into(), |m| format!("{m:.0}")),
+            peak_rss_mib(serve_pid).map_or("?".into(), |m| format!("{m:.0}")),
+            worker_peaks.join(", ")
         ))?;
         for (kind, (n, wire, payload, pixels)) in &run.kinds {
             let per_pixel = |b: u64| {
@@ -251,22 +327,13 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
         output as f64 / 1048576.0,
         (total - cache) as f64 / output.max(1) as f64
     ))?;
-    let workers = client.workers().await?;
-    let worker_peaks: Vec<String> = workers
-        .iter()
-        .filter_map(|w| peak_rss_mib(w.pid).map(|m| format!("{m:.0}")))
-        .collect();
-    crate::print(&format!(
-        "peak resident memory: coordinator (with this client) {} MiB; workers {} MiB\n",
-        peak_rss_mib(std::process::id()).map_or("?".into(), |m| format!("{m:.0}")),
-        worker_peaks.join(", ")
-    ))?;
+
     let different: Vec<&str> = runs
         .iter()
         .filter(|r| !r.identical)
         .map(|r| r.method.as_str())
         .collect();
-    running.stop().await?;
+    let _ = serve.kill().await;
     let _ = std::fs::remove_dir_all(&dir);
     anyhow::ensure!(
         different.is_empty(),
@@ -282,7 +349,9 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
     let worker_token = running.app.config.worker_token.clone();
     let url = format!("http://{}", running.addr);
     let (bundle, desc, scene_name) = Bundle::pack_scene(&args.scene)?;
-    let info = client.upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?).await?;
+    let info = client
+        .upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?)
+        .await?;
     let settings = RenderSettings {
         spp: Some(1),
         tile: Some(args.tile),
@@ -290,8 +359,13 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
     };
     // The simulated workers run the job's (tiny) tasks for real, to post real results.
     let mut planned = desc.clone();
-    let plan = job::plan(&mut planned, &settings, FrameRange::single(1), &Limits::default())
-        .map_err(anyhow::Error::msg)?;
+    let plan = job::plan(
+        &mut planned,
+        &settings,
+        FrameRange::single(1),
+        &Limits::default(),
+    )
+    .map_err(anyhow::Error::msg)?;
     let plan: Arc<dyn tessera_render::method::Plan> = Arc::from(plan);
     let scene = Arc::new(tessera_render::Scene::build(&planned));
     let planned = Arc::new(planned);
@@ -312,7 +386,8 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
         let mut handles = Vec::new();
         for i in 0..args.workers {
             let (url, token, granted) = (url.clone(), worker_token.clone(), granted.clone());
-            let (plan, scene, desc, dir) = (plan.clone(), scene.clone(), planned.clone(), dir.clone());
+            let (plan, scene, desc, dir) =
+                (plan.clone(), scene.clone(), planned.clone(), dir.clone());
             handles.push(tokio::spawn(async move {
                 let client = Client::new(&url, &token)?;
                 let req = LeaseRequest {
@@ -382,10 +457,17 @@ fn write_result(
 ) -> anyhow::Result<()> {
     struct NoResources;
     impl tessera_render::method::Resources for NoResources {
-        fn artifact(&self, key: &str, _: tessera_render::method::LoadFn) -> Result<tessera_render::method::Loaded, String> {
+        fn artifact(
+            &self,
+            key: &str,
+            _: tessera_render::method::LoadFn,
+        ) -> Result<tessera_render::method::Loaded, String> {
             Err(format!("no artifact {key} here"))
         }
-        fn input(&self, _: tessera_render::method::LoadFn) -> Result<tessera_render::method::Loaded, String> {
+        fn input(
+            &self,
+            _: tessera_render::method::LoadFn,
+        ) -> Result<tessera_render::method::Loaded, String> {
             Err("no step input here".into())
         }
         fn memo(

@@ -127,7 +127,9 @@ pub async fn run(args: FlythroughArgs) -> anyhow::Result<()> {
     let dir = tempfile_dir()?;
     let (running, client) = local_coordinator(dir.join("data"), args.workers).await?;
     let (bundle, _, scene_name) = Bundle::pack_scene(&args.scene)?;
-    let info = client.upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?).await?;
+    let info = client
+        .upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?)
+        .await?;
     let request = |frames: FrameRange, reuse: bool| JobRequest {
         bundle: info.hash.clone(),
         scene: scene_name.clone(),

@@ -109,7 +109,10 @@ mod tests {
             ranges,
             [(5, 0, 25_000), (6, 25_000, 50_000), (7, 50_000, 60_001)]
         );
-        assert!(t.iter().all(|t| t.is_pass() && t.step == 1 && t.pixels() == 0));
+        assert!(
+            t.iter()
+                .all(|t| t.is_pass() && t.step == 1 && t.pixels() == 0)
+        );
         assert!(index_ranges("x", 0, 0, 10, 0).is_empty());
         // The last range ends at the count even where start + per_task would overflow.
         let last = index_ranges("x", 0, u32::MAX, u32::MAX - 1, 0);

@@ -9,7 +9,9 @@ use tessera_scene::SceneDesc;
 
 use super::{hash_scene, hex, index_ranges};
 use crate::method::{Pass, TaskCtx, TaskSpec};
-use crate::photon::{KdTree, MapKind, Photon, PhotonMap, PhotonMaps, PhotonSettings, RadiancePhoton, Shooter};
+use crate::photon::{
+    KdTree, MapKind, Photon, PhotonMap, PhotonMaps, PhotonSettings, RadiancePhoton, Shooter,
+};
 use crate::scene::Material;
 
 /// Photons per task.
@@ -117,12 +119,7 @@ impl Pass for PhotonsPass {
         (Vec::new(), Vec::new())
     }
 
-    fn fold(
-        &self,
-        state: &mut Self::State,
-        task: &TaskSpec,
-        p: Vec<Photon>,
-    ) -> Result<(), String> {
+    fn fold(&self, state: &mut Self::State, task: &TaskSpec, p: Vec<Photon>) -> Result<(), String> {
         // One stored photon per bounce at most, bounded by the depth.
         let shot = (task.end - task.start) as usize;
         if p.len() > shot * (self.settings.max_depth as usize + 1) {

@@ -106,8 +106,13 @@ impl Pass for RecordsPass {
         );
         let frame = task.start;
         let camera = Camera::new(&self.desc.camera_at(frame), &self.desc.film);
-        let records =
-            integ.record_pass(ctx.scene, &camera, task.tile(), frame, &mut RayStats::default());
+        let records = integ.record_pass(
+            ctx.scene,
+            &camera,
+            task.tile(),
+            frame,
+            &mut RayStats::default(),
+        );
         ctx.progress(task.pixels());
         Ok(records)
     }
