@@ -248,6 +248,30 @@ pub struct LeaseGrant {
     /// the step has an input.
     #[serde(default)]
     pub input: Option<String>,
+    /// The largest result this coordinator accepts (`serve --max-result-mib`), in bytes: a
+    /// worker refuses a larger one itself rather than upload it to be refused.
+    #[serde(default)]
+    pub max_result_bytes: Option<u64>,
+}
+
+/// A size in the unit that reads best: `4 GiB`, `512 MiB`, `64 KiB`, `100 bytes`.
+pub fn human_size(bytes: u64) -> String {
+    match bytes {
+        b if b >= 1 << 30 && b % (1 << 30) == 0 => format!("{} GiB", b >> 30),
+        b if b >= 1 << 20 => format!("{} MiB", b >> 20),
+        b if b >= 1 << 10 => format!("{} KiB", b >> 10),
+        b => format!("{b} bytes"),
+    }
+}
+
+/// What a result over the coordinator's limit is told, by the coordinator or by the worker
+/// that checks first: which limit, the size where known, and how to raise it.
+pub fn result_over_limit(task: i64, bytes: Option<u64>, limit: u64) -> String {
+    let of = bytes.map_or(String::new(), |b| format!(" ({b} bytes)"));
+    format!(
+        "result of task {task}{of} is over this coordinator's limit of {} per task result; raise it with `tessera serve --max-result-mib`, or cut the job finer (--samples-per-task, --tile)",
+        human_size(limit)
+    )
 }
 
 /// A worker renewing its lease.

@@ -21,7 +21,9 @@ use tokio::sync::OnceCell;
 use crate::bundle::Bundle;
 use crate::client::{Client, is_transient, status_of};
 use crate::job::{self, FrameRange, Limits};
-use crate::protocol::{Failure, Heartbeat, LeaseGrant, LeaseRequest, WorkerInfo};
+use crate::protocol::{
+    Failure, Heartbeat, LeaseGrant, LeaseRequest, WorkerInfo, result_over_limit,
+};
 
 #[derive(Debug, Clone)]
 pub struct WorkerConfig {
@@ -415,6 +417,17 @@ impl Worker {
             }
             return;
         }
+        let outcome = outcome.and_then(|path| match grant.max_result_bytes {
+            Some(limit) => match std::fs::metadata(&path) {
+                Ok(m) if m.len() > limit => {
+                    let _ = std::fs::remove_file(&path);
+                    anyhow::bail!("{}", result_over_limit(task, Some(m.len()), limit))
+                }
+                Ok(_) => Ok(path),
+                Err(e) => anyhow::bail!("the result file {}: {e}", path.display()),
+            },
+            None => Ok(path),
+        });
         match outcome {
             Ok(path) => {
                 let upload = retrying("result upload", Duration::from_secs(600), || {

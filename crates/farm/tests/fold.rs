@@ -306,6 +306,8 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
         message.contains("64 KiB") && message.contains("--max-result-mib"),
         "{message}"
     );
+    // Workers are told the limit with the lease, to refuse such a result themselves.
+    assert_eq!(g_big.max_result_bytes, Some(64 << 10));
     // Not a wire stream at all.
     let junk = dir.path().join("junk");
     std::fs::write(&junk, b"hello").expect("write");
@@ -354,4 +356,62 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
         .await
         .expect("accepted");
     running.stop().await.expect("stop");
+}
+
+/// A real worker whose result is over the coordinator's limit does not upload it: the task
+/// fails on the worker with the limit, the result's size and how to raise the limit, and after
+/// its attempts the job fails with that message.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_worker_refuses_a_result_over_the_limit_and_the_job_says_which_limit() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let running = start(&dir.path().join("data"), 64 << 10).await;
+    let url = format!("http://{}", running.addr);
+    let client = Client::new(&url, CLIENT).expect("client");
+    let (bundle, _, scene_name) = Bundle::pack_scene(&cornell()).expect("bundle");
+    let hash = client
+        .upload_bundle(bundle.to_tar().expect("packs"))
+        .await
+        .expect("upload")
+        .hash;
+    let job = client
+        .submit(&JobRequest {
+            bundle: hash,
+            scene: scene_name,
+            name: None,
+            frames: None,
+            settings: RenderSettings {
+                size: Some([128, 128]),
+                spp: Some(1),
+                tile: Some(128),
+                ..Default::default()
+            },
+            priority: 0,
+        })
+        .await
+        .expect("submit");
+    let worker = tokio::spawn(tessera_farm::worker::run(
+        tessera_farm::worker::WorkerConfig {
+            coordinator: url.clone(),
+            token: WORKER.into(),
+            name: "limited".into(),
+            slots: 1,
+            parent_pid: None,
+        },
+    ));
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let status = loop {
+        let s = client.job(job.id).await.expect("status");
+        if s.state.is_final() {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "job still {:?}", s.state);
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    worker.abort();
+    assert_eq!(status.state, JobState::Failed);
+    let error = status.error.unwrap_or_default();
+    assert!(
+        error.contains("64 KiB") && error.contains("bytes)") && error.contains("--max-result-mib"),
+        "{error}"
+    );
 }

@@ -340,7 +340,7 @@ impl FilmSums {
             out.sum.push(s.map(|v| v as f32));
             out.weight.push(w as f32);
             if variance {
-                out.m2.push(m2.map(|v| bf16::from_f64(v)));
+                out.m2.push(m2.map(bf16::from_f64));
             }
         }
         out

@@ -203,7 +203,7 @@ async fn upload_bundle(
                 StatusCode::PAYLOAD_TOO_LARGE,
                 format!(
                     "the scene bundle is over this coordinator's upload limit of {}; raise it with `tessera serve --max-upload-mib`",
-                    super::tasks::size(app.config.max_upload as u64)
+                    human_size(app.config.max_upload as u64)
                 ),
             )
         } else {

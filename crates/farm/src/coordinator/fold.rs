@@ -389,6 +389,11 @@ impl App {
     /// Folds a pass's done results in order; when all are in, writes its artifact and queues
     /// what follows.
     fn fold_pass(&self, inner: &mut Inner, job: &JobPlan, key: StepKey) -> anyhow::Result<()> {
+        // A request that arrives after the pass was built (its results deleted) has nothing
+        // to fold.
+        if self.store.pass_state(key.job, key.step)?.as_deref() != Some("running") {
+            return Ok(());
+        }
         let passes = job.plan.passes();
         let pass = *passes
             .get(key.step as usize)

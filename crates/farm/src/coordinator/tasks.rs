@@ -42,6 +42,7 @@ pub(super) async fn lease_task(
             .lease(&req.worker, now_ms(), app.config.lease_ms)?
         {
             app.metrics.leased.fetch_add(1, Relaxed);
+            grant.max_result_bytes = Some(app.config.max_result);
             let t = &grant.task;
             if !t.is_pass() && app.input_path(grant.job_id, t.frame, t.step).is_file() {
                 grant.input = Some(format!(
@@ -66,15 +67,6 @@ pub(super) async fn lease_task(
 }
 
 /// A size in bytes as people read it.
-pub(super) fn size(bytes: u64) -> String {
-    match bytes {
-        b if b >= 1 << 30 && b % (1 << 30) == 0 => format!("{} GiB", b >> 30),
-        b if b >= 1 << 20 => format!("{} MiB", b >> 20),
-        b if b >= 1 << 10 => format!("{} KiB", b >> 10),
-        b => format!("{b} bytes"),
-    }
-}
-
 fn stale(task: i64, lease: i64) -> AppError {
     AppError::conflict(format!(
         "lease {lease} is no longer current for task {task} (it expired and the task was reassigned, or the job ended)"
@@ -189,12 +181,20 @@ pub(super) async fn upload_result(
         if written > app.config.max_result {
             drop(file);
             let _ = tokio::fs::remove_file(&tmp).await;
+            // Most HTTP clients read no answer before they have sent their whole body: the
+            // rest is read and dropped (up to the limit again, at least 64 MiB) so that the
+            // client hears why rather than a broken pipe.
+            let drain = app.config.max_result.max(64 << 20);
+            let mut rest: u64 = 0;
+            while let Some(Ok(chunk)) = stream.next().await {
+                rest += chunk.len() as u64;
+                if rest > drain {
+                    break;
+                }
+            }
             return Err(AppError::new(
                 StatusCode::PAYLOAD_TOO_LARGE,
-                format!(
-                    "result of task {id} is over this coordinator's limit of {} per task result; raise it with `tessera serve --max-result-mib`, or cut the job finer (--samples-per-task, --tile)",
-                    size(app.config.max_result)
-                ),
+                result_over_limit(id, None, app.config.max_result),
             ));
         }
         file.write_all(&chunk).await?;

@@ -330,9 +330,9 @@ pub(crate) mod tests {
                 [jobs[0]],
             )
             .expect("edit");
-        let e = s.job_source(jobs[0]).err().expect("refused").to_string();
+        let e = s.job_source(jobs[0]).expect_err("refused").to_string();
         assert!(e.contains("settings of job") && e.contains("many"), "{e}");
-        let e = s.job(jobs[0]).err().expect("refused").to_string();
+        let e = s.job(jobs[0]).expect_err("refused").to_string();
         assert!(e.contains("settings of job"), "{e}");
         // A lease of its task fails the job with the reason rather than render defaults.
         assert!(s.lease(&worker("w"), 0, 1000).expect("lease").is_none());

@@ -115,6 +115,18 @@ impl Store {
             .optional()?)
     }
 
+    /// A pass's state (`running`, `waiting`, `built`, `reused`), if the job has that pass.
+    pub fn pass_state(&self, job: i64, step: u32) -> Result<Option<String>> {
+        Ok(self
+            .conn()
+            .query_row(
+                "SELECT state FROM passes WHERE job_id = ?1 AND step = ?2",
+                params![job, step],
+                |r| r.get(0),
+            )
+            .optional()?)
+    }
+
     /// Notes that an artifact was used now (for least-recently-used eviction).
     pub fn touch(&self, key: &str, now: i64) -> Result<()> {
         self.conn().execute(
@@ -151,10 +163,15 @@ impl Store {
                 now
             ],
         )?;
-        tx.execute(
-            "UPDATE passes SET state = 'built', summary = ?3 WHERE job_id = ?1 AND step = ?2",
+        // A pass is built once: a second fold of it (a late request) queues nothing again.
+        let changed = tx.execute(
+            "UPDATE passes SET state = 'built', summary = ?3 WHERE job_id = ?1 AND step = ?2 AND state = 'running'",
             params![job, step, summary],
         )?;
+        if changed == 0 {
+            tx.commit()?;
+            return Ok(false);
+        }
         // Only a job still running gets more tasks.
         let running: bool = tx
             .prepare("SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running')")?
@@ -247,5 +264,68 @@ impl Store {
             })?
             .collect::<rusqlite::Result<_>>()?;
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::tests::{store, task};
+    use super::*;
+    use crate::job::{FrameRange, RenderSettings};
+    use crate::store::NewJob;
+
+    /// A pass is built once: the fold of a late request for it (arriving after its artifact
+    /// was written) must not queue the frames a second time.
+    #[test]
+    fn a_pass_built_twice_queues_its_frames_once() {
+        let (_d, s, _) = store(&[], 0);
+        let pass_task = TaskSpec::new("photons", 0, 0, 0).with_range(0, 10);
+        let frame: Vec<TaskSpec> = (0..3).map(|i| task(1, i)).collect();
+        let job = s
+            .insert_job(
+                &NewJob {
+                    name: "j".into(),
+                    priority: 0,
+                    bundle: "b".into(),
+                    scene: "scene.json".into(),
+                    settings: RenderSettings::default(),
+                    frames: FrameRange::single(1),
+                    width: 1,
+                    height: 1,
+                    spp: 1,
+                    method: "photon".into(),
+                    decisions: vec![],
+                    tasks: vec![frame.clone()],
+                    passes: vec![NewPass {
+                        name: "photons".into(),
+                        key: "k".into(),
+                        start: PassStart::Build(vec![pass_task]),
+                    }],
+                    planned_tasks: 4,
+                },
+                0,
+            )
+            .expect("job");
+        assert_eq!(s.pass_state(job, 0).expect("q").as_deref(), Some("running"));
+        let entry = CacheEntry {
+            key: "k".into(),
+            name: "photons".into(),
+            path: "cache/k".into(),
+            bytes: 1,
+            sha256: "0".into(),
+            job,
+        };
+        let frames = [frame];
+        assert!(
+            s.pass_built(job, 0, &entry, "built", &frames, 1)
+                .expect("built")
+        );
+        assert!(
+            !s.pass_built(job, 0, &entry, "built", &frames, 2)
+                .expect("again")
+        );
+        assert_eq!(s.pass_state(job, 0).expect("q").as_deref(), Some("built"));
+        let status = s.job(job).expect("q").expect("job");
+        assert_eq!(status.tasks.total, 4, "{:?}", status.tasks);
     }
 }

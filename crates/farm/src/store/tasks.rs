@@ -40,6 +40,9 @@ pub struct Gauges {
     pub jobs: Vec<(String, u64)>,
 }
 
+/// One task of a step as the fold reads it: (task id, state, lease, spec).
+pub type StepTask = (i64, String, Option<i64>, TaskSpec);
+
 impl Store {
     fn upsert_worker(tx: &Transaction, w: &WorkerInfo, now: i64) -> Result<()> {
         tx.execute(
@@ -118,6 +121,7 @@ impl Store {
                 task: spec,
                 artifacts,
                 input: None,
+                max_result_bytes: None,
             }));
         }
     }
@@ -440,14 +444,14 @@ impl Store {
             .optional()?)
     }
 
-    /// A step's tasks in fold order from position `from` on, at most `limit` of them:
-    /// (task id, state, lease, spec); and how many tasks the step has in all.
+    /// A step's tasks in fold order from position `from` on, at most `limit` of them; and how
+    /// many tasks the step has in all.
     pub fn step_tasks(
         &self,
         key: StepKey,
         from: usize,
         limit: usize,
-    ) -> Result<(Vec<(i64, String, Option<i64>, TaskSpec)>, usize)> {
+    ) -> Result<(Vec<StepTask>, usize)> {
         let conn = self.conn();
         let mut stmt = conn.prepare_cached(&format!(
             "SELECT id, state, lease, {SPEC_COLUMNS} FROM tasks

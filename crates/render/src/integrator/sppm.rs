@@ -126,8 +126,8 @@ impl SppmState {
             for s in chunk {
                 let i = s.pixel as usize;
                 if i < len {
-                    for c in 0..3 {
-                        phi[i][c] += s.phi[c];
+                    for (p, v) in phi[i].iter_mut().zip(s.phi) {
+                        *p += v;
                     }
                     m[i] += s.m as u64;
                 }
@@ -161,7 +161,7 @@ impl SppmState {
                 let (n, r, mf) = (self.n[i], self.r[i], mi as f64);
                 let n_new = n + alpha * mf;
                 let r_new = r * (n_new / (n + mf)).sqrt();
-                let p = DVec3::from_array(phi[i]);
+                let p = phi.get(i).map_or(DVec3::ZERO, |p| DVec3::from_array(*p));
                 self.tau[i] = (self.tau[i] + p) * (r_new * r_new) / (r * r);
                 self.n[i] = n_new;
                 self.r[i] = r_new;

@@ -220,8 +220,8 @@ impl MetropolisMethod {
         let b = f.brightness / f.count.max(1) as f64;
         let scale = b * f.exposure as f64 / self.mutations.max(1) as f64;
         for (px, s) in image.pixels.iter_mut().zip(&f.chain) {
-            for c in 0..3 {
-                px.rgb[c] += (s[c] as f64 * scale) as f32;
+            for (p, v) in px.rgb.iter_mut().zip(s) {
+                *p += (*v as f64 * scale) as f32;
             }
         }
         image

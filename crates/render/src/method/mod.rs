@@ -549,7 +549,7 @@ pub trait Plan: Send + Sync {
     fn preview(&self, frame: u32, state: &dyn Payload) -> Image;
 }
 
-fn frame_state<'a, M: Method>(state: &'a dyn Payload) -> Result<&'a M::Frame, String> {
+fn frame_state<M: Method>(state: &dyn Payload) -> Result<&M::Frame, String> {
     state.as_any().downcast_ref::<M::Frame>().ok_or_else(|| {
         format!(
             "a frame state of another method than {}",

@@ -293,8 +293,8 @@ impl Method for SppmMethod {
                     }
                     last = Some(p);
                     let i = p as usize;
-                    for c in 0..3 {
-                        f.phi[i][c] += ph[c] as f64;
+                    for (p, v) in f.phi[i].iter_mut().zip(ph) {
+                        *p += *v as f64;
                     }
                     f.m[i] += mi as u64;
                 }

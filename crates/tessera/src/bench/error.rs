@@ -330,18 +330,14 @@ impl Progressive<'_> {
         threads: usize,
     ) -> anyhow::Result<()> {
         if !self.fresh {
-            match &mut self.state {
-                None => {
-                    let (state, done) =
-                        self.local.frame_with_state(1).map_err(anyhow::Error::msg)?;
-                    self.state = Some(state);
-                    self.image = Some(done.image);
-                    self.samples = self.local.desc.integrator.spp;
-                    if self.samples >= n {
-                        return Ok(());
-                    }
+            if self.state.is_none() {
+                let (state, done) = self.local.frame_with_state(1).map_err(anyhow::Error::msg)?;
+                self.state = Some(state);
+                self.image = Some(done.image);
+                self.samples = self.local.desc.integrator.spp;
+                if self.samples >= n {
+                    return Ok(());
                 }
-                Some(_) => {}
             }
             let state = self.state.as_mut().context("no frame to continue")?;
             match self.local.more(1, state.as_mut(), n) {

@@ -135,6 +135,12 @@ pub(super) fn peak_rss_mib(pid: u32) -> Option<f64> {
     Some(kib / 1024.0)
 }
 
+/// Resets a process's peak resident memory to its current size (Linux: `clear_refs` 5), so
+/// that the next [`peak_rss_mib`] is the peak since; false where that is not possible.
+fn reset_peak_rss(pid: u32) -> bool {
+    std::fs::write(format!("/proc/{pid}/clear_refs"), "5").is_ok()
+}
+
 /// Bytes under `dir`, and under its `cache` folder.
 fn disk_use(dir: &Path) -> (u64, u64) {
     fn walk(p: &Path) -> u64 {
@@ -232,6 +238,17 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
             .and_then(|l| l.split_whitespace().next())
             .and_then(|v| v.parse::<f64>().ok());
 
+        let farm_pids: Vec<u32> = std::iter::once(serve_pid)
+            .chain(
+                client
+                    .workers()
+                    .await?
+                    .iter()
+                    .filter(|w| w.alive)
+                    .map(|w| w.pid),
+            )
+            .collect();
+        let per_job = farm_pids.iter().all(|&pid| reset_peak_rss(pid));
         let t = Instant::now();
         let info = client.upload_bundle(tar.clone()).await?;
         let job = client
@@ -285,7 +302,7 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
             .filter_map(|w| peak_rss_mib(w.pid).map(|m| format!("{m:.0}")))
             .collect();
         crate::print(&format!(
-            "{method:>8}: render {:.2} s, farm {:.2} s ({} tasks), EXR {}; peak resident MiB so far: render {}, coordinator {}, workers {}\n",
+            "{method:>8}: render {:.2} s, farm {:.2} s ({} tasks), EXR {}; peak resident MiB: render {}; {}: coordinator {}, workers {}\n",
             run.render_s,
             run.farm_s,
             run.tasks,
@@ -295,6 +312,11 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
                 "DIFFERS"
             },
             render_mib.map_or("?".into(), |m| format!("{m:.0}")),
+            if per_job {
+                "during this job"
+            } else {
+                "since they started"
+            },
             peak_rss_mib(serve_pid).map_or("?".into(), |m| format!("{m:.0}")),
             worker_peaks.join(", ")
         ))?;
