@@ -98,6 +98,21 @@ fn class(m: &MaterialKind) -> Class {
                 Class::Diffuse
             }
         }
+        MaterialKind::MetallicRoughness {
+            base_color,
+            metallic,
+            roughness,
+            ..
+        } => {
+            let glossy = roughness * roughness >= SPECULAR_ALPHA;
+            if *metallic >= 1.0 && black(*base_color) {
+                Class::Black
+            } else if *metallic >= 1.0 && !glossy {
+                Class::Specular
+            } else {
+                Class::Diffuse
+            }
+        }
         // Light leaves a translucent surface in every direction, as from a diffuse one.
         MaterialKind::Subsurface { .. } => Class::Diffuse,
         MaterialKind::KubelkaMunk { .. } | MaterialKind::HanrahanKrueger { .. } => Class::Diffuse,
@@ -369,6 +384,12 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
             "no environment: rays that leave the scene carry nothing".into()
         },
     });
+    // What the scene's files hold that is read but not modelled: the user must see it.
+    decisions.extend(desc.warnings.iter().map(|w| Decision {
+        topic: "not modelled",
+        choice: "ignored".into(),
+        reason: w.clone(),
+    }));
     Analysis {
         method: integrator,
         caustics,

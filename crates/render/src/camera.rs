@@ -8,7 +8,9 @@ use glam::{Vec2, Vec3A};
 use tessera_scene::{CameraDesc, FilmDesc, Lens};
 
 use crate::ray::Ray;
+use crate::sampler::{PixelSampler, Sampler};
 use crate::sampling::square_to_disk;
+use crate::scene::Scene;
 
 /// A point on the lens seen from a scene point, with the importance it carries.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -231,6 +233,26 @@ impl Camera {
     pub fn depth(&self, p: Vec3A) -> f32 {
         (p - self.position).dot(self.forward)
     }
+}
+
+/// The camera ray of the pixel sample `sampler` was started at, and its filter weight f/pdf:
+/// the film position drawn from the film's filter about the pixel centre, then the lens
+/// point. Every integrator starts its pixel samples here, so they see the same film.
+#[inline]
+pub(crate) fn camera_ray(
+    scene: &Scene,
+    camera: &Camera,
+    pixel: glam::UVec2,
+    sampler: &mut PixelSampler,
+) -> (Ray, f32) {
+    let (offset, w) = scene.filter.sample(sampler.get_2d());
+    let film = pixel.as_vec2() + Vec2::splat(0.5) + offset;
+    let u_lens = if camera.has_aperture() {
+        sampler.get_2d()
+    } else {
+        Vec2::ZERO
+    };
+    (camera.generate_ray(film, u_lens), w)
 }
 
 #[cfg(test)]

@@ -18,6 +18,7 @@ pub mod math;
 pub mod method;
 pub mod metrics;
 pub mod output;
+pub mod phase;
 pub mod photon;
 pub mod ray;
 pub mod render;
@@ -25,6 +26,7 @@ pub mod sampler;
 pub mod sampling;
 pub mod scene;
 pub mod spectrum;
+pub mod stats;
 pub mod wire;
 
 pub use error::RenderError;

@@ -3,34 +3,13 @@
 //! [`render_tile`] is a pure function of (scene, camera, tile, sample range): the unit of work
 //! a farm task carries. [`render_frame`] runs all tiles of a frame on the current rayon pool.
 
-use glam::Vec2;
 use rayon::prelude::*;
 
-use crate::camera::Camera;
+use crate::camera::{Camera, camera_ray};
 use crate::film::{Aov, Image, SampleRange, Tile, TileSums, tiles};
 use crate::integrator::{Integrator, RayStats};
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::Scene;
-
-/// The camera ray of the pixel sample `sampler` was started at, and its filter weight f/pdf:
-/// the film position drawn from the film's filter about the pixel centre, then the lens
-/// point. Every integrator starts its pixel samples here, so they see the same film.
-#[inline]
-pub(crate) fn camera_ray(
-    scene: &Scene,
-    camera: &Camera,
-    pixel: glam::UVec2,
-    sampler: &mut PixelSampler,
-) -> (crate::ray::Ray, f32) {
-    let (offset, w) = scene.filter.sample(sampler.get_2d());
-    let film = pixel.as_vec2() + Vec2::splat(0.5) + offset;
-    let u_lens = if camera.has_aperture() {
-        sampler.get_2d()
-    } else {
-        Vec2::ZERO
-    };
-    (camera.generate_ray(film, u_lens), w)
-}
 
 /// Renders samples `range` of every pixel of `tile`, seen by `camera`.
 pub fn render_tile(

@@ -31,7 +31,15 @@ const SHADOW_EPSILON: f32 = 1e-4;
 pub struct Material {
     pub bsdf: Box<dyn Bsdf>,
     pub flags: BsdfFlags,
-    pub subsurface: Option<Box<Subsurface>>,
+    pub subsurface: Option<Box<Translucent>>,
+}
+
+/// A translucent material's BSSRDF and its exit lobe Sw, the material a path continues with
+/// after subsurface transport.
+#[derive(Debug)]
+pub struct Translucent {
+    pub bssrdf: Subsurface,
+    pub exit: Material,
 }
 
 impl Material {
@@ -44,7 +52,10 @@ impl Material {
             g,
         } = *kind
         {
-            m.subsurface = Some(Box::new(Subsurface::new(sigma_s_prime, sigma_a, eta, g)));
+            m.subsurface = Some(Box::new(Translucent {
+                bssrdf: Subsurface::new(sigma_s_prime, sigma_a, eta, g),
+                exit: Material::from_bsdf(Box::new(bsdf::SubsurfaceExit::new(eta))),
+            }));
         }
         m
     }

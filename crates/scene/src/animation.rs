@@ -8,7 +8,7 @@
 
 use glam::Vec3;
 
-use crate::desc::CameraDesc;
+use crate::camera::CameraDesc;
 
 /// One keyframe, in scene units and radians (validated).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -9,6 +9,7 @@
 
 use glam::{Mat3, Vec3};
 
+pub use crate::camera::{CameraDesc, Lens};
 pub use crate::file::{Distribution, FovAxis, PhotonFilter, SamplerType, SubsurfaceMethod};
 
 /// A scene ready to render.
@@ -26,6 +27,9 @@ pub struct SceneDesc {
     pub meshes: Vec<MeshDesc>,
     pub spheres: Vec<SphereDesc>,
     pub lights: Vec<LightDesc>,
+    /// What the scene's files hold that is read but not modelled (a glTF texture, say), for
+    /// the render summary and the job's decisions.
+    pub warnings: Vec<String>,
 }
 
 impl SceneDesc {
@@ -50,28 +54,6 @@ impl SceneDesc {
             None => self.camera,
         }
     }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CameraDesc {
-    pub position: Vec3,
-    pub look_at: Vec3,
-    pub up: Vec3,
-    /// Full vertical field of view, radians.
-    pub fov_y: f32,
-    pub lens: Lens,
-    /// Multiplier from radiance to pixel value (1 without a physical exposure).
-    pub exposure_scale: f32,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Lens {
-    Pinhole,
-    /// Thin lens with aperture radius and focus distance, both in scene units.
-    Thin {
-        aperture_radius: f32,
-        focus_distance: f32,
-    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -189,6 +171,18 @@ pub enum MaterialKind {
     },
     Mirror {
         reflectance: Vec3,
+    },
+    /// The glTF 2.0 metallic-roughness BRDF (its appendix B): a Lambertian base under a GGX
+    /// layer with Schlick's Fresnel (F0 from `ior` and the KHR_materials_specular colour and
+    /// weight), blended with a metal of reflectance `base_color` by `metallic`; GGX
+    /// α = roughness².
+    MetallicRoughness {
+        base_color: Vec3,
+        metallic: f32,
+        roughness: f32,
+        ior: f32,
+        specular_color: Vec3,
+        specular: f32,
     },
     /// A translucent object: a smooth dielectric interface of relative index `eta` around a
     /// homogeneous scattering medium — reduced scattering σs′ = σs (1 − g) and absorption σa

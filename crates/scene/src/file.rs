@@ -481,6 +481,16 @@ fn yes() -> bool {
     true
 }
 
+/// A glTF 2.0 file (`.gltf` or `.glb`): its meshes, materials and lights, its metres converted
+/// to the scene's units, then placed by `transform`. Its cameras are not used.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GltfShape {
+    pub file: String,
+    #[serde(default)]
+    pub transform: Vec<TransformStep>,
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct QuadShape {
@@ -679,6 +689,27 @@ pub struct HanrahanKruegerMaterial {
 pub struct MirrorMaterial {
     #[serde(default)]
     pub reflectance: Option<Color>,
+}
+
+/// The glTF 2.0 metallic-roughness material (as glTF files give it, so scene.json can too).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MetallicRoughnessMaterial {
+    /// Linear base colour (default white).
+    #[serde(default)]
+    pub base_color: Option<Color>,
+    #[serde(default)]
+    pub metallic: Option<f32>,
+    /// Perceptual roughness in [0, 1]; GGX α = roughness².
+    #[serde(default)]
+    pub roughness: Option<f32>,
+    /// Index of refraction of the dielectric layer (default 1.5).
+    #[serde(default)]
+    pub ior: Option<f32>,
+    #[serde(default)]
+    pub specular_color: Option<Color>,
+    #[serde(default)]
+    pub specular: Option<f32>,
 }
 
 // The lights repeat their brightness fields (`power`, `color`, `temperature_k`, ...) rather

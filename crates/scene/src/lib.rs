@@ -4,9 +4,11 @@
 //! expected — never a panic.
 
 pub mod animation;
+pub mod camera;
 pub mod desc;
 pub mod error;
 pub mod file;
+pub mod gltf;
 pub mod image;
 pub mod media;
 pub mod mesh;
@@ -20,7 +22,7 @@ use std::path::Path;
 pub use animation::{CameraPath, Keyframe};
 pub use desc::*;
 pub use error::{Problem, SceneError};
-pub use resolve::{MAX_FILM_SIDE, MAX_FRAMES, box_mesh};
+pub use resolve::{MAX_FILM_SIDE, MAX_FRAMES, box_mesh, is_gltf};
 pub use source::{DirSource, SceneSource};
 
 /// Loads and validates the scene file at `path` (a `scene.json`); referenced files are

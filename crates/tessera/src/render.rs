@@ -250,6 +250,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     if let Some(d) = analysis.decisions.first() {
         report += &format!("{d}\n");
     }
+    for w in &desc.warnings {
+        report += &format!("warning: {w}\n");
+    }
     for p in &passes {
         report += &format!("{p}\n");
     }

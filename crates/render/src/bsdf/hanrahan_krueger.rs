@@ -18,8 +18,8 @@
 use glam::{Vec2, Vec3A};
 
 use super::{Bsdf, BsdfFlags, BsdfSample, TransportMode, diffuse_pdf, fresnel, sample_diffuse};
-use crate::bssrdf::hg;
 use crate::math::INV_PI;
+use crate::phase::hg;
 use crate::spectrum::Spectrum;
 
 #[derive(Debug, Clone)]
@@ -134,7 +134,7 @@ impl Bsdf for HanrahanKrueger {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bssrdf::sample_hg;
+    use crate::phase::sample_hg;
     use crate::sampler::hash::{mix64, u32_to_unit};
 
     /// The fraction of light arriving from `wi` that the first-order model reflects, less the

@@ -16,6 +16,7 @@ mod glossy;
 mod hanrahan_krueger;
 pub mod kubelka_munk;
 mod lambert;
+mod metallic_roughness;
 pub mod microfacet;
 mod mirror;
 mod oren_nayar;
@@ -38,6 +39,7 @@ pub use dielectric::SmoothDielectric;
 pub use glossy::{GlossyLobe, WithDiffuse};
 pub use hanrahan_krueger::HanrahanKrueger;
 pub use lambert::Lambert;
+pub use metallic_roughness::MetallicRoughness;
 pub use microfacet::Microfacet;
 pub use mirror::Mirror;
 pub use oren_nayar::OrenNayar;
@@ -197,6 +199,21 @@ pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
             }
         }
         MaterialKind::Mirror { reflectance } => Box::new(Mirror::new(v(reflectance))),
+        MaterialKind::MetallicRoughness {
+            base_color,
+            metallic,
+            roughness,
+            ior,
+            specular_color,
+            specular,
+        } => Box::new(MetallicRoughness::new(
+            v(base_color),
+            metallic,
+            roughness,
+            ior,
+            v(specular_color),
+            specular,
+        )),
         // The interface of a translucent object; what enters is the BSSRDF's (`bssrdf`).
         MaterialKind::Subsurface { eta, .. } => Box::new(SmoothDielectric::new(eta)),
         MaterialKind::KubelkaMunk {

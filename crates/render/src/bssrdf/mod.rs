@@ -3,13 +3,10 @@
 //!
 //! - [`dipole`]: Jensen et al. 2001's diffusion profile Rd(r) and its measured media;
 //! - [`profile`]: Rd tabulated per channel for sampling exit radii;
-//! - [`hierarchical`]: Jensen & Buhler 2002 — irradiance on a point cloud, summed through an
-//!   octree;
-//! - [`probe`]: the sampled BSSRDF of the path tracer — exit points found by probe rays along
-//!   three axes (pbrt-v3 §15.4, after Mertens et al.'s tangent-plane sampling);
-//! - [`single`]: Jensen et al. 2001's single-scattering term, added by both dipole methods;
-//! - [`walk`]: the brute-force reference, a volumetric random walk inside the object;
-//! - [`random_walk`]: the same walk in a semi-infinite slab, the dipole's own test.
+//! - [`random_walk`]: a volumetric random walk in a semi-infinite slab, the dipole's own test.
+//!
+//! These are functions of distance and medium alone; finding entry and exit points in a scene
+//! (probe rays, point clouds, the walk inside a mesh) is [`crate::integrator::subsurface`]'s.
 //!
 //! A translucent material is a smooth dielectric interface ([`crate::bsdf::SmoothDielectric`])
 //! whose transmitted light, instead of refracting, is carried by the BSSRDF
@@ -20,24 +17,17 @@
 //! al. 2001 do; the random walk holds every order of scattering by itself.
 
 pub mod dipole;
-pub mod hierarchical;
-pub mod probe;
 pub mod profile;
 pub mod random_walk;
-pub mod single;
-pub mod walk;
 
-use glam::{Vec2, Vec3, Vec3A};
+use glam::{Vec3, Vec3A};
 
-use crate::bsdf::SubsurfaceExit;
-use crate::math::Frame;
-use crate::scene::Material;
 use crate::spectrum::Spectrum;
 use dipole::{Dipole, Medium};
 use profile::{RadialTable, RdLookup};
 
 /// What a translucent material carries beyond its interface: the medium (per scene unit), its
-/// dipoles and sampling tables, and the exit lobe as a material of its own.
+/// dipoles and sampling tables.
 #[derive(Debug)]
 pub struct Subsurface {
     /// Scattering σs = σs′ / (1 − g) and absorption σa, per scene unit.
@@ -50,15 +40,12 @@ pub struct Subsurface {
     dipoles: [Dipole; 3],
     tables: [RadialTable; 3],
     lookup: RdLookup,
-    /// The exit lobe Sw, where the path continues after subsurface transport.
-    pub exit: Material,
 }
 
 impl Subsurface {
     pub fn new(sigma_s_prime: Vec3, sigma_a: Vec3, eta: f32, g: f32) -> Self {
         let medium = Medium::new(sigma_s_prime, sigma_a, eta);
         let dipoles = [0, 1, 2].map(|c| Dipole::new(&medium, c));
-        let exit = SubsurfaceExit::new(eta);
         let tables = dipoles.map(|d| RadialTable::new(&d));
         let r_max = tables.iter().map(RadialTable::r_max).fold(0.0, f32::max);
         Subsurface {
@@ -69,7 +56,6 @@ impl Subsurface {
             tables,
             lookup: RdLookup::new(&dipoles, r_max),
             dipoles,
-            exit: Material::from_bsdf(Box::new(exit)),
         }
     }
 
@@ -90,31 +76,4 @@ impl Subsurface {
     pub fn table(&self, c: usize) -> &RadialTable {
         &self.tables[c]
     }
-}
-
-/// cos θ between the old and new direction, sampled from the Henyey–Greenstein phase function
-/// with mean cosine `g` (uniform at g = 0) by inverting its CDF (pbrt-v4 §11.3.1).
-pub fn hg_cos(g: f64, u: f64) -> f64 {
-    if g.abs() < 1e-3 {
-        1.0 - 2.0 * u
-    } else {
-        let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
-        ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
-    }
-}
-
-/// The Henyey–Greenstein phase function per steradian at cosine `cos` between the directions
-/// of travel before and after scattering: (1 − g²) / (4π (1 + g² − 2g cos)^(3/2)).
-#[inline]
-pub fn hg(cos: f32, g: f32) -> f32 {
-    let d = 1.0 + g * g - 2.0 * g * cos;
-    (1.0 - g * g) / (4.0 * std::f32::consts::PI * d * d.sqrt())
-}
-
-/// A direction scattered from unit `d` by the Henyey–Greenstein phase function.
-pub fn sample_hg(d: Vec3A, g: f32, u: Vec2) -> Vec3A {
-    let cos = hg_cos(g as f64, u.x as f64) as f32;
-    let sin = (1.0 - cos * cos).max(0.0).sqrt();
-    let (s, c) = (2.0 * std::f32::consts::PI * u.y).sin_cos();
-    Frame::from_normal(d).to_world(Vec3A::new(sin * c, sin * s, cos))
 }

@@ -108,7 +108,7 @@ fn fresnel(cos_i: f64, eta: f64) -> f64 {
 /// A direction scattered from `d` by the Henyey–Greenstein phase function with mean cosine
 /// `g` (uniform over the sphere at g = 0).
 fn henyey_greenstein(d: [f64; 3], g: f64, u1: f64, u2: f64) -> [f64; 3] {
-    let cos = super::hg_cos(g, u1);
+    let cos = crate::phase::hg_cos(g, u1);
     let sin = (1.0 - cos * cos).max(0.0).sqrt();
     let phi = 2.0 * std::f64::consts::PI * u2;
     // A frame around d.

@@ -13,6 +13,7 @@ mod path;
 mod photon;
 pub mod pssmlt;
 pub mod sppm;
+pub mod subsurface;
 pub mod vcm;
 
 use glam::{Vec2, Vec3A};
@@ -21,14 +22,15 @@ use tessera_scene::{IntegratorDesc, SceneDesc, SubsurfaceMethod};
 use crate::analysis::Analysis;
 
 use crate::bsdf::TransportMode;
-use crate::bssrdf::hierarchical::{Placement, PointClouds};
 use crate::math::Frame;
 use crate::ray::Ray;
 use crate::sampler::PixelSampler;
 use crate::sampling::power_heuristic;
 use crate::scene::{Material, Scene, SurfaceInteraction};
 use crate::spectrum::{Spectrum, is_black};
+use subsurface::hierarchical::{Placement, PointClouds};
 
+pub use crate::stats::RayStats;
 pub use path::PathIntegrator;
 pub use photon::{PhotonIntegrator, keyframes, record_tiles};
 
@@ -107,24 +109,6 @@ pub(crate) fn sample_direct(
         power_heuristic(p_light, material.bsdf.pdf(wo_local, wi_local, mode))
     };
     f * ls.li * (w / p_light)
-}
-
-/// Counters kept per tile (no shared state in the sample loop).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub struct RayStats {
-    /// Rays traced: camera, continuation and shadow rays.
-    pub rays: u64,
-    pub samples: u64,
-    /// Samples whose radiance was NaN or infinite and was dropped before the film.
-    pub nonfinite: u64,
-}
-
-impl RayStats {
-    pub fn add(&mut self, o: &RayStats) {
-        self.rays += o.rays;
-        self.samples += o.samples;
-        self.nonfinite += o.nonfinite;
-    }
 }
 
 /// The first surface a camera ray hit, for the AOVs.

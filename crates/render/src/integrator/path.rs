@@ -5,16 +5,16 @@ use std::sync::Arc;
 use glam::{Vec2, Vec3A};
 use tessera_scene::SubsurfaceMethod;
 
+use super::subsurface::hierarchical::{self, PointClouds};
+use super::subsurface::{probe, single, walk};
 use super::{Integrator, RadianceSample, RayStats, consistent, sample_direct};
 use crate::bsdf::TransportMode;
-use crate::bssrdf::hierarchical::{self, PointClouds};
-use crate::bssrdf::{Subsurface, probe, single, walk};
 use crate::integrator::FirstHit;
 use crate::math::Frame;
 use crate::ray::Ray;
 use crate::sampler::{PixelSampler, Sampler};
 use crate::sampling::power_heuristic;
-use crate::scene::{Material, NO_LIGHT, Scene, SurfaceInteraction};
+use crate::scene::{Material, NO_LIGHT, Scene, SurfaceInteraction, Translucent};
 use crate::spectrum::{Spectrum, is_black};
 
 #[derive(Debug, Clone)]
@@ -269,7 +269,7 @@ impl PathIntegrator {
         scene: &Scene,
         si: &SurfaceInteraction,
         wi: Vec3A,
-        sub: &Subsurface,
+        sub: &Translucent,
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
         l: &mut Spectrum,
@@ -277,19 +277,19 @@ impl PathIntegrator {
     ) -> Option<Exit> {
         if self.subsurface != SubsurfaceMethod::RandomWalk {
             // Jensen et al. 2001's BSSRDF: single scattering plus the dipole's diffusion.
-            *l += beta * single::single_scatter(scene, si, wi, sub, sampler, stats);
+            *l += beta * single::single_scatter(scene, si, wi, &sub.bssrdf, sampler, stats);
         }
         match self.subsurface {
             SubsurfaceMethod::Hierarchical => {
                 // The path ends here: the cloud's irradiance holds all the light that enters.
                 if let Some(tree) = self.clouds.as_ref().and_then(|c| c.get(si.material)) {
-                    *l += beta * tree.exitance(si.p, sub, hierarchical::EPSILON);
+                    *l += beta * tree.exitance(si.p, &sub.bssrdf, hierarchical::EPSILON);
                 }
                 None
             }
             SubsurfaceMethod::Dipole => {
-                let (pi, w) = probe::sample_exit(scene, si, sub, sampler.get_4d(), stats)?;
-                let (direct, exit) = leave(scene, &pi, sub, sampler, stats);
+                let (pi, w) = probe::sample_exit(scene, si, &sub.bssrdf, sampler.get_4d(), stats)?;
+                let (direct, exit) = leave(scene, &pi, &sub.exit, sampler, stats);
                 *l += beta * w * direct;
                 exit.map(|e| Exit {
                     weight: w * e.weight,
@@ -297,7 +297,7 @@ impl PathIntegrator {
                 })
             }
             SubsurfaceMethod::RandomWalk => {
-                let (exit, d, w) = walk::walk(scene, si, wi, sub, sampler, stats)?;
+                let (exit, d, w) = walk::walk(scene, si, wi, &sub.bssrdf, sampler, stats)?;
                 Some(Exit {
                     weight: w,
                     specular: true,
@@ -328,11 +328,11 @@ impl PathIntegrator {
         &self,
         scene: &Scene,
         si: &SurfaceInteraction,
-        sub: &Subsurface,
+        sub: &Translucent,
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
     ) -> Spectrum {
-        let (direct, exit) = leave(scene, si, sub, sampler, stats);
+        let (direct, exit) = leave(scene, si, &sub.exit, sampler, stats);
         let Some(exit) = exit else {
             return direct;
         };
@@ -346,22 +346,21 @@ impl PathIntegrator {
     }
 }
 
-/// At exit point `pi` of translucent `sub` (its frame facing out): the light arriving there
-/// as the exit lobe weighs it, by light sampling (MIS-weighted), and the lobe's sampled
+/// At exit point `pi` of a translucent object (its frame facing out): the light arriving there
+/// as its exit lobe `exit_lobe` weighs it, by light sampling (MIS-weighted), and the lobe's sampled
 /// direction to continue along (`None` if it fails or points into the surface).
 fn leave(
     scene: &Scene,
     pi: &SurfaceInteraction,
-    sub: &Subsurface,
+    exit_lobe: &Material,
     sampler: &mut PixelSampler,
     stats: &mut RayStats,
 ) -> (Spectrum, Option<Exit>) {
     let frame = Frame::from_normal(pi.ns);
     let u = sampler.get_3d();
-    let direct = sample_direct(scene, pi, &sub.exit, &frame, pi.ns, u, true, stats);
+    let direct = sample_direct(scene, pi, exit_lobe, &frame, pi.ns, u, true, stats);
     let u = sampler.get_4d();
-    let exit = sub
-        .exit
+    let exit = exit_lobe
         .bsdf
         .sample(Vec3A::Z, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
         .and_then(|bs| {

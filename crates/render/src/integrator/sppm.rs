@@ -266,7 +266,7 @@ fn visible_point(
 ) -> (Spectrum, f32, Option<VisiblePoint>) {
     sampler.start_pixel_sample(pixel, iteration);
     // The film filter as the path tracer samples it: the weight rides on β.
-    let (mut ray, w) = crate::render::camera_ray(scene, camera, pixel, sampler);
+    let (mut ray, w) = crate::camera::camera_ray(scene, camera, pixel, sampler);
     let mut beta = Spectrum::splat(w);
     let mut l = Spectrum::ZERO;
     for _ in 0..max_depth.max(1) {

@@ -8,8 +8,8 @@ use half::f16;
 use super::TaskSpec;
 use super::film::AovSums;
 use crate::camera::Camera;
+use crate::camera::camera_ray;
 use crate::film::{SampleRange, Tile, tiles};
-use crate::render::camera_ray;
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::Scene;
 

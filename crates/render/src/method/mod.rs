@@ -37,100 +37,17 @@ use std::ops::RangeInclusive;
 use std::sync::Arc;
 use std::time::Duration;
 
+use serde::Serialize;
 use serde::de::DeserializeOwned;
-use serde::{Deserialize, Serialize};
 use tessera_scene::SceneDesc;
 
-use crate::film::{Image, SampleRange, Tile};
+use crate::film::Image;
 use crate::scene::Scene;
+pub use crate::wire::TaskSpec;
 use crate::wire::{self, Header, Sizes, WireError};
 
 pub use registry::{METHODS, MethodInfo, lookup, names, plan};
 pub use tiles::Adaptive;
-
-/// A unit of work of a frame or of a pass: what it computes, where it folds, and the pixels
-/// and index range it covers. Methods give the fields their meaning; the farm stores, leases
-/// and orders tasks by them without knowing it.
-#[derive(Debug, Clone, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
-pub struct TaskSpec {
-    /// What the task computes, in its method's words (`tile`, `aov`, `photons`, …).
-    pub kind: String,
-    /// The frame (from 1), or 0 for a pass's task.
-    pub frame: u32,
-    /// The frame's step (an adaptive round, an SPPM iteration), or the pass's position in
-    /// the job's list of passes.
-    pub step: u32,
-    /// Position in fold order within the step (or pass).
-    pub index: u32,
-    /// Pixels [x0, x1) × [y0, y1) it covers (empty for a pass's task).
-    pub x0: u32,
-    pub y0: u32,
-    pub x1: u32,
-    pub y1: u32,
-    /// Index range [start, end): samples, iterations, photons, points or chains.
-    pub start: u32,
-    pub end: u32,
-}
-
-impl TaskSpec {
-    /// A task covering no pixels and an empty range.
-    pub fn new(kind: &str, frame: u32, step: u32, index: u32) -> Self {
-        TaskSpec {
-            kind: kind.into(),
-            frame,
-            step,
-            index,
-            x0: 0,
-            y0: 0,
-            x1: 0,
-            y1: 0,
-            start: 0,
-            end: 0,
-        }
-    }
-
-    pub fn with_rect(mut self, t: Tile) -> Self {
-        (self.x0, self.y0, self.x1, self.y1) = (t.x0, t.y0, t.x1, t.y1);
-        self
-    }
-
-    pub fn with_range(mut self, start: u32, end: u32) -> Self {
-        (self.start, self.end) = (start, end);
-        self
-    }
-
-    pub fn tile(&self) -> Tile {
-        Tile {
-            x0: self.x0,
-            y0: self.y0,
-            x1: self.x1.max(self.x0),
-            y1: self.y1.max(self.y0),
-        }
-    }
-
-    pub fn samples(&self) -> SampleRange {
-        SampleRange {
-            start: self.start,
-            end: self.end.max(self.start),
-        }
-    }
-
-    /// Pixels it covers.
-    pub fn pixels(&self) -> u64 {
-        self.tile().pixel_count() as u64
-    }
-
-    /// An estimate of its work: pixels × samples, or the items of its range.
-    pub fn work(&self) -> u64 {
-        self.pixels().max(1) * self.samples().len().max(1) as u64
-    }
-
-    /// Whether this is a pass's task.
-    pub fn is_pass(&self) -> bool {
-        self.frame == 0
-    }
-}
 
 /// A job as methods see it: the scene with the job's settings applied, the frames to render,
 /// and how the job wants its work cut.

@@ -206,6 +206,38 @@ impl Ctx<'_> {
                     ),
                 }
             }
+            "metallic_roughness" => {
+                let m: MetallicRoughnessMaterial = self.body(path, t)?;
+                let unit = |ctx: &mut Self, field: &str, v: Option<f32>, default: f32| {
+                    ctx.range(
+                        &format!("{path}.{field}"),
+                        v.unwrap_or(default),
+                        0.0,
+                        1.0,
+                        "a number in [0, 1]",
+                    )
+                };
+                MaterialKind::MetallicRoughness {
+                    base_color: self.albedo(
+                        &format!("{path}.base_color"),
+                        m.base_color.unwrap_or(NumOrArray::One(1.0)),
+                    ),
+                    metallic: unit(self, "metallic", m.metallic, 1.0),
+                    roughness: unit(self, "roughness", m.roughness, 1.0),
+                    ior: self.range(
+                        &format!("{path}.ior"),
+                        m.ior.unwrap_or(1.5),
+                        1.0,
+                        10.0,
+                        "an index of refraction in [1, 10]",
+                    ),
+                    specular_color: self.non_negative3(
+                        &format!("{path}.specular_color"),
+                        m.specular_color.unwrap_or(NumOrArray::One(1.0)).expand(),
+                    ),
+                    specular: unit(self, "specular", m.specular, 1.0),
+                }
+            }
             "subsurface" => {
                 let m: SubsurfaceMaterial = self.body(path, t)?;
                 self.subsurface(path, &m, metres_per_unit)
@@ -288,6 +320,7 @@ impl Ctx<'_> {
                         "conductor",
                         "dielectric",
                         "mirror",
+                        "metallic_roughness",
                         "subsurface",
                         "kubelka_munk",
                         "hanrahan_krueger",

@@ -4,12 +4,14 @@
 //! Every check records a [`Problem`] and carries on, so a user sees all that is wrong at once.
 
 mod camera;
+mod gltf;
 mod light;
 mod material;
 mod shapes;
 
+pub use gltf::is_gltf;
 pub use shapes::box_mesh;
-use shapes::{ShapeEnv, Shapes};
+use shapes::{Geometry, ShapeEnv, Shapes, Surface};
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
@@ -44,28 +46,37 @@ pub const MAX_GATHER_RAYS: u32 = 65_536;
 /// Parses and validates the scene file `name` (relative to `source`).
 pub fn load(source: &dyn SceneSource, name: &Path) -> Result<SceneDesc, SceneError> {
     let file = source.display_path(name);
-    let bytes = source.read(name).map_err(|e| SceneError::Io {
-        file: file.clone(),
-        source: e,
-    })?;
-    let de = &mut serde_json::Deserializer::from_slice(&bytes);
-    let parsed: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
-        let path = e.path().to_string();
-        SceneError::Invalid(vec![Problem {
-            file: file.clone(),
-            path: if path == "." { String::new() } else { path },
-            message: e.into_inner().to_string(),
-        }])
-    })?;
     let default_name = name
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
     let mut ctx = Ctx {
         source,
-        file,
+        file: file.clone(),
         problems: Vec::new(),
         meshes: HashMap::new(),
+        gltfs: HashMap::new(),
+        warnings: Vec::new(),
+    };
+    let parsed = if is_gltf(name) {
+        match ctx.gltf_scene_file(name) {
+            Some(f) => f,
+            None => return Err(SceneError::Invalid(ctx.problems)),
+        }
+    } else {
+        let bytes = source.read(name).map_err(|e| SceneError::Io {
+            file: file.clone(),
+            source: e,
+        })?;
+        let de = &mut serde_json::Deserializer::from_slice(&bytes);
+        serde_path_to_error::deserialize(de).map_err(|e| {
+            let path = e.path().to_string();
+            SceneError::Invalid(vec![Problem {
+                file: file.clone(),
+                path: if path == "." { String::new() } else { path },
+                message: e.into_inner().to_string(),
+            }])
+        })?
     };
     let desc = ctx.scene(parsed, default_name);
     if ctx.problems.is_empty() {
@@ -82,6 +93,10 @@ struct Ctx<'s> {
     problems: Vec<Problem>,
     /// Mesh files by confined path; `None` if loading failed (reported once).
     meshes: HashMap<PathBuf, Option<Arc<RawMesh>>>,
+    /// glTF files likewise.
+    gltfs: HashMap<PathBuf, Option<Arc<crate::gltf::GltfScene>>>,
+    /// What was read but not modelled.
+    warnings: Vec<String>,
 }
 
 impl Ctx<'_> {
@@ -203,7 +218,7 @@ impl Ctx<'_> {
             .enumerate()
             .map(|(i, k)| (k.clone(), i as u32))
             .collect();
-        let materials = f
+        let mut materials: Vec<MaterialDesc> = f
             .materials
             .iter()
             .map(|(name, t)| MaterialDesc {
@@ -217,6 +232,9 @@ impl Ctx<'_> {
             meshes: Vec::new(),
             spheres: Vec::new(),
             metres_per_unit,
+            first_material: materials.len() as u32,
+            materials: Vec::new(),
+            lights: Vec::new(),
         };
         let env = ShapeEnv {
             materials: &material_index,
@@ -231,12 +249,17 @@ impl Ctx<'_> {
             &mut stack,
             &mut out,
         );
-        let lights: Vec<LightDesc> = f
+        materials.append(&mut out.materials);
+        let mut lights: Vec<LightDesc> = f
             .lights
             .iter()
             .enumerate()
             .filter_map(|(i, t)| self.light(&format!("lights[{i}]"), t, metres_per_unit))
             .collect();
+        lights.append(&mut out.lights);
+        for w in &self.warnings {
+            tracing::warn!(scene = %self.file.display(), "{w}");
+        }
         if lights.is_empty()
             && out.meshes.iter().all(|m| m.emission.is_none())
             && out.spheres.iter().all(|s| s.emission.is_none())
@@ -254,6 +277,7 @@ impl Ctx<'_> {
             meshes: out.meshes,
             spheres: out.spheres,
             lights,
+            warnings: std::mem::take(&mut self.warnings),
         }
     }
 }

@@ -179,11 +179,12 @@ impl Ctx<'_> {
                     self.shapes(shapes, &format!("objects.{}", s.object), m, env, stack, out);
                     stack.pop();
                 }
+                "gltf" => self.gltf_shape(&path, t, parent, out),
                 other => self.unknown_type(
                     &path,
                     "shape",
                     other,
-                    &["mesh", "quad", "box", "sphere", "instance"],
+                    &["mesh", "quad", "box", "sphere", "instance", "gltf"],
                 ),
             }
         }
@@ -294,22 +295,28 @@ pub(super) struct ShapeEnv<'a> {
 
 /// A shape's placement, material and emission, resolved.
 pub(super) struct Surface<'e> {
-    to_world: Affine3A,
-    material: u32,
-    emission: Option<&'e EmissionFile>,
+    pub(super) to_world: Affine3A,
+    pub(super) material: u32,
+    pub(super) emission: Option<&'e EmissionFile>,
 }
 
 /// A triangle mesh in its own coordinates.
 pub(super) struct Geometry<'g> {
-    positions: &'g [Vec3],
-    normals: Option<&'g [Vec3]>,
-    triangles: &'g [[u32; 3]],
+    pub(super) positions: &'g [Vec3],
+    pub(super) normals: Option<&'g [Vec3]>,
+    pub(super) triangles: &'g [[u32; 3]],
 }
 
 pub(super) struct Shapes {
     pub(super) meshes: Vec<MeshDesc>,
     pub(super) spheres: Vec<SphereDesc>,
     pub(super) metres_per_unit: f64,
+    /// Index the first material a shape brings (a glTF file's) will have: after the scene's.
+    pub(super) first_material: u32,
+    /// Materials brought by shapes, in order.
+    pub(super) materials: Vec<MaterialDesc>,
+    /// Lights brought by shapes.
+    pub(super) lights: Vec<LightDesc>,
 }
 
 /// An axis-aligned box as 12 triangles wound so that normals point outwards.

@@ -17,8 +17,8 @@ use rayon::prelude::*;
 
 use super::RayStats;
 use crate::camera::Camera;
+use crate::camera::camera_ray;
 use crate::film::{FilmSums, Image, TileSums, tiles};
-use crate::render::camera_ray;
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;

@@ -8,8 +8,8 @@ use sha2::{Digest, Sha256};
 use tessera_scene::{SceneDesc, SubsurfaceMethod};
 
 use super::{hash_scene, hex, index_ranges};
-use crate::bssrdf::hierarchical::{IRRADIANCE_SAMPLES, Placement, PointClouds};
 use crate::integrator::PathIntegrator;
+use crate::integrator::subsurface::hierarchical::{IRRADIANCE_SAMPLES, Placement, PointClouds};
 use crate::method::{Pass, TaskCtx, TaskSpec};
 use crate::spectrum::Spectrum;
 

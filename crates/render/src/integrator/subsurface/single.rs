@@ -15,14 +15,15 @@
 
 use glam::{Vec2, Vec3A};
 
-use super::{Subsurface, hg};
 use crate::bsdf::fresnel;
-use crate::integrator::RayStats;
+use crate::bssrdf::Subsurface;
 use crate::light::ShadowTarget;
+use crate::phase::hg;
 use crate::ray::Ray;
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::{Scene, SurfaceInteraction};
 use crate::spectrum::Spectrum;
+use crate::stats::RayStats;
 
 /// S⁽¹⁾'s radiance toward the viewer at `si`, where the path refracted into `sub` along `wo`
 /// (pointing inside), less the entry transmittance; one sample.

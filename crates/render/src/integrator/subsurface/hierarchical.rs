@@ -19,14 +19,14 @@ use glam::{UVec2, Vec3A};
 use rayon::prelude::*;
 use tessera_scene::{MaterialKind, SamplerType, SceneDesc};
 
-use super::Subsurface;
-use super::dipole::Medium;
-use crate::integrator::RayStats;
+use crate::bssrdf::Subsurface;
+use crate::bssrdf::dipole::Medium;
 use crate::math::gamma;
 use crate::sampler::hash::hash;
 use crate::sampler::{PixelSampler, Sampler};
-use crate::scene::{NO_LIGHT, Scene, SurfaceInteraction};
+use crate::scene::{NO_LIGHT, Scene, SurfaceInteraction, Translucent};
 use crate::spectrum::Spectrum;
+use crate::stats::RayStats;
 
 /// Largest solid angle of a node used whole (Jensen & Buhler's ε): at 0.02 the sum is within
 /// 1.1 % of the exhaustive one (at 0.05, 2 %: the node's Rd is taken at its centre, and Rd is
@@ -134,7 +134,7 @@ impl Placement {
         scene: &Scene,
         range: std::ops::Range<usize>,
         irradiance: &(
-             dyn Fn(&SurfaceInteraction, &Subsurface, &mut PixelSampler, &mut RayStats) -> Spectrum
+             dyn Fn(&SurfaceInteraction, &Translucent, &mut PixelSampler, &mut RayStats) -> Spectrum
                  + Sync
          ),
     ) -> Vec<Spectrum> {

@@ -12,14 +12,15 @@
 
 use glam::{Vec2, Vec3A};
 
-use super::{Subsurface, sample_hg};
 use crate::bsdf::fresnel;
-use crate::integrator::RayStats;
+use crate::bssrdf::Subsurface;
 use crate::math::reflect;
+use crate::phase::sample_hg;
 use crate::ray::Ray;
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::{Scene, SurfaceInteraction};
 use crate::spectrum::Spectrum;
+use crate::stats::RayStats;
 
 /// Collisions after which a walk is given up (counted as absorbed). Marble's albedo is
 /// 0.999: a walk across a 10 cm object takes some ten thousand.

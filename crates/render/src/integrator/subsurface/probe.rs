@@ -8,16 +8,16 @@
 //! (one-sample MIS, balance heuristic), each as the planar density at the radius projected
 //! along that axis times |n · axis| at the hit.
 //!
-//! [`RadialTable`]: super::profile::RadialTable
+//! [`RadialTable`]: crate::bssrdf::profile::RadialTable
 
 use glam::Vec4;
 
-use super::Subsurface;
-use crate::integrator::RayStats;
+use crate::bssrdf::Subsurface;
 use crate::math::Frame;
 use crate::ray::Ray;
 use crate::scene::{Scene, SurfaceInteraction};
 use crate::spectrum::Spectrum;
+use crate::stats::RayStats;
 
 /// Surfaces of the material a probe chord can keep; more are not looked for.
 const MAX_HITS: usize = 8;

@@ -1,0 +1,389 @@
+//! glTF 2.0 scenes (`.gltf` with its buffers, or one `.glb`): the default scene's node
+//! hierarchy flattened into triangle meshes, its materials as the glTF metallic-roughness
+//! BRDF, its first perspective camera and its KHR_lights_punctual lights.
+//!
+//! Units: glTF lengths are metres; punctual lights are photometric (point and spot intensity
+//! in candela, directional illuminance in lux) and become our luminous-equivalent watts by
+//! dividing by K_m = 683 lm/W; `emissiveFactor` × `emissiveStrength` is surface radiance.
+//! Everything read is checked: a malformed file, a missing buffer, an accessor outside its
+//! buffer, a non-finite position or a required extension we do not implement is an error
+//! naming the object; what we read but do not model yet is a warning.
+
+mod buffers;
+mod materials;
+
+use std::path::Path;
+
+use glam::{Mat3, Mat4, Vec3};
+
+use crate::desc::{EmissionDesc, MaterialDesc};
+use crate::photometry::K_M;
+use crate::source::SceneSource;
+
+/// Extensions whose content we read (or whose absence of effect we state in a warning).
+pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_volume",
+    "KHR_texture_transform",
+];
+
+/// Deepest node hierarchy followed (glTF's is a tree; this bounds a malformed one).
+const MAX_DEPTH: usize = 256;
+
+/// A glTF file read into world space (the glTF scene's root frame, in metres).
+#[derive(Debug, Clone)]
+pub struct GltfScene {
+    pub meshes: Vec<GltfMesh>,
+    /// One per glTF material, then the default material if a primitive has none.
+    pub materials: Vec<MaterialDesc>,
+    /// What each material emits (radiance in W·sr⁻¹·m⁻²), if it does.
+    pub emission: Vec<Option<EmissionDesc>>,
+    pub camera: Option<GltfCamera>,
+    pub lights: Vec<GltfLight>,
+    /// What was read but is not modelled, for the render summary and the job's decisions.
+    pub warnings: Vec<String>,
+}
+
+/// One primitive of one mesh instance, in world space.
+#[derive(Debug, Clone)]
+pub struct GltfMesh {
+    /// `mesh 2 "Chair" primitive 0 (node 5 "Chair.001")`, for messages.
+    pub origin: String,
+    pub positions: Vec<Vec3>,
+    pub normals: Option<Vec<Vec3>>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Index into [`GltfScene::materials`].
+    pub material: u32,
+}
+
+/// A perspective camera placed by its node: looking down its local −z with +y up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GltfCamera {
+    pub position: Vec3,
+    pub look_at: Vec3,
+    pub up: Vec3,
+    /// Vertical field of view, radians.
+    pub yfov: f32,
+    /// Width / height, if the file gives it.
+    pub aspect: Option<f32>,
+}
+
+/// A KHR_lights_punctual light in world space, radiometric (luminous-equivalent watts).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum GltfLight {
+    /// Intensity in W·sr⁻¹.
+    Point { position: Vec3, intensity: Vec3 },
+    Spot {
+        position: Vec3,
+        direction: Vec3,
+        intensity: Vec3,
+        cos_inner: f32,
+        cos_outer: f32,
+    },
+    /// `direction` is where the light travels; irradiance in W·m⁻².
+    Directional { direction: Vec3, irradiance: Vec3 },
+}
+
+/// What went wrong, and where in the file (`meshes[2] "Chair" primitives[0]`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GltfError {
+    pub location: String,
+    pub message: String,
+}
+
+impl GltfError {
+    fn new(location: impl Into<String>, message: impl Into<String>) -> Self {
+        GltfError {
+            location: location.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// `meshes[2] "Chair"`: an object's array, index and name.
+fn named(array: &str, index: usize, name: Option<&str>) -> String {
+    match name {
+        Some(n) => format!("{array}[{index}] \"{n}\""),
+        None => format!("{array}[{index}]"),
+    }
+}
+
+/// Reads the glTF file `name` from `source` (its buffers relative to it).
+pub fn load(source: &dyn SceneSource, name: &Path) -> Result<GltfScene, GltfError> {
+    let bytes = source
+        .read(name)
+        .map_err(|e| GltfError::new("", format!("cannot read the file: {e}")))?;
+    let gltf = gltf::Gltf::from_slice(&bytes)
+        .map_err(|e| GltfError::new("", format!("not a valid glTF 2.0 file: {e}")))?;
+    let doc = &gltf.document;
+    let mut warnings = Vec::new();
+    for ext in doc.extensions_required() {
+        if !SUPPORTED_EXTENSIONS.contains(&ext) {
+            return Err(GltfError::new(
+                "extensionsRequired",
+                format!(
+                    "the file requires extension {ext}, which Tessera does not implement; \
+                     expected only: {}",
+                    SUPPORTED_EXTENSIONS.join(", ")
+                ),
+            ));
+        }
+    }
+    for ext in doc.extensions_used() {
+        if !SUPPORTED_EXTENSIONS.contains(&ext) {
+            warnings.push(format!("extension {ext} is used by the file and ignored"));
+        }
+    }
+    let dir = name.parent().unwrap_or(Path::new(""));
+    let data = buffers::load(doc, gltf.blob.as_deref(), source, dir)?;
+    let (mut materials, emission) = materials::read(doc, &mut warnings);
+    let default_material = materials.len() as u32;
+
+    let scene = match doc.default_scene() {
+        Some(s) => s,
+        None => {
+            let Some(s) = doc.scenes().next() else {
+                return Err(GltfError::new("scenes", "the file has no scene to render"));
+            };
+            warnings.push(format!(
+                "no default scene (`scene`): rendering {}",
+                named("scenes", s.index(), s.name())
+            ));
+            s
+        }
+    };
+    let mut walk = Walk {
+        data: &data,
+        default_material,
+        meshes: Vec::new(),
+        cameras: Vec::new(),
+        lights: Vec::new(),
+        warnings: &mut warnings,
+        uses_default_material: false,
+    };
+    for node in scene.nodes() {
+        walk.node(&node, Mat4::IDENTITY, 0)?;
+    }
+    let Walk {
+        meshes,
+        cameras,
+        lights,
+        uses_default_material,
+        ..
+    } = walk;
+    let mut emission = emission;
+    if uses_default_material {
+        materials.push(materials::default_material());
+        emission.push(None);
+    }
+    let camera = cameras.first().map(|(c, _)| *c);
+    if cameras.len() > 1 {
+        warnings.push(format!(
+            "{} cameras in the scene: rendering through the first, {}",
+            cameras.len(),
+            cameras[0].1
+        ));
+    }
+    Ok(GltfScene {
+        meshes,
+        materials,
+        emission,
+        camera,
+        lights,
+        warnings,
+    })
+}
+
+struct Walk<'a> {
+    data: &'a [Vec<u8>],
+    default_material: u32,
+    meshes: Vec<GltfMesh>,
+    /// Perspective cameras with where they come from.
+    cameras: Vec<(GltfCamera, String)>,
+    lights: Vec<GltfLight>,
+    warnings: &'a mut Vec<String>,
+    uses_default_material: bool,
+}
+
+impl Walk<'_> {
+    fn node(&mut self, node: &gltf::Node, parent: Mat4, depth: usize) -> Result<(), GltfError> {
+        let here = named("nodes", node.index(), node.name());
+        if depth >= MAX_DEPTH {
+            return Err(GltfError::new(
+                here,
+                format!("the node hierarchy is deeper than {MAX_DEPTH}: expected a tree"),
+            ));
+        }
+        let local = Mat4::from_cols_array_2d(&node.transform().matrix());
+        let world = parent * local;
+        if !world.is_finite() {
+            return Err(GltfError::new(
+                here,
+                "expected a finite transform (matrix or translation/rotation/scale)",
+            ));
+        }
+        if let Some(mesh) = node.mesh() {
+            self.mesh(&mesh, &world, &here)?;
+        }
+        if let Some(camera) = node.camera() {
+            let at = named("cameras", camera.index(), camera.name());
+            match camera.projection() {
+                gltf::camera::Projection::Perspective(p) => {
+                    let position = world.transform_point3(Vec3::ZERO);
+                    let forward = world.transform_vector3(-Vec3::Z).normalize_or_zero();
+                    let up = world.transform_vector3(Vec3::Y).normalize_or_zero();
+                    let yfov = p.yfov();
+                    if !(yfov > 0.0 && yfov < std::f32::consts::PI) || forward == Vec3::ZERO {
+                        return Err(GltfError::new(
+                            at,
+                            format!(
+                                "expected yfov in (0, π) and an invertible placement, got yfov {yfov}"
+                            ),
+                        ));
+                    }
+                    self.cameras.push((
+                        GltfCamera {
+                            position,
+                            look_at: position + forward,
+                            up,
+                            yfov,
+                            aspect: p.aspect_ratio().filter(|a| *a > 0.0 && a.is_finite()),
+                        },
+                        format!("{at} on {here}"),
+                    ));
+                }
+                gltf::camera::Projection::Orthographic(_) => self.warnings.push(format!(
+                    "{at} on {here} is orthographic, which Tessera does not render: skipped"
+                )),
+            }
+        }
+        if let Some(light) = node.light() {
+            self.light(&light, &world, &here)?;
+        }
+        for child in node.children() {
+            self.node(&child, world, depth + 1)?;
+        }
+        Ok(())
+    }
+
+    fn light(
+        &mut self,
+        light: &gltf::khr_lights_punctual::Light,
+        world: &Mat4,
+        here: &str,
+    ) -> Result<(), GltfError> {
+        use gltf::khr_lights_punctual::Kind;
+        let at = format!(
+            "{} on {here}",
+            named("KHR_lights_punctual.lights", light.index(), light.name())
+        );
+        let color = Vec3::from(light.color());
+        let intensity = light.intensity();
+        if !(color.is_finite()
+            && color.min_element() >= 0.0
+            && intensity >= 0.0
+            && intensity.is_finite())
+        {
+            return Err(GltfError::new(
+                at,
+                format!("expected a non-negative colour and intensity, got {color} × {intensity}"),
+            ));
+        }
+        if light.range().is_some() {
+            self.warnings.push(format!(
+                "{at}: `range` ignored (light falls off with the inverse square, without a cut-off)"
+            ));
+        }
+        // Candela (lm/sr) and lux (lm/m²) to luminous-equivalent W/sr and W/m².
+        let radiometric = color * (intensity / K_M as f32);
+        let position = world.transform_point3(Vec3::ZERO);
+        let direction = world.transform_vector3(-Vec3::Z).normalize_or_zero();
+        if direction == Vec3::ZERO {
+            return Err(GltfError::new(at, "expected an invertible node transform"));
+        }
+        self.lights.push(match light.kind() {
+            Kind::Point => GltfLight::Point {
+                position,
+                intensity: radiometric,
+            },
+            Kind::Directional => GltfLight::Directional {
+                direction,
+                irradiance: radiometric,
+            },
+            Kind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => {
+                let half_pi = std::f32::consts::FRAC_PI_2;
+                if !(0.0 <= inner_cone_angle
+                    && inner_cone_angle < outer_cone_angle
+                    && outer_cone_angle <= half_pi)
+                {
+                    return Err(GltfError::new(
+                        at,
+                        format!(
+                            "expected 0 ≤ innerConeAngle < outerConeAngle ≤ π/2, got {inner_cone_angle} and {outer_cone_angle}"
+                        ),
+                    ));
+                }
+                GltfLight::Spot {
+                    position,
+                    direction,
+                    intensity: radiometric,
+                    cos_inner: inner_cone_angle.cos(),
+                    cos_outer: outer_cone_angle.cos(),
+                }
+            }
+        });
+        Ok(())
+    }
+
+    fn mesh(&mut self, mesh: &gltf::Mesh, world: &Mat4, here: &str) -> Result<(), GltfError> {
+        let normal_matrix = Mat3::from_mat4(*world).inverse().transpose();
+        let mirrored = Mat3::from_mat4(*world).determinant() < 0.0;
+        let mesh_at = named("meshes", mesh.index(), mesh.name());
+        for prim in mesh.primitives() {
+            let at = format!("{mesh_at} primitives[{}] (on {here})", prim.index());
+            let Some(tri) = buffers::triangles(&prim, self.data, &at, self.warnings)? else {
+                continue;
+            };
+            let (positions, normals) = buffers::attributes(&prim, self.data, &at, self.warnings)?;
+            let n = positions.len();
+            if let Some(i) = tri.iter().flatten().find(|&&i| i as usize >= n) {
+                return Err(GltfError::new(
+                    at,
+                    format!("index {i} refers past the {n} vertices"),
+                ));
+            }
+            let material = match prim.material().index() {
+                Some(i) => i as u32,
+                None => {
+                    self.uses_default_material = true;
+                    self.default_material
+                }
+            };
+            self.meshes.push(GltfMesh {
+                origin: at,
+                positions: positions
+                    .iter()
+                    .map(|&p| world.transform_point3(p))
+                    .collect(),
+                normals: normals.map(|ns| {
+                    ns.iter()
+                        .map(|&n| (normal_matrix * n).normalize_or_zero())
+                        .collect()
+                }),
+                triangles: tri
+                    .into_iter()
+                    .map(|[a, b, c]| if mirrored { [a, c, b] } else { [a, b, c] })
+                    .collect(),
+                material,
+            });
+        }
+        Ok(())
+    }
+}

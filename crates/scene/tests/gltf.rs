@@ -1,0 +1,541 @@
+//! glTF 2.0 import: each feature read from a small file written here byte by byte (JSON and
+//! little-endian buffers as the specification lays them out), and each bad input refused with
+//! the file, the object and what was expected. Files written by Blender's exporter are tested
+//! in `crates/render/tests/gltf_blender.rs`.
+
+use std::path::Path;
+
+use base64::Engine;
+use glam::Vec3;
+use serde_json::{Value, json};
+use tessera_scene::{LightDesc, MaterialKind, SceneDesc, SceneError};
+
+/// A unit right triangle in z = 0 facing +z: positions, normals and u16 indices in one buffer.
+fn triangle_buffer() -> Vec<u8> {
+    let mut b = Vec::new();
+    for p in [[0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        for c in p {
+            b.extend(c.to_le_bytes());
+        }
+    }
+    for _ in 0..3 {
+        for c in [0f32, 0.0, 1.0] {
+            b.extend(c.to_le_bytes());
+        }
+    }
+    for i in [0u16, 1, 2] {
+        b.extend(i.to_le_bytes());
+    }
+    b.extend([0, 0]); // pad to 4 bytes
+    b
+}
+
+fn data_uri(bytes: &[u8]) -> String {
+    format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(bytes)
+    )
+}
+
+/// A glTF document with the triangle as mesh 0 and whatever `extra` adds or overrides.
+fn document(extra: Value) -> Value {
+    let buf = triangle_buffer();
+    let mut doc = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "name": "Tri"}],
+        "meshes": [{"name": "Triangle", "primitives": [{
+            "attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 0
+        }]}],
+        "materials": [{"name": "Paint", "pbrMetallicRoughness": {
+            "baseColorFactor": [0.8, 0.4, 0.2, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.5
+        }}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+             "min": [0, 0, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5123, "count": 3, "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 72, "byteLength": 6}
+        ],
+        "buffers": [{"byteLength": buf.len(), "uri": data_uri(&buf)}]
+    });
+    merge(&mut doc, extra);
+    doc
+}
+
+/// Overwrites `doc`'s fields with `extra`'s, recursively for objects.
+fn merge(doc: &mut Value, extra: Value) {
+    match (doc, extra) {
+        (Value::Object(d), Value::Object(e)) => {
+            for (k, v) in e {
+                match d.get_mut(&k) {
+                    Some(slot) if slot.is_object() && v.is_object() => merge(slot, v),
+                    _ => {
+                        d.insert(k, v);
+                    }
+                }
+            }
+        }
+        (d, e) => *d = e,
+    }
+}
+
+/// Writes `files` into a fresh folder and loads `name` from it.
+fn load_files(
+    files: &[(&str, Vec<u8>)],
+    name: &str,
+) -> (tempfile::TempDir, Result<SceneDesc, SceneError>) {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    for (n, bytes) in files {
+        std::fs::write(dir.path().join(n), bytes).expect("write");
+    }
+    let r = tessera_scene::load(&dir.path().join(name));
+    (dir, r)
+}
+
+fn load_doc(doc: &Value) -> SceneDesc {
+    let (_dir, r) = load_files(
+        &[("scene.gltf", doc.to_string().into_bytes())],
+        "scene.gltf",
+    );
+    r.unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn error_of(files: &[(&str, Vec<u8>)], name: &str) -> String {
+    let (_dir, r) = load_files(files, name);
+    match r {
+        Ok(_) => panic!("expected an error"),
+        Err(e) => e.to_string(),
+    }
+}
+
+fn close(a: Vec3, b: Vec3) -> bool {
+    (a - b).abs().max_element() < 1e-5
+}
+
+#[test]
+fn a_triangle_with_its_material_and_normals_becomes_a_mesh() {
+    let d = load_doc(&document(json!({})));
+    assert_eq!(d.meshes.len(), 1);
+    let m = &d.meshes[0];
+    assert_eq!(m.triangles, vec![[0, 1, 2]]);
+    assert!(close(m.positions[1], Vec3::X));
+    assert_eq!(m.normals.as_ref().map(|n| n[0]), Some(Vec3::Z));
+    match &d.materials[m.material as usize].kind {
+        MaterialKind::MetallicRoughness {
+            base_color,
+            metallic,
+            roughness,
+            ior,
+            ..
+        } => {
+            assert!(close(*base_color, Vec3::new(0.8, 0.4, 0.2)));
+            assert_eq!((*metallic, *roughness, *ior), (0.0, 0.5, 1.5));
+        }
+        k => panic!("expected the metallic-roughness BRDF, got {k:?}"),
+    }
+    // No camera in the file: the bounds are framed, and the user is told.
+    assert!(
+        d.warnings
+            .iter()
+            .any(|w| w.contains("no perspective camera")),
+        "{:?}",
+        d.warnings
+    );
+}
+
+#[test]
+fn the_node_hierarchy_composes_matrix_and_trs_transforms() {
+    // Parent: a matrix translating by (10, 0, 0); child: rotate 90° about z, scale 2.
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let d = load_doc(&document(json!({
+        "scenes": [{"nodes": [1]}],
+        "nodes": [
+            {"mesh": 0, "rotation": [0.0, 0.0, s, s], "scale": [2.0, 2.0, 2.0]},
+            {"children": [0], "matrix": [1,0,0,0, 0,1,0,0, 0,0,1,0, 10,0,0,1]}
+        ]
+    })));
+    let p = &d.meshes[0].positions;
+    assert!(close(p[0], Vec3::new(10.0, 0.0, 0.0)), "{p:?}");
+    assert!(close(p[1], Vec3::new(10.0, 2.0, 0.0)), "{p:?}"); // x rotated to y, doubled
+    assert!(close(p[2], Vec3::new(8.0, 0.0, 0.0)), "{p:?}");
+    let n = d.meshes[0].normals.as_ref().expect("normals");
+    assert!(close(n[0], Vec3::Z));
+}
+
+#[test]
+fn indices_of_every_width_and_unindexed_primitives_read_alike() {
+    let base = load_doc(&document(json!({}))).meshes[0].triangles.clone();
+    // u8 indices: a new view over the same bytes would not do (u16 there), so a second buffer.
+    let u8_buf = [0u8, 1, 2, 0];
+    let u32_buf: Vec<u8> = [0u32, 1, 2].iter().flat_map(|i| i.to_le_bytes()).collect();
+    for (component, bytes) in [(5121, u8_buf.to_vec()), (5125, u32_buf)] {
+        let mut doc = document(json!({}));
+        doc["buffers"].as_array_mut().expect("buffers").push(json!({
+            "byteLength": bytes.len(), "uri": data_uri(&bytes)
+        }));
+        doc["bufferViews"]
+            .as_array_mut()
+            .expect("views")
+            .push(json!({
+                "buffer": 1, "byteOffset": 0, "byteLength": bytes.len()
+            }));
+        doc["accessors"][2] =
+            json!({"bufferView": 3, "componentType": component, "count": 3, "type": "SCALAR"});
+        assert_eq!(
+            load_doc(&doc).meshes[0].triangles,
+            base,
+            "component type {component}"
+        );
+    }
+    let mut doc = document(json!({}));
+    doc["meshes"][0]["primitives"][0]
+        .as_object_mut()
+        .expect("primitive")
+        .remove("indices");
+    assert_eq!(load_doc(&doc).meshes[0].triangles, base);
+}
+
+#[test]
+fn the_camera_sets_the_view_and_the_film_aspect() {
+    let d = load_doc(&document(json!({
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0.0, 0.5, 3.0]}],
+        "cameras": [{"type": "perspective", "perspective": {
+            "yfov": 0.6, "aspectRatio": 2.0, "znear": 0.1
+        }}]
+    })));
+    assert_eq!((d.film.width, d.film.height), (1280, 640));
+    assert!(close(d.camera.position, Vec3::new(0.0, 0.5, 3.0)));
+    assert!(close(
+        (d.camera.look_at - d.camera.position).normalize(),
+        -Vec3::Z
+    ));
+    assert!(
+        (d.camera.fov_y - 0.6).abs() < 1e-5,
+        "fov {}",
+        d.camera.fov_y
+    );
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+}
+
+#[test]
+fn punctual_lights_become_radiometric_lights_where_their_nodes_put_them() {
+    let d = load_doc(&document(json!({
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "point", "color": [1.0, 0.5, 0.25], "intensity": 683.002},
+            {"type": "spot", "intensity": 1366.004, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.5}},
+            {"type": "directional", "intensity": 6.83002}
+        ]}},
+        "scenes": [{"nodes": [0, 1, 2, 3]}],
+        "nodes": [
+            {"mesh": 0},
+            {"translation": [1.0, 2.0, 3.0], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+            {"translation": [0.0, 4.0, 0.0], "rotation": [-0.70710677, 0.0, 0.0, 0.70710677],
+             "extensions": {"KHR_lights_punctual": {"light": 1}}},
+            {"extensions": {"KHR_lights_punctual": {"light": 2}}}
+        ]
+    })));
+    assert_eq!(d.lights.len(), 3);
+    match d.lights[0] {
+        LightDesc::Point {
+            position,
+            intensity,
+        } => {
+            assert!(close(position, Vec3::new(1.0, 2.0, 3.0)));
+            // 683 cd of luminous-equivalent light is 1 W/sr.
+            assert!(close(intensity, Vec3::new(1.0, 0.5, 0.25)), "{intensity}");
+        }
+        ref l => panic!("expected a point light, got {l:?}"),
+    }
+    match d.lights[1] {
+        LightDesc::Spot {
+            position,
+            direction,
+            intensity,
+            cos_falloff_start,
+            cos_cone,
+        } => {
+            assert!(close(position, Vec3::new(0.0, 4.0, 0.0)));
+            // −z rotated −90° about x points down.
+            assert!(close(direction, -Vec3::Y), "{direction}");
+            assert!(close(intensity, Vec3::splat(2.0)));
+            assert!(
+                (cos_falloff_start - 0.2f32.cos()).abs() < 1e-6
+                    && (cos_cone - 0.5f32.cos()).abs() < 1e-6
+            );
+        }
+        ref l => panic!("expected a spot light, got {l:?}"),
+    }
+    match d.lights[2] {
+        LightDesc::Directional {
+            direction,
+            irradiance,
+        } => {
+            assert!(close(direction, -Vec3::Z));
+            assert!(close(irradiance, Vec3::splat(0.01)), "{irradiance}");
+        }
+        ref l => panic!("expected a directional light, got {l:?}"),
+    }
+}
+
+#[test]
+fn emission_transmission_ior_and_specular_extensions_are_read() {
+    let d = load_doc(&document(json!({
+        "extensionsUsed": ["KHR_materials_emissive_strength", "KHR_materials_transmission",
+                           "KHR_materials_ior", "KHR_materials_specular"],
+        "meshes": [{"primitives": [
+            {"attributes": {"POSITION": 0}, "material": 0},
+            {"attributes": {"POSITION": 0}, "material": 1},
+            {"attributes": {"POSITION": 0}, "material": 2}
+        ]}],
+        "materials": [
+            {"name": "Lamp", "emissiveFactor": [1.0, 0.5, 0.0], "doubleSided": true,
+             "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4.0}}},
+            {"name": "Glass", "pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.0},
+             "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                            "KHR_materials_ior": {"ior": 1.45}}},
+            {"name": "Coat", "pbrMetallicRoughness": {"metallicFactor": 0.0},
+             "extensions": {"KHR_materials_specular": {"specularFactor": 0.5,
+                                                        "specularColorFactor": [1.0, 0.0, 0.0]},
+                            "KHR_materials_ior": {"ior": 2.0}}}
+        ]
+    })));
+    let e = d.meshes[0].emission.expect("the lamp emits");
+    assert!(close(e.radiance, Vec3::new(4.0, 2.0, 0.0)) && e.two_sided);
+    assert!(d.meshes[1].emission.is_none());
+    match d.materials[d.meshes[1].material as usize].kind {
+        MaterialKind::Dielectric { eta, roughness } => {
+            assert!((eta - 1.45).abs() < 1e-6 && roughness.is_smooth());
+        }
+        ref k => panic!("expected glass, got {k:?}"),
+    }
+    match d.materials[d.meshes[2].material as usize].kind {
+        MaterialKind::MetallicRoughness {
+            ior,
+            specular,
+            specular_color,
+            ..
+        } => assert!(ior == 2.0 && specular == 0.5 && close(specular_color, Vec3::X)),
+        ref k => panic!("expected the metallic-roughness BRDF, got {k:?}"),
+    }
+}
+
+#[test]
+fn textures_and_alpha_are_named_in_warnings_not_dropped_silently() {
+    let d = load_doc(&document(json!({
+        "materials": [{"name": "Wood", "alphaMode": "MASK",
+            "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
+            "normalTexture": {"index": 0}}],
+        "textures": [{"source": 0}],
+        "images": [{"uri": "wood.png"}]
+    })));
+    let w = d.warnings.join("\n");
+    assert!(w.contains("materials[0] \"Wood\""), "{w}");
+    assert!(w.contains("baseColorTexture, normalTexture"), "{w}");
+    assert!(w.contains("alphaMode Mask"), "{w}");
+}
+
+#[test]
+fn a_glb_and_a_gltf_with_an_external_buffer_load_the_same_mesh() {
+    let buf = triangle_buffer();
+    let mut doc = document(json!({}));
+    doc["buffers"] = json!([{"byteLength": buf.len(), "uri": "tri%20angle.bin"}]);
+    let (_d, external) = load_files(
+        &[
+            ("s.gltf", doc.to_string().into_bytes()),
+            ("tri angle.bin", buf.clone()),
+        ],
+        "s.gltf",
+    );
+    let external = external.unwrap_or_else(|e| panic!("{e}"));
+
+    doc["buffers"] = json!([{"byteLength": buf.len()}]);
+    let mut json_chunk = doc.to_string().into_bytes();
+    while !json_chunk.len().is_multiple_of(4) {
+        json_chunk.push(b' ');
+    }
+    let mut glb = Vec::new();
+    let total = 12 + 8 + json_chunk.len() + 8 + buf.len();
+    glb.extend(b"glTF");
+    glb.extend(2u32.to_le_bytes());
+    glb.extend((total as u32).to_le_bytes());
+    glb.extend((json_chunk.len() as u32).to_le_bytes());
+    glb.extend(b"JSON");
+    glb.extend(&json_chunk);
+    glb.extend((buf.len() as u32).to_le_bytes());
+    glb.extend(b"BIN\0");
+    glb.extend(&buf);
+    let (_d, binary) = load_files(&[("s.glb", glb.clone())], "s.glb");
+    let binary = binary.unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(binary.meshes[0].positions, external.meshes[0].positions);
+    assert_eq!(binary.meshes[0].triangles, external.meshes[0].triangles);
+
+    // A truncated GLB is refused as such.
+    let msg = error_of(&[("s.glb", glb[..glb.len() - 10].to_vec())], "s.glb");
+    assert!(
+        msg.contains("s.glb") && msg.contains("not a valid glTF"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn a_scene_json_places_a_gltf_file_in_its_own_units() {
+    let scene = json!({
+        "units": "cm",
+        "camera": {"type": "pinhole", "position": [0, 0, 500], "look_at": [0, 0, 0], "fov_deg": 40},
+        "film": {"width": 32, "height": 32},
+        "materials": {"white": {"type": "diffuse", "albedo": 0.5}},
+        "shapes": [
+            {"type": "quad", "origin": [0, 0, 0], "edge_u": [1, 0, 0], "edge_v": [0, 1, 0], "material": "white"},
+            {"type": "gltf", "file": "tri.gltf", "transform": [{"translate": [100, 0, 0]}]}
+        ]
+    });
+    let (_d, r) = load_files(
+        &[
+            ("scene.json", scene.to_string().into_bytes()),
+            ("tri.gltf", document(json!({})).to_string().into_bytes()),
+        ],
+        "scene.json",
+    );
+    let d = r.unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(d.meshes.len(), 2);
+    // 1 m of glTF is 100 cm, then moved 100 cm along x.
+    assert!(
+        close(d.meshes[1].positions[1], Vec3::new(200.0, 0.0, 0.0)),
+        "{:?}",
+        d.meshes[1].positions
+    );
+    assert_eq!(d.materials.len(), 2);
+    assert_eq!(d.meshes[1].material, 1);
+    assert_eq!(d.materials[1].name, "tri.gltf / Paint");
+}
+
+#[test]
+fn bad_input_is_refused_naming_the_file_the_object_and_what_was_expected() {
+    let gltf = |doc: Value| vec![("bad.gltf", doc.to_string().into_bytes())];
+    type Files<'a> = Vec<(&'a str, Vec<u8>)>;
+    let cases: Vec<(Files, &[&str])> = vec![
+        (
+            vec![("bad.gltf", b"{\"asset\": ".to_vec())],
+            &["bad.gltf", "not a valid glTF"],
+        ),
+        (
+            gltf(document(
+                json!({"buffers": [{"byteLength": 80, "uri": "missing.bin"}]}),
+            )),
+            &["buffers[0]", "missing.bin"],
+        ),
+        (
+            gltf({
+                let mut d = document(json!({}));
+                d["accessors"][0]["count"] = json!(30);
+                d
+            }),
+            &[
+                "meshes[0] \"Triangle\" primitives[0]",
+                "POSITION",
+                "bufferView 0",
+            ],
+        ),
+        (
+            gltf(document(
+                json!({"extensionsUsed": ["KHR_draco_mesh_compression"],
+                "extensionsRequired": ["KHR_draco_mesh_compression"]}),
+            )),
+            &["extensionsRequired", "KHR_draco_mesh_compression"],
+        ),
+        (
+            gltf(document(
+                json!({"buffers": [{"byteLength": 200, "uri": data_uri(&triangle_buffer())}]}),
+            )),
+            &["buffers[0]", "expected byteLength 200"],
+        ),
+    ];
+    for (files, expected) in cases {
+        let msg = error_of(&files, "bad.gltf");
+        for e in expected {
+            assert!(msg.contains(e), "expected {e:?} in: {msg}");
+        }
+    }
+    // A NaN position (written into the buffer: JSON cannot hold one).
+    let mut buf = triangle_buffer();
+    buf[4..8].copy_from_slice(&f32::NAN.to_le_bytes());
+    let doc = document(json!({"buffers": [{"byteLength": buf.len(), "uri": data_uri(&buf)}]}));
+    let msg = error_of(&gltf(doc), "bad.gltf");
+    assert!(
+        msg.contains("POSITION 0") && msg.contains("finite"),
+        "{msg}"
+    );
+    // An index past the vertices.
+    let mut buf = triangle_buffer();
+    buf[76..78].copy_from_slice(&7u16.to_le_bytes());
+    let doc = document(json!({"buffers": [{"byteLength": buf.len(), "uri": data_uri(&buf)}]}));
+    let msg = error_of(&gltf(doc), "bad.gltf");
+    assert!(msg.contains("index 7 refers past the 3 vertices"), "{msg}");
+}
+
+/// `scenes/gltf/product-shot.glb`, written by Blender 5.0's own glTF exporter from
+/// `scripts/blender/product_shot.py`: Blender's watts come back as the same radiometric
+/// intensities (the exporter wrote candela = W/4π × 683).
+#[test]
+fn blenders_exported_product_shot_reads_as_blender_made_it() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gltf/product-shot.glb");
+    let bytes = std::fs::read(&path).expect("the committed .glb");
+    let generator = String::from_utf8_lossy(&bytes[..2048.min(bytes.len())]).into_owned();
+    assert!(
+        generator.contains("Khronos glTF Blender I/O"),
+        "not Blender's file"
+    );
+    let d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    assert_eq!(d.meshes.len(), 5);
+    assert_eq!((d.film.width, d.film.height), (1280, 720));
+    assert!((d.camera.fov_y.to_degrees() - 35.0).abs() < 1e-3);
+    assert!(
+        close(d.camera.position, Vec3::new(0.0, 2.4, 6.0)),
+        "{}",
+        d.camera.position
+    );
+    let four_pi = 4.0 * std::f32::consts::PI;
+    let rel = |a: f32, b: f32| (a - b).abs() <= 1e-4 * b;
+    match d.lights[0] {
+        LightDesc::Spot {
+            intensity,
+            cos_cone,
+            ..
+        } => {
+            assert!(rel(intensity.x, 800.0 / four_pi), "{intensity}");
+            assert!((cos_cone - 25f32.to_radians().cos()).abs() < 1e-5);
+        }
+        ref l => panic!("expected the spot light first, got {l:?}"),
+    }
+    match d.lights[1] {
+        LightDesc::Point { intensity, .. } => assert!(rel(intensity.y, 150.0 / four_pi)),
+        ref l => panic!("expected the point light, got {l:?}"),
+    }
+    let kind = |name: &str| {
+        let m = d
+            .meshes
+            .iter()
+            .find(|m| m.origin.contains(name))
+            .expect(name);
+        (d.materials[m.material as usize].kind.clone(), m.emission)
+    };
+    assert!(
+        matches!(kind("\"Metal\"").0, MaterialKind::MetallicRoughness { metallic, .. } if metallic == 1.0)
+    );
+    assert!(matches!(kind("\"Glass\"").0, MaterialKind::Dielectric { eta, .. } if eta == 1.5));
+    let panel = kind("\"Panel\"").1.expect("the panel emits");
+    assert!(
+        close(panel.radiance, Vec3::new(6.0, 5.4, 4.8)),
+        "{}",
+        panel.radiance
+    );
+}
