@@ -148,6 +148,52 @@ fn render_locally(scene: &Path, args: &[&str], out: &Path) -> Vec<u8> {
     std::fs::read(out).expect("rendered frame")
 }
 
+/// `tessera submit SCENE --wait ARGS` through `url`, downloaded into `dir/LABEL`, and
+/// `tessera render SCENE ARGS`: the frames must be the same bytes. Returns the job id and the
+/// farm's frame.
+fn submit_and_compare(
+    url: &str,
+    scene: &Path,
+    label: &str,
+    args: &[&str],
+    dir: &Path,
+) -> (i64, Vec<u8>) {
+    let out = dir.join(label);
+    let o = Command::new(exe())
+        .arg("submit")
+        .arg(scene)
+        .args([
+            "--coordinator",
+            url,
+            "--token",
+            CLIENT_TOKEN,
+            "--wait",
+            "-q",
+            "-o",
+        ])
+        .arg(&out)
+        .args(args)
+        .output()
+        .expect("run tessera submit");
+    assert!(
+        o.status.success(),
+        "{label}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let id: i64 = String::from_utf8_lossy(&o.stdout)
+        .split_whitespace()
+        .nth(1)
+        .and_then(|id| id.parse().ok())
+        .expect("job id");
+    let farm = std::fs::read(out.join("frame_0001.exr")).expect("downloaded frame");
+    let local = render_locally(scene, args, &dir.join(format!("{label}.exr")));
+    assert!(
+        farm == local,
+        "{label}: the farm's frame differs from tessera render's"
+    );
+    (id, farm)
+}
+
 /// Polls the job until it ends (or `timeout`), tolerating a coordinator that is down.
 fn wait_for(
     rt: &tokio::runtime::Runtime,
@@ -675,39 +721,7 @@ fn every_method_renders_through_local_workers_as_tessera_render_does_and_leaves_
     let mut output = 0u64;
     for method in tessera_render::method::names() {
         let args = ["--integrator", method, "--size", "96x72", "--spp", "2"];
-        let out = dir.path().join(method);
-        let o = Command::new(exe())
-            .arg("submit")
-            .arg(&scene)
-            .args([
-                "--coordinator",
-                &url,
-                "--token",
-                CLIENT_TOKEN,
-                "--wait",
-                "-q",
-                "-o",
-            ])
-            .arg(&out)
-            .args(args)
-            .output()
-            .expect("run tessera submit");
-        assert!(
-            o.status.success(),
-            "{method}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        let id: i64 = String::from_utf8_lossy(&o.stdout)
-            .split_whitespace()
-            .nth(1)
-            .and_then(|id| id.parse().ok())
-            .expect("job id");
-        let farm = std::fs::read(out.join("frame_0001.exr")).expect("downloaded frame");
-        let local = render_locally(&scene, &args, &dir.path().join(format!("{method}.exr")));
-        assert!(
-            farm == local,
-            "{method}: the farm's frame differs from tessera render's"
-        );
+        let (id, farm) = submit_and_compare(&url, &scene, method, &args, dir.path());
         let png = rt.block_on(client.frame_preview(id, 1)).expect("preview");
         output += (farm.len() + png.len()) as u64;
         ids.push(id);
@@ -805,34 +819,7 @@ fn a_blender_exported_gltf_renders_through_the_farm_with_every_method_as_tessera
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gltf/product-shot.glb");
     for method in tessera_render::method::names() {
         let args = ["--integrator", method, "--size", "80x45", "--spp", "1"];
-        let out = dir.path().join(method);
-        let o = Command::new(exe())
-            .arg("submit")
-            .arg(&scene)
-            .args([
-                "--coordinator",
-                &url,
-                "--token",
-                CLIENT_TOKEN,
-                "--wait",
-                "-q",
-                "-o",
-            ])
-            .arg(&out)
-            .args(args)
-            .output()
-            .expect("run tessera submit");
-        assert!(
-            o.status.success(),
-            "{method}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        let farm = std::fs::read(out.join("frame_0001.exr")).expect("downloaded frame");
-        let local = render_locally(&scene, &args, &dir.path().join(format!("{method}.exr")));
-        assert!(
-            farm == local,
-            "{method}: the farm's frame differs from tessera render's"
-        );
+        let (_, farm) = submit_and_compare(&url, &scene, method, &args, dir.path());
         let image = tessera_scene::image::read_exr_rgb(&farm).expect("an EXR");
         let mean: f64 =
             image.pixels.iter().map(|p| p.x as f64).sum::<f64>() / image.pixels.len() as f64;

@@ -319,14 +319,16 @@ impl Walk<'_> {
                 outer_cone_angle,
             } => {
                 let half_pi = std::f32::consts::FRAC_PI_2;
+                // Equal angles (Blender's export of a spot without blend) make a hard edge.
                 if !(0.0 <= inner_cone_angle
-                    && inner_cone_angle < outer_cone_angle
+                    && inner_cone_angle <= outer_cone_angle
+                    && 0.0 < outer_cone_angle
                     && outer_cone_angle <= half_pi)
                 {
                     return Err(GltfError::new(
                         at,
                         format!(
-                            "expected 0 ≤ innerConeAngle < outerConeAngle ≤ π/2, got {inner_cone_angle} and {outer_cone_angle}"
+                            "expected 0 ≤ innerConeAngle ≤ outerConeAngle ≤ π/2 and a cone, got {inner_cone_angle} and {outer_cone_angle}"
                         ),
                     ));
                 }

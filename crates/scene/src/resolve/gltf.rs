@@ -19,39 +19,34 @@ pub fn is_gltf(name: &Path) -> bool {
 impl Ctx<'_> {
     /// Loads (once) the glTF file named at `path`; problems are reported against the file.
     pub(super) fn gltf_file(&mut self, path: &str, file: &str) -> Option<Arc<GltfScene>> {
-        let rel = match confine(file) {
-            Ok(rel) => rel,
-            Err(msg) => {
-                self.problem(path, msg);
-                return None;
-            }
-        };
-        if let Some(cached) = self.gltfs.get(&rel) {
-            return cached.clone();
-        }
-        let loaded = match crate::gltf::load(self.source, &rel) {
-            Ok(g) => {
-                let shown = self.source.display_path(&rel);
-                for w in &g.warnings {
-                    self.warnings.push(format!("{}: {w}", shown.display()));
+        self.load_once(
+            path,
+            file,
+            |c| &mut c.gltfs,
+            |ctx, rel| {
+                let shown = ctx.source.display_path(rel);
+                match crate::gltf::load(ctx.source, rel) {
+                    Ok(g) => {
+                        for w in &g.warnings {
+                            ctx.warnings.push(format!("{}: {w}", shown.display()));
+                        }
+                        Some(g)
+                    }
+                    Err(e) => {
+                        ctx.problems.push(Problem {
+                            file: shown,
+                            path: e.location,
+                            message: if path.is_empty() {
+                                e.message
+                            } else {
+                                format!("{} (referenced by {path})", e.message)
+                            },
+                        });
+                        None
+                    }
                 }
-                Some(Arc::new(g))
-            }
-            Err(e) => {
-                self.problems.push(Problem {
-                    file: self.source.display_path(&rel),
-                    path: e.location,
-                    message: if path.is_empty() {
-                        e.message
-                    } else {
-                        format!("{} (referenced by {path})", e.message)
-                    },
-                });
-                None
-            }
-        };
-        self.gltfs.insert(rel, loaded.clone());
-        loaded
+            },
+        )
     }
 
     /// A `gltf` shape: the file's meshes, materials and lights, its metres turned into scene

@@ -190,8 +190,15 @@ impl Ctx<'_> {
         }
     }
 
-    /// Loads (once) the mesh file named at `path`.
-    pub(super) fn mesh_file(&mut self, path: &str, file: &str) -> Option<Arc<RawMesh>> {
+    /// Reads the file `file`, named at `path`, once per scene: `load` reads it (reporting its
+    /// own problems), `cache` is the table that keeps it (`None` for a file that failed).
+    pub(super) fn load_once<T>(
+        &mut self,
+        path: &str,
+        file: &str,
+        cache: fn(&mut Self) -> &mut HashMap<PathBuf, Option<Arc<T>>>,
+        load: impl FnOnce(&mut Self, &Path) -> Option<T>,
+    ) -> Option<Arc<T>> {
         let rel = match confine(file) {
             Ok(rel) => rel,
             Err(msg) => {
@@ -199,38 +206,50 @@ impl Ctx<'_> {
                 return None;
             }
         };
-        if let Some(cached) = self.meshes.get(&rel) {
+        if let Some(cached) = cache(self).get(&rel) {
             return cached.clone();
         }
-        let shown = self.source.display_path(&rel);
-        let loaded = match self.source.read(&rel) {
-            Err(e) => {
-                self.problem(
-                    path,
-                    format!("cannot read mesh file {}: {e}", shown.display()),
-                );
-                None
-            }
-            Ok(bytes) => {
-                let ext = rel
-                    .extension()
-                    .map(|e| e.to_string_lossy().into_owned())
-                    .unwrap_or_default();
-                match mesh::parse(&bytes, &ext) {
-                    Ok(m) => Some(Arc::new(m)),
+        let loaded = load(self, &rel).map(Arc::new);
+        cache(self).insert(rel, loaded.clone());
+        loaded
+    }
+
+    /// Loads (once) the mesh file named at `path`.
+    pub(super) fn mesh_file(&mut self, path: &str, file: &str) -> Option<Arc<RawMesh>> {
+        self.load_once(
+            path,
+            file,
+            |c| &mut c.meshes,
+            |ctx, rel| {
+                let shown = ctx.source.display_path(rel);
+                match ctx.source.read(rel) {
                     Err(e) => {
-                        self.problems.push(Problem {
-                            file: shown,
-                            path: e.location,
-                            message: format!("{} (referenced by {path})", e.message),
-                        });
+                        ctx.problem(
+                            path,
+                            format!("cannot read mesh file {}: {e}", shown.display()),
+                        );
                         None
                     }
+                    Ok(bytes) => {
+                        let ext = rel
+                            .extension()
+                            .map(|e| e.to_string_lossy().into_owned())
+                            .unwrap_or_default();
+                        match mesh::parse(&bytes, &ext) {
+                            Ok(m) => Some(m),
+                            Err(e) => {
+                                ctx.problems.push(Problem {
+                                    file: shown,
+                                    path: e.location,
+                                    message: format!("{} (referenced by {path})", e.message),
+                                });
+                                None
+                            }
+                        }
+                    }
                 }
-            }
-        };
-        self.meshes.insert(rel, loaded.clone());
-        loaded
+            },
+        )
     }
 
     /// The transform, material and emission every surface shape has.

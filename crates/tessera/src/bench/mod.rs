@@ -5,10 +5,13 @@
 //!   (`farm.rs`).
 //! - `tessera bench flythrough`: pass artifacts cached across a fly-through's frames against
 //!   built per frame: time and flicker (`flythrough.rs`).
+//! - `tessera bench load SCENE`: reading, BVH building and the first pixels of a
+//!   production-size scene, with the memory it takes (`load.rs`).
 
 mod error;
 mod farm;
 mod flythrough;
+mod load;
 mod plot;
 
 pub use error::ErrorArgs;
@@ -30,6 +33,8 @@ pub enum BenchCommand {
     Leases(farm::LeaseArgs),
     /// A camera-only fly-through on local workers, pass artifacts cached vs built per frame.
     Flythrough(flythrough::FlythroughArgs),
+    /// Load, BVH build and first pixels of a scene, and its memory.
+    Load(load::LoadArgs),
 }
 
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
@@ -37,6 +42,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         Some(BenchCommand::Farm(a)) => crate::block_on(farm::farm(a)),
         Some(BenchCommand::Leases(a)) => crate::block_on(farm::leases(a)),
         Some(BenchCommand::Flythrough(a)) => crate::block_on(flythrough::run(a)),
+        Some(BenchCommand::Load(a)) => load::run(a),
         None => error::run(args.error),
     }
 }

@@ -1,0 +1,106 @@
+"""Writes a glTF 2.0 binary (.glb) of a dense displaced grid — a terrain of about N
+triangles with vertex normals — under a sun (KHR_lights_punctual directional) and a point
+light, seen by a perspective camera: the production-size geometry for `tessera bench load`.
+Python's standard library only.
+
+    python3 scripts/gltf/make_dense.py /tmp/dense.glb --triangles 2000000
+"""
+
+import argparse
+import array
+import json
+import math
+import struct
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out")
+    ap.add_argument("--triangles", type=int, default=2_000_000)
+    a = ap.parse_args()
+    n = max(2, int(math.sqrt(a.triangles / 2)))  # cells per side
+    size = 20.0
+
+    def height(x, z):
+        return 0.6 * math.sin(x * 0.9) * math.cos(z * 0.7) + 0.15 * math.sin(x * 5.1 + z * 3.7)
+
+    pos = array.array("f")
+    nor = array.array("f")
+    h = size / n
+    for j in range(n + 1):
+        z = -size / 2 + j * h
+        for i in range(n + 1):
+            x = -size / 2 + i * h
+            y = height(x, z)
+            pos.extend((x, y, z))
+            dx = (height(x + 1e-3, z) - height(x - 1e-3, z)) / 2e-3
+            dz = (height(x, z + 1e-3) - height(x, z - 1e-3)) / 2e-3
+            l = math.sqrt(dx * dx + 1 + dz * dz)
+            nor.extend((-dx / l, 1 / l, -dz / l))
+    idx = array.array("I")
+    for j in range(n):
+        for i in range(n):
+            a0 = j * (n + 1) + i
+            b0 = a0 + 1
+            c0 = a0 + n + 1
+            d0 = c0 + 1
+            idx.extend((a0, c0, b0, b0, c0, d0))
+    blobs = [pos.tobytes(), nor.tobytes(), idx.tobytes()]
+    offsets, off = [], 0
+    for b in blobs:
+        offsets.append(off)
+        off += len(b)
+    binary = b"".join(blobs)
+    verts = (n + 1) * (n + 1)
+    lo = [min(pos[0::3]), min(pos[1::3]), min(pos[2::3])]
+    hi = [max(pos[0::3]), max(pos[1::3]), max(pos[2::3])]
+    doc = {
+        "asset": {"version": "2.0", "generator": "tessera scripts/gltf/make_dense.py"},
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "directional", "intensity": 3.0, "color": [1.0, 0.95, 0.9]},
+            {"type": "point", "intensity": 4000.0},
+        ]}},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1, 2, 3]}],
+        "nodes": [
+            {"mesh": 0, "name": "Terrain"},
+            {"camera": 0, "translation": [0.0, 6.0, 14.0],
+             "rotation": [-0.2164396, 0.0, 0.0, 0.976296]},
+            {"rotation": [-0.5, 0.3, 0.1, 0.8], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+            {"translation": [2.0, 3.0, 2.0], "extensions": {"KHR_lights_punctual": {"light": 1}}},
+        ],
+        "cameras": [{"type": "perspective",
+                     "perspective": {"yfov": 0.8, "aspectRatio": 16 / 9, "znear": 0.1}}],
+        "meshes": [{"name": "Terrain", "primitives": [{
+            "attributes": {"POSITION": 0, "NORMAL": 1}, "indices": 2, "material": 0}]}],
+        "materials": [{"name": "Ground", "pbrMetallicRoughness": {
+            "baseColorFactor": [0.45, 0.4, 0.3, 1.0], "metallicFactor": 0.0,
+            "roughnessFactor": 0.7}}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": verts, "type": "VEC3",
+             "min": lo, "max": hi},
+            {"bufferView": 1, "componentType": 5126, "count": verts, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5125, "count": len(idx), "type": "SCALAR"},
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": offsets[k], "byteLength": len(blobs[k])}
+            for k in range(3)
+        ],
+        "buffers": [{"byteLength": len(binary)}],
+    }
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    binary += b"\0" * (-len(binary) % 4)
+    total = 12 + 8 + len(js) + 8 + len(binary)
+    with open(a.out, "wb") as f:
+        f.write(struct.pack("<4sII", b"glTF", 2, total))
+        f.write(struct.pack("<I4s", len(js), b"JSON"))
+        f.write(js)
+        f.write(struct.pack("<I4s", len(binary), b"BIN\0"))
+        f.write(binary)
+    print(f"{a.out}: {len(idx) // 3} triangles, {verts} vertices, {total / 2**20:.1f} MiB")
+
+
+if __name__ == "__main__":
+    main()
