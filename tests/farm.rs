@@ -812,17 +812,24 @@ fn a_capped_cache_evicts_artifacts_that_no_running_job_reads_and_old_jobs_expire
 fn a_blender_exported_gltf_renders_through_the_farm_with_every_method_as_tessera_render_does() {
     // The .glb alone is the scene: submit bundles it, the coordinator and workers read it
     // from the bundle. Its metallic-roughness materials, glass, spot and point lights and
-    // emissive panel go through every method.
+    // emissive panel go through every method; so do the textured shot's embedded textures.
     let dir = tempfile::tempdir().expect("temp dir");
     let data = dir.path().join("data");
     let (_serve, url) = serve_with(&data, "127.0.0.1:0", "30", &["--local-workers", "2"]);
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gltf/product-shot.glb");
-    for method in tessera_render::method::names() {
-        let args = ["--integrator", method, "--size", "80x45", "--spp", "1"];
-        let (_, farm) = submit_and_compare(&url, &scene, method, &args, dir.path());
-        let image = tessera_scene::image::read_exr_rgb(&farm).expect("an EXR");
-        let mean: f64 =
-            image.pixels.iter().map(|p| p.x as f64).sum::<f64>() / image.pixels.len() as f64;
-        assert!(mean.is_finite() && mean > 0.0, "{method}: mean {mean}");
+    let gltf = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gltf");
+    let scenes = [
+        ("product", gltf.join("product-shot.glb")),
+        ("textured", gltf.join("textured-shot/textured-shot.glb")),
+    ];
+    for (name, scene) in &scenes {
+        for method in tessera_render::method::names() {
+            let args = ["--integrator", method, "--size", "80x45", "--spp", "1"];
+            let label = format!("{name}-{method}");
+            let (_, farm) = submit_and_compare(&url, scene, &label, &args, dir.path());
+            let image = tessera_scene::image::read_exr_rgb(&farm).expect("an EXR");
+            let mean: f64 =
+                image.pixels.iter().map(|p| p.x as f64).sum::<f64>() / image.pixels.len() as f64;
+            assert!(mean.is_finite() && mean > 0.0, "{label}: mean {mean}");
+        }
     }
 }

@@ -3,6 +3,11 @@ Cycles as the independent reference Tessera's render of the export is compared w
 
     pip install bpy==5.0.1
     python3 scripts/blender/diffuse_shot.py scenes/gltf/diffuse-shot [--spp 4096] [--size 160x90]
+    python3 scripts/blender/diffuse_shot.py scenes/gltf/textured-shot --textured
+
+`--textured` gives the floor a board texture (8×8 squares of two woods' colours, with a
+grain) and hangs a picture on the wall (a colour gradient with a frame), both 8-bit sRGB PNG
+images that the exporter embeds in the .glb (`textured-shot.glb`).
 
 writes `diffuse-shot.glb` and `cycles.exr` (linear Rec.709 radiance, Standard view transform,
 no denoiser, no clamping, path tracing to depth 64) into the folder. Every material is
@@ -32,17 +37,60 @@ def diffuse(name, color, emission=None, strength=0.0):
     return m
 
 
+def image(name, size, colour):
+    """An sRGB image of `size`² whose texel (x, y) (y up, as Blender stores rows) is
+    colour(x, y), packed into the .blend so that the exporter embeds it."""
+    img = bpy.data.images.new(name, size, size, alpha=False)
+    px = []
+    for y in range(size):
+        for x in range(size):
+            r, g, b = colour(x, y)
+            px.extend((r, g, b, 1.0))
+    img.pixels = px
+    img.pack()
+    return img
+
+
+def textured(name, img):
+    m = diffuse(name, (1.0, 1.0, 1.0))
+    nodes = m.node_tree.nodes
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    tex.interpolation = "Linear"
+    m.node_tree.links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
+    return m
+
+
+def board(x, y):
+    cell = (x // 32 + y // 32) % 2
+    grain = 0.06 * math.sin(x * 0.7 + 3.0 * math.sin(y * 0.05))
+    base = (0.55, 0.36, 0.2) if cell else (0.8, 0.65, 0.45)
+    return tuple(min(max(c + grain, 0.0), 1.0) for c in base)
+
+
+def picture(x, y):
+    if x < 8 or y < 8 or x >= 120 or y >= 120:
+        return (0.15, 0.1, 0.05)
+    return (x / 128.0, y / 128.0, 0.5 + 0.4 * math.sin(x * 0.2) * math.cos(y * 0.2))
+
+
 def add(obj, material, name):
     obj.data.materials.append(material)
     obj.name = name
 
 
-def build(width, height):
+def build(width, height, textures):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
 
     bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0, 0, 0))
-    add(bpy.context.object, diffuse("Floor", (0.6, 0.6, 0.6)), "Floor")
+    floor = textured("Floor", image("Board", 256, board)) if textures else diffuse(
+        "Floor", (0.6, 0.6, 0.6))
+    add(bpy.context.object, floor, "Floor")
+    if textures:
+        bpy.ops.mesh.primitive_plane_add(size=1.6, location=(-1.2, 2.98, 2.2),
+                                         rotation=(math.radians(90), 0, 0))
+        add(bpy.context.object, textured("Picture", image("Picture", 128, picture)), "Picture")
     bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0, 3.0, 4.0),
                                      rotation=(math.radians(90), 0, 0))
     add(bpy.context.object, diffuse("Wall", (0.5, 0.55, 0.7)), "Wall")
@@ -136,12 +184,14 @@ def main():
     ap.add_argument("out")
     ap.add_argument("--spp", type=int, default=4096)
     ap.add_argument("--size", default="160x90")
+    ap.add_argument("--textured", action="store_true")
     a = ap.parse_args()
     w, h = (int(v) for v in a.size.split("x"))
     os.makedirs(a.out, exist_ok=True)
-    scene = build(w, h)
+    scene = build(w, h, a.textured)
+    name = "textured-shot.glb" if a.textured else "diffuse-shot.glb"
     bpy.ops.export_scene.gltf(
-        filepath=os.path.join(a.out, "diffuse-shot.glb"),
+        filepath=os.path.join(a.out, name),
         export_format="GLB",
         export_cameras=True,
         export_lights=True,

@@ -27,6 +27,7 @@ pub mod sampling;
 pub mod scene;
 pub mod spectrum;
 pub mod stats;
+pub mod texture;
 pub mod wire;
 
 pub use error::RenderError;

@@ -2,7 +2,7 @@
 //! from a validated [`SceneDesc`] and shared read-only by every thread. The camera is not part
 //! of it: a camera-only fly-through builds the scene once and renders every frame from it.
 
-use glam::{Mat3A, Vec3A};
+use glam::{Mat3A, Vec2, Vec3A};
 use tessera_scene::{FilmDesc, IntegratorDesc, LightDesc, SceneDesc};
 
 use crate::bsdf::{self, Bsdf, BsdfFlags};
@@ -15,6 +15,7 @@ use crate::light::{
 };
 use crate::math::{Frame, offset_ray_origin};
 use crate::ray::Ray;
+use crate::texture::{MipMap, Textures};
 
 /// Index meaning "not an emitter".
 pub const NO_LIGHT: u32 = u32::MAX;
@@ -32,6 +33,64 @@ pub struct Material {
     pub bsdf: Box<dyn Bsdf>,
     pub flags: BsdfFlags,
     pub subsurface: Option<Box<Translucent>>,
+    /// A textured material builds its BSDF per hit ([`Material::bsdf_at`]); `bsdf` is then
+    /// its untextured factors' (its flags hold for every hit).
+    pub textured: Option<Box<TexturedPbr>>,
+}
+
+/// The glTF metallic-roughness BRDF with image textures multiplying its factors.
+#[derive(Debug)]
+pub struct TexturedPbr {
+    base_color: Vec3A,
+    metallic: f32,
+    roughness: f32,
+    ior: f32,
+    specular_color: Vec3A,
+    specular: f32,
+    base_color_map: Option<MipMap>,
+    metallic_roughness_map: Option<MipMap>,
+}
+
+impl TexturedPbr {
+    /// The BSDF at texture coordinates `uv` for a footprint `width` wide (uv units).
+    #[inline]
+    fn at(&self, uv: Vec2, width: f32) -> bsdf::MetallicRoughness {
+        let mut base = self.base_color;
+        let (mut metallic, mut roughness) = (self.metallic, self.roughness);
+        if let Some(m) = &self.base_color_map {
+            base *= Vec3A::from(m.lookup(uv, width).truncate());
+        }
+        if let Some(m) = &self.metallic_roughness_map {
+            let t = m.lookup(uv, width);
+            roughness *= t.y;
+            metallic *= t.z;
+        }
+        bsdf::MetallicRoughness::new(
+            base.clamp(Vec3A::ZERO, Vec3A::ONE),
+            metallic,
+            roughness,
+            self.ior,
+            self.specular_color,
+            self.specular,
+        )
+    }
+}
+
+/// The BSDF at one hit: the material's own, or one built there from its textures.
+pub enum HitBsdf<'a> {
+    Shared(&'a dyn Bsdf),
+    Textured(bsdf::MetallicRoughness),
+}
+
+impl<'a> std::ops::Deref for HitBsdf<'a> {
+    type Target = dyn Bsdf + 'a;
+    #[inline]
+    fn deref(&self) -> &Self::Target {
+        match self {
+            HitBsdf::Shared(b) => *b,
+            HitBsdf::Textured(b) => b,
+        }
+    }
 }
 
 /// A translucent material's BSSRDF and its exit lobe Sw, the material a path continues with
@@ -43,6 +102,38 @@ pub struct Translucent {
 }
 
 impl Material {
+    /// The material of `kind`, its textures' pyramids built in (or taken from) `textures`.
+    pub fn with_textures(kind: &tessera_scene::MaterialKind, textures: &mut Textures) -> Material {
+        let mut m = Material::from_desc(kind);
+        if let tessera_scene::MaterialKind::MetallicRoughness {
+            base_color,
+            metallic,
+            roughness,
+            ior,
+            specular_color,
+            specular,
+            textures: maps,
+        } = kind
+            && !maps.is_empty()
+        {
+            m.textured = Some(Box::new(TexturedPbr {
+                base_color: (*base_color).into(),
+                metallic: *metallic,
+                roughness: *roughness,
+                ior: *ior,
+                specular_color: (*specular_color).into(),
+                specular: *specular,
+                base_color_map: maps.base_color.as_ref().map(|t| textures.mipmap(t)),
+                metallic_roughness_map: maps
+                    .metallic_roughness
+                    .as_ref()
+                    .map(|t| textures.mipmap(t)),
+            }));
+        }
+        m
+    }
+
+    /// The material of `kind` without its textures (tests, tools).
     pub fn from_desc(kind: &tessera_scene::MaterialKind) -> Material {
         let mut m = Material::from_bsdf(bsdf::from_desc(kind));
         if let tessera_scene::MaterialKind::Subsurface {
@@ -65,6 +156,16 @@ impl Material {
             flags: bsdf.flags(),
             bsdf,
             subsurface: None,
+            textured: None,
+        }
+    }
+
+    /// The BSDF at hit `si` (built from the textures there, for a textured material).
+    #[inline]
+    pub fn bsdf_at(&self, si: &SurfaceInteraction) -> HitBsdf<'_> {
+        match &self.textured {
+            None => HitBsdf::Shared(self.bsdf.as_ref()),
+            Some(t) => HitBsdf::Textured(t.at(si.uv, si.uv_width)),
         }
     }
 
@@ -99,6 +200,11 @@ pub struct SurfaceInteraction {
     pub material: u32,
     /// Emitter index into the scene's lights, or [`NO_LIGHT`].
     pub light: u32,
+    /// Texture coordinates (zero where the surface has none).
+    pub uv: Vec2,
+    /// The width, in uv units, of a camera pixel's footprint at this distance along the ray
+    /// (the texture filter's width; an estimate without ray differentials).
+    pub uv_width: f32,
 }
 
 impl SurfaceInteraction {
@@ -122,8 +228,13 @@ impl SurfaceInteraction {
 struct MeshRuntime {
     material: u32,
     first_triangle: u32,
-    /// Per-vertex shading normals and the triangles' vertex indices, for smooth meshes.
-    normals: Option<(Vec<Vec3A>, Vec<[u32; 3]>)>,
+    /// The triangles' vertex indices (as wound for the BVH), where vertices carry normals or
+    /// texture coordinates.
+    indices: Vec<[u32; 3]>,
+    /// Per-vertex shading normals, for smooth meshes.
+    normals: Option<Vec<Vec3A>>,
+    /// Per-vertex texture coordinates, and per triangle √(uv area / world area).
+    uvs: Option<(Vec<Vec2>, Vec<f32>)>,
 }
 
 struct SphereRuntime {
@@ -138,6 +249,8 @@ pub struct SceneStats {
     pub spheres: usize,
     pub lights: usize,
     pub emissive_triangles: usize,
+    /// Bytes of the texture pyramids (each image once).
+    pub texture_bytes: usize,
 }
 
 pub struct Scene {
@@ -159,6 +272,8 @@ pub struct Scene {
     /// Every mesh and sphere: its bounding sphere and material (projection maps aim at them).
     pub objects: Vec<(Target, u32)>,
     pub stats: SceneStats,
+    /// A camera pixel's angular width (radians), for texture footprints.
+    pixel_angle: f32,
 }
 
 impl Scene {
@@ -190,6 +305,7 @@ impl Scene {
                 .as_ref()
                 .map(|n| n.iter().map(|&v| Vec3A::from(v)).collect());
             let mut indices = Vec::with_capacity(m.triangles.len());
+            let mut uv_scale = Vec::new();
             for &[a, b, c] in &m.triangles {
                 let v = [a, b, c].map(|i| Vec3A::from(m.positions[i as usize]));
                 // With vertex normals, the normals decide the front face: wind to agree.
@@ -203,6 +319,16 @@ impl Scene {
                     (v, [a, b, c])
                 };
                 indices.push(idx);
+                if let Some(uv) = &m.uvs {
+                    let [ta, tb, tc] = [a, b, c].map(|i| uv[i as usize]);
+                    let uv_area = (tb - ta).perp_dot(tc - ta).abs();
+                    let area = winding.length();
+                    uv_scale.push(if area > 0.0 {
+                        (uv_area / area).sqrt()
+                    } else {
+                        0.0
+                    });
+                }
                 triangles.push(v);
                 triangle_mesh.push(mi as u32);
                 let light = match &m.emission {
@@ -219,10 +345,17 @@ impl Scene {
                 };
                 triangle_light.push(light);
             }
+            let uvs = m.uvs.as_ref().map(|uv| (uv.clone(), uv_scale));
             meshes.push(MeshRuntime {
                 material: m.material,
                 first_triangle,
-                normals: normals.map(|n| (n, indices)),
+                indices: if normals.is_some() || uvs.is_some() {
+                    indices
+                } else {
+                    Vec::new()
+                },
+                normals,
+                uvs,
             });
         }
 
@@ -314,12 +447,24 @@ impl Scene {
             spheres: spheres.len(),
             lights: lights.len(),
             emissive_triangles,
+            texture_bytes: 0,
         };
+        let mut textures = Textures::default();
         let materials = desc
             .materials
             .iter()
-            .map(|m| Material::from_desc(&m.kind))
+            .map(|m| Material::with_textures(&m.kind, &mut textures))
             .collect();
+        let stats = SceneStats {
+            texture_bytes: textures.bytes(),
+            ..stats
+        };
+        // A camera pixel's angular width, for texture footprints: t × this is its width at
+        // distance t (the camera of the first frame; a fly-through's keeps its field of view).
+        // The pixel's samples already average over it, so the texture filter takes a share:
+        // 1/√spp of it, but no less than 1/8 (pbrt-v4 scales its ray differentials alike).
+        let share = (1.0 / (desc.integrator.spp.max(1) as f32).sqrt()).max(0.125);
+        let pixel_angle = share * desc.camera.fov_y / desc.film.height.max(1) as f32;
         Scene {
             accel: Accel::build(&triangles, &sphere_geometry),
             meshes,
@@ -335,6 +480,7 @@ impl Scene {
             radius,
             objects,
             stats,
+            pixel_angle,
         }
     }
 
@@ -346,12 +492,23 @@ impl Scene {
     /// The closest surface along `ray`.
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         let hit = self.accel.intersect(ray, f32::INFINITY)?;
-        let (ns, material, light) = match hit.prim {
+        let (ns, material, light, uv, uv_width) = match hit.prim {
             Prim::Triangle { id, b } => {
                 let mesh = &self.meshes[self.triangle_mesh[id as usize] as usize];
+                let local = (id - mesh.first_triangle) as usize;
+                let (uv, uv_width) = match &mesh.uvs {
+                    Some((uvs, scale)) => {
+                        let [i0, i1, i2] = mesh.indices[local];
+                        let uv = uvs[i0 as usize] * b[0]
+                            + uvs[i1 as usize] * b[1]
+                            + uvs[i2 as usize] * b[2];
+                        (uv, scale[local] * hit.t * self.pixel_angle)
+                    }
+                    None => (Vec2::ZERO, 0.0),
+                };
                 let ns = match &mesh.normals {
-                    Some((normals, indices)) => {
-                        let [i0, i1, i2] = indices[(id - mesh.first_triangle) as usize];
+                    Some(normals) => {
+                        let [i0, i1, i2] = mesh.indices[local];
                         let n = normals[i0 as usize] * b[0]
                             + normals[i1 as usize] * b[1]
                             + normals[i2 as usize] * b[2];
@@ -361,11 +518,17 @@ impl Scene {
                     }
                     None => hit.n,
                 };
-                (ns, mesh.material, self.triangle_light[id as usize])
+                (
+                    ns,
+                    mesh.material,
+                    self.triangle_light[id as usize],
+                    uv,
+                    uv_width,
+                )
             }
             Prim::Sphere { id } => {
                 let s = &self.spheres[id as usize];
-                (hit.n, s.material, s.light)
+                (hit.n, s.material, s.light, Vec2::ZERO, 0.0)
             }
         };
         Some(SurfaceInteraction {
@@ -376,6 +539,8 @@ impl Scene {
             ns,
             material,
             light,
+            uv,
+            uv_width,
         })
     }
 

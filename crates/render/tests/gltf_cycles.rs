@@ -6,7 +6,8 @@
 //! `scenes/gltf/diffuse-shot/` was made by `scripts/blender/diffuse_shot.py
 //! scenes/gltf/diffuse-shot --spp 2048 --size 160x90` (Blender 5.0.1 from PyPI: `bpy`):
 //! `diffuse-shot.glb` is the export, `cycles.exr` Cycles' path-traced render (no denoiser,
-//! Standard view transform, linear EXR, 2048 spp).
+//! Standard view transform, linear EXR, 2048 spp). `scenes/gltf/textured-shot/` likewise with
+//! `--textured`: an sRGB board texture on the floor and a picture on the wall, embedded PNGs.
 
 use std::path::Path;
 
@@ -21,10 +22,21 @@ const REFERENCE_SPP: f64 = 2048.0;
 
 #[test]
 fn blenders_export_renders_as_cycles_renders_the_blender_scene() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gltf/diffuse-shot");
+    agrees_with_cycles("diffuse-shot");
+}
+
+#[test]
+fn blenders_textured_export_renders_as_cycles_renders_the_blender_scene() {
+    agrees_with_cycles("textured-shot");
+}
+
+fn agrees_with_cycles(name: &str) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../scenes/gltf")
+        .join(name);
     let reference = read_exr(&root.join("cycles.exr")).expect("the Cycles render");
     let mut desc =
-        tessera_scene::load(&root.join("diffuse-shot.glb")).unwrap_or_else(|e| panic!("{e}"));
+        tessera_scene::load(&root.join(format!("{name}.glb"))).unwrap_or_else(|e| panic!("{e}"));
     assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
     desc.film.width = reference.width;
     desc.film.height = reference.height;
@@ -48,7 +60,7 @@ fn blenders_export_renders_as_cycles_renders_the_blender_scene() {
 
     let (w, h) = (reference.width as usize, reference.height as usize);
     let r = |i: usize| reference.pixels[i].to_array();
-    // Mean over the image: within 1 % (measured at equal spp: 0.01 %).
+    // Mean over the image: within 1 % (measured at equal spp: 0.01 %, textured 0.13 %).
     let ours: f64 = image.pixels.iter().flat_map(|p| p.rgb).map(f64::from).sum();
     let theirs: f64 = (0..w * h).flat_map(r).map(f64::from).sum();
     let ratio = ours / theirs;
@@ -97,7 +109,7 @@ fn blenders_export_renders_as_cycles_renders_the_blender_scene() {
     };
     let mut g: Vec<f32> = (0..w * h).map(gradient).collect();
     g.sort_by(f32::total_cmp);
-    let edge = g[(w * h) * 85 / 100];
+    let edge = g[(w * h) * 70 / 100];
     let (mut measured, mut expected, mut n) = (0.0f64, 0.0f64, 0usize);
     for (i, p) in image.pixels.iter().enumerate() {
         if gradient(i) > edge {

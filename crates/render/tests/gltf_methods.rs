@@ -47,6 +47,7 @@ fn every_method_renders_the_gltf_materials_and_delta_lights_as_the_path_tracer_d
                 ior: 1.5,
                 specular_color: glam::Vec3::ONE,
                 specular: 1.0,
+                textures: Default::default(),
             };
         }
     }

@@ -183,6 +183,8 @@ pub enum MaterialKind {
         ior: f32,
         specular_color: Vec3,
         specular: f32,
+        /// Image textures that multiply the factors, if any.
+        textures: PbrTextures,
     },
     /// A translucent object: a smooth dielectric interface of relative index `eta` around a
     /// homogeneous scattering medium — reduced scattering σs′ = σs (1 − g) and absorption σa
@@ -212,6 +214,21 @@ pub enum MaterialKind {
     },
 }
 
+/// The image textures of a metallic-roughness material: the base colour's (sRGB-decoded,
+/// multiplies `base_color`) and the metallic-roughness one's (linear; blue is metalness,
+/// green roughness, multiplying the factors).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PbrTextures {
+    pub base_color: Option<crate::texture::TextureDesc>,
+    pub metallic_roughness: Option<crate::texture::TextureDesc>,
+}
+
+impl PbrTextures {
+    pub fn is_empty(&self) -> bool {
+        self.base_color.is_none() && self.metallic_roughness.is_none()
+    }
+}
+
 /// One Kubelka–Munk layer: absorption K and scattering S per mm, thickness in mm (only the
 /// products K·d and S·d matter, so the scene's units do not enter).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -236,6 +253,8 @@ pub struct MeshDesc {
     pub positions: Vec<Vec3>,
     /// Per-vertex shading normals (unit length), if the mesh has them and they are wanted.
     pub normals: Option<Vec<Vec3>>,
+    /// Per-vertex texture coordinates (TEXCOORD_0), if the mesh has them.
+    pub uvs: Option<Vec<glam::Vec2>>,
     pub triangles: Vec<[u32; 3]>,
     pub material: u32,
     pub emission: Option<EmissionDesc>,

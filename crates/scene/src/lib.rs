@@ -15,6 +15,7 @@ pub mod mesh;
 pub mod photometry;
 mod resolve;
 pub mod source;
+pub mod texture;
 pub mod transform;
 
 use std::path::Path;

@@ -328,17 +328,19 @@ fn emission_transmission_ior_and_specular_extensions_are_read() {
 }
 
 #[test]
-fn textures_and_alpha_are_named_in_warnings_not_dropped_silently() {
+fn unread_textures_and_alpha_are_named_in_warnings_not_dropped_silently() {
     let d = load_doc(&document(json!({
         "materials": [{"name": "Wood", "alphaMode": "MASK",
-            "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
-            "normalTexture": {"index": 0}}],
+            "normalTexture": {"index": 0}, "emissiveTexture": {"index": 0}}],
         "textures": [{"source": 0}],
         "images": [{"uri": "wood.png"}]
     })));
     let w = d.warnings.join("\n");
     assert!(w.contains("materials[0] \"Wood\""), "{w}");
-    assert!(w.contains("baseColorTexture, normalTexture"), "{w}");
+    assert!(
+        w.contains("normalTexture, emissiveTexture not applied"),
+        "{w}"
+    );
     assert!(w.contains("alphaMode Mask"), "{w}");
 }
 
@@ -537,5 +539,116 @@ fn blenders_exported_product_shot_reads_as_blender_made_it() {
         close(panel.radiance, Vec3::new(6.0, 5.4, 4.8)),
         "{}",
         panel.radiance
+    );
+}
+
+/// A 2×2 RGBA PNG, written by the image crate.
+fn png(texels: [[u8; 4]; 4]) -> Vec<u8> {
+    let img = image::RgbaImage::from_raw(2, 2, texels.concat()).expect("image");
+    let mut out = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
+        .expect("png");
+    out
+}
+
+/// The triangle with TEXCOORD_0 (a second buffer) and `material`.
+fn textured(material: Value, extra: Value) -> Value {
+    let uv: Vec<u8> = [[0f32, 0.0], [1.0, 0.0], [0.0, 1.0]]
+        .iter()
+        .flatten()
+        .flat_map(|c| c.to_le_bytes())
+        .collect();
+    let mut doc = document(extra);
+    doc["buffers"].as_array_mut().expect("buffers").push(json!({
+        "byteLength": uv.len(), "uri": data_uri(&uv)
+    }));
+    doc["bufferViews"]
+        .as_array_mut()
+        .expect("views")
+        .push(json!({
+            "buffer": 1, "byteOffset": 0, "byteLength": uv.len()
+        }));
+    doc["accessors"]
+        .as_array_mut()
+        .expect("accessors")
+        .push(json!({
+            "bufferView": 3, "componentType": 5126, "count": 3, "type": "VEC2"
+        }));
+    doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(3);
+    doc["materials"][0] = material;
+    doc
+}
+
+#[test]
+fn textures_are_read_with_their_coordinates_samplers_transforms_and_colour_spaces() {
+    let image = png([[128, 0, 255, 255], [255; 4], [0, 0, 0, 255], [255; 4]]);
+    let d = load_doc(&textured(
+        json!({"name": "Wood", "pbrMetallicRoughness": {
+            "baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {
+                "offset": [0.5, 0.0], "rotation": 0.0, "scale": [2.0, 3.0]}}},
+            "metallicRoughnessTexture": {"index": 1}
+        }}),
+        json!({
+            "extensionsUsed": ["KHR_texture_transform"],
+            "images": [{"uri": data_uri(&image), "name": "wood"}],
+            "samplers": [{"wrapS": 33648, "wrapT": 33071}],
+            "textures": [{"source": 0, "sampler": 0}, {"source": 0}]
+        }),
+    ));
+    assert!(
+        d.warnings.iter().all(|w| !w.contains("materials")),
+        "{:?}",
+        d.warnings
+    );
+    let uvs = d.meshes[0].uvs.as_ref().expect("TEXCOORD_0");
+    assert_eq!(uvs[1], glam::Vec2::new(1.0, 0.0));
+    let MaterialKind::MetallicRoughness { textures, .. } = &d.materials[0].kind else {
+        panic!("expected the metallic-roughness BRDF");
+    };
+    let base = textures.base_color.as_ref().expect("base colour texture");
+    use tessera_scene::texture::Wrap;
+    assert_eq!(base.wrap, [Wrap::MirroredRepeat, Wrap::ClampToEdge]);
+    assert_eq!(
+        base.map(glam::Vec2::new(1.0, 1.0)),
+        glam::Vec2::new(2.5, 3.0)
+    );
+    // Colour is decoded from sRGB; the same image as data is read as stored.
+    assert!((base.image.texels[0].x - 0.215_860_5).abs() < 1e-5);
+    let mr = textures
+        .metallic_roughness
+        .as_ref()
+        .expect("metallic-roughness texture");
+    assert!((mr.image.texels[0].x - 128.0 / 255.0).abs() < 1e-6);
+    assert_eq!(mr.wrap, [Wrap::Repeat; 2]);
+}
+
+#[test]
+fn a_missing_or_broken_image_is_refused_naming_the_image_and_its_material() {
+    let doc = |uri: String| {
+        textured(
+            json!({"name": "Wood", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}),
+            json!({"images": [{"uri": uri}], "textures": [{"source": 0}]}),
+        )
+    };
+    let msg = error_of(
+        &[("bad.gltf", doc("wood.png".into()).to_string().into_bytes())],
+        "bad.gltf",
+    );
+    assert!(
+        msg.contains("images[0]")
+            && msg.contains("wood.png")
+            && msg.contains("materials[0] \"Wood\""),
+        "{msg}"
+    );
+    let msg = error_of(
+        &[(
+            "bad.gltf",
+            doc(data_uri(b"not a png")).to_string().into_bytes(),
+        )],
+        "bad.gltf",
+    );
+    assert!(
+        msg.contains("images[0]") && msg.contains("cannot decode"),
+        "{msg}"
     );
 }

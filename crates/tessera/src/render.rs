@@ -278,6 +278,12 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     if let Some(mib) = peak_rss_mib() {
         report += &format!("peak resident memory {mib:.0} MiB\n");
     }
+    if scene.stats.texture_bytes > 0 {
+        report += &format!(
+            "textures {:.1} MiB (mip-map pyramids, each image once)\n",
+            scene.stats.texture_bytes as f64 / (1 << 20) as f64
+        );
+    }
     report += &format!("wrote {} and {}\n", output.display(), preview.display());
     crate::print(&report)
 }

@@ -199,6 +199,7 @@ pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
             }
         }
         MaterialKind::Mirror { reflectance } => Box::new(Mirror::new(v(reflectance))),
+        // Textures are the scene's to apply per hit (`scene::Material::bsdf_at`).
         MaterialKind::MetallicRoughness {
             base_color,
             metallic,
@@ -206,6 +207,7 @@ pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
             ior,
             specular_color,
             specular,
+            ..
         } => Box::new(MetallicRoughness::new(
             v(base_color),
             metallic,

@@ -61,7 +61,7 @@ pub(crate) fn scatter(
     use crate::sampler::Sampler;
     let frame = material.frame(si, wo);
     let u = sampler.get_3d();
-    let bs = material.bsdf.sample(
+    let bs = material.bsdf_at(si).sample(
         frame.to_local(wo),
         u.x,
         Vec2::new(u.y, u.z),
@@ -94,7 +94,8 @@ pub(crate) fn sample_direct(
     };
     let wo_local = frame.to_local(wo);
     let wi_local = frame.to_local(ls.wi);
-    let f = material.bsdf.eval(wo_local, wi_local, mode) * wi_local.z.abs();
+    let bsdf = material.bsdf_at(si);
+    let f = bsdf.eval(wo_local, wi_local, mode) * wi_local.z.abs();
     if is_black(f) || !consistent(si, wo, ls.wi, wo_local, wi_local) {
         return Spectrum::ZERO;
     }
@@ -106,7 +107,7 @@ pub(crate) fn sample_direct(
     let w = if ls.delta || !mis {
         1.0
     } else {
-        power_heuristic(p_light, material.bsdf.pdf(wo_local, wi_local, mode))
+        power_heuristic(p_light, bsdf.pdf(wo_local, wi_local, mode))
     };
     f * ls.li * (w / p_light)
 }

@@ -155,7 +155,7 @@ impl PathIntegrator {
             let material = scene.material(si.material);
             if depth == 0 {
                 first_hit = Some(FirstHit {
-                    albedo: material.bsdf.albedo(),
+                    albedo: material.bsdf_at(&si).albedo(),
                     normal: si.ns,
                     p: si.p,
                 });
@@ -199,7 +199,7 @@ impl PathIntegrator {
             // Continue the path by sampling the BSDF; the fourth value decides Russian roulette.
             let u = sampler.get_4d();
             let Some(bs) = material
-                .bsdf
+                .bsdf_at(&si)
                 .sample(wo_local, u.x, Vec2::new(u.y, u.z), mode)
             else {
                 break;

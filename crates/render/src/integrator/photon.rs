@@ -218,13 +218,11 @@ impl PhotonIntegrator {
     ) -> Spectrum {
         let n = self.settings.gather_rays;
         let wo_local = frame.to_local(wo);
+        let bsdf = material.bsdf_at(si);
         let mut sum = Spectrum::ZERO;
         for _ in 0..n {
             let u = sampler.get_3d();
-            let Some(bs) =
-                material
-                    .bsdf
-                    .sample(wo_local, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
+            let Some(bs) = bsdf.sample(wo_local, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
             else {
                 continue;
             };

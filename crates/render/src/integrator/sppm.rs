@@ -416,14 +416,13 @@ impl<'a> Sppm<'a> {
             let material = self.scene.material(vp.si.material);
             let frame = material.frame(&vp.si, vp.wo);
             let wo_local = frame.to_local(vp.wo);
+            let bsdf = material.bsdf_at(&vp.si);
             let (mut phi, mut m) = (DVec3::ZERO, 0u32);
             let r2 = r2.get(i as usize).copied().unwrap_or(0.0);
             photons.within(vp.si.p, r2, &mut |j, _| {
                 let ph = photons.get(j);
                 let wi = Vec3A::from(ph.wi);
-                let f = material
-                    .bsdf
-                    .eval(wo_local, frame.to_local(wi), TransportMode::Radiance);
+                let f = bsdf.eval(wo_local, frame.to_local(wi), TransportMode::Radiance);
                 let c = vp.beta * f * Vec3A::from(ph.power);
                 if c.is_finite() {
                     phi += DVec3::new(c.x as f64, c.y as f64, c.z as f64);

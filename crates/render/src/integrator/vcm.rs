@@ -360,12 +360,13 @@ impl CameraPass<'_> {
             if !consistent(si, x.wo, y.wo, wo_l, wi_l) {
                 return;
             }
-            let f = material.bsdf.eval(wo_l, wi_l, TransportMode::Radiance);
+            let bsdf = material.bsdf_at(si);
+            let f = bsdf.eval(wo_l, wi_l, TransportMode::Radiance);
             if is_black(f) {
                 return;
             }
-            let to_light = material.bsdf.pdf(wo_l, wi_l, TransportMode::Radiance);
-            let to_eye = material.bsdf.pdf(wi_l, wo_l, TransportMode::Radiance);
+            let to_light = bsdf.pdf(wo_l, wi_l, TransportMode::Radiance);
+            let to_eye = bsdf.pdf(wi_l, wo_l, TransportMode::Radiance);
             let sum = merge_sum(y, &eye, to_light, to_eye);
             if sum.is_finite() {
                 l += f * y.beta * (1.0 / sum);
@@ -528,6 +529,8 @@ mod tests {
                 ns: ng,
                 material: 0,
                 light: NO_LIGHT,
+                uv: glam::Vec2::ZERO,
+                uv_width: 0.0,
             };
             let mut v = Vertex::surface(si, (self.point() - 5.0).normalize());
             v.pdf_fwd = self.density();

@@ -57,7 +57,7 @@ pub fn execute(scene: &Scene, camera: &Camera, tile: Tile, samples: SampleRange)
             let Some(si) = scene.intersect(&ray) else {
                 continue;
             };
-            let a = scene.material(si.material).bsdf.albedo();
+            let a = scene.material(si.material).bsdf_at(&si).albedo();
             w_hit += w;
             depth += w * camera.depth(si.p) as f64;
             for c in 0..3 {

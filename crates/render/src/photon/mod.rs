@@ -199,14 +199,13 @@ impl PhotonMap {
         let r2 = knn.max_d2;
         let frame = material.frame(si, wo);
         let wo_local = frame.to_local(wo);
+        let bsdf = material.bsdf_at(si);
         let r = r2.sqrt();
         let mut sum = Spectrum::ZERO;
         for &(d2, i) in knn.found() {
             let ph = self.tree.get(i);
             let wi = Vec3A::from(ph.wi);
-            let f = material
-                .bsdf
-                .eval(wo_local, frame.to_local(wi), TransportMode::Radiance);
+            let f = bsdf.eval(wo_local, frame.to_local(wi), TransportMode::Radiance);
             let w = match filter {
                 PhotonFilter::Box => 1.0,
                 PhotonFilter::Cone => 1.0 - d2.sqrt() / r,
@@ -455,6 +454,8 @@ mod tests {
                     ns: Vec3A::Z,
                     material: 0,
                     light: crate::scene::NO_LIGHT,
+                    uv: glam::Vec2::ZERO,
+                    uv_width: 0.0,
                 };
                 sum += map.radiance(&si, &white, Vec3A::Z, 200, 1.0, filter).x;
             }

@@ -244,7 +244,7 @@ impl<'a> Shooter<'a> {
             let frame = material.frame(&si, wo);
             let wo_local = frame.to_local(wo);
             let u = sampler.get_4d();
-            let Some(bs) = material.bsdf.sample(
+            let Some(bs) = material.bsdf_at(&si).sample(
                 wo_local,
                 u.x,
                 Vec2::new(u.y, u.z),

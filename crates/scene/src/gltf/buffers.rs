@@ -88,6 +88,32 @@ fn uri_bytes(
     })
 }
 
+/// The bytes of an image: a buffer view (as in a .glb) or a URI.
+pub(super) fn image_bytes(
+    image: &gltf::Image,
+    data: &[Vec<u8>],
+    source: &dyn SceneSource,
+    dir: &Path,
+    at: &str,
+) -> Result<Vec<u8>, GltfError> {
+    match image.source() {
+        gltf::image::Source::Uri { uri, .. } => uri_bytes(uri, source, dir, at),
+        gltf::image::Source::View { view, .. } => {
+            let buffer = view.buffer().index();
+            let (start, end) = (view.offset(), view.offset() + view.length());
+            data.get(buffer)
+                .and_then(|b| b.get(start..end))
+                .map(<[u8]>::to_vec)
+                .ok_or_else(|| {
+                    GltfError::new(
+                        at,
+                        format!("bufferView {} lies outside buffer {buffer}", view.index()),
+                    )
+                })
+        }
+    }
+}
+
 /// Checks that `accessor` lies within its buffer view and buffer, and has the type expected.
 fn check(
     accessor: &gltf::Accessor,
@@ -221,6 +247,46 @@ pub(super) fn triangles(
         _ => unreachable!("points and lines returned above"),
     };
     Ok(Some(tris))
+}
+
+/// TEXCOORD_0 (float, or normalised unsigned bytes or shorts), if present: one per vertex.
+pub(super) fn uvs(
+    prim: &gltf::Primitive,
+    data: &[Vec<u8>],
+    vertices: usize,
+    at: &str,
+) -> Result<Option<Vec<glam::Vec2>>, GltfError> {
+    let Some(acc) = prim.get(&gltf::Semantic::TexCoords(0)) else {
+        return Ok(None);
+    };
+    check(
+        &acc,
+        data,
+        "TEXCOORD_0",
+        &[DataType::F32, DataType::U8, DataType::U16],
+        Dimensions::Vec2,
+        at,
+    )?;
+    let reader = prim.reader(|b| data.get(b.index()).map(Vec::as_slice));
+    let uvs: Vec<glam::Vec2> = reader
+        .read_tex_coords(0)
+        .ok_or_else(|| GltfError::new(at, "cannot read TEXCOORD_0"))?
+        .into_f32()
+        .map(glam::Vec2::from)
+        .collect();
+    if uvs.len() != vertices {
+        return Err(GltfError::new(
+            at,
+            format!(
+                "{} TEXCOORD_0 values for {vertices} positions: expected one each",
+                uvs.len()
+            ),
+        ));
+    }
+    if let Some(i) = uvs.iter().position(|t| !t.is_finite()) {
+        return Err(GltfError::new(at, format!("TEXCOORD_0 {i} is not finite")));
+    }
+    Ok(Some(uvs))
 }
 
 /// Positions and (if present) normals, every value finite.

@@ -1,13 +1,96 @@
 //! glTF materials as Tessera materials: the metallic-roughness BRDF with KHR_materials_ior
 //! and KHR_materials_specular; transmissive ones (KHR_materials_transmission) as a dielectric
-//! interface; emission from `emissiveFactor` × KHR_materials_emissive_strength. Textures are
-//! not read yet: each one present is named in a warning, and its factor alone is used.
+//! interface; emission from `emissiveFactor` × KHR_materials_emissive_strength. The base
+//! colour and metallic-roughness textures are read (with their samplers and
+//! KHR_texture_transform); the normal, emissive and occlusion textures are not yet (normal and
+//! emissive are named in a warning; occlusion is a rasteriser's stand-in for what we compute).
 
-use glam::Vec3;
+use std::collections::HashMap;
+use std::sync::Arc;
 
-use super::named;
-use crate::desc::{EmissionDesc, MaterialDesc, MaterialKind, Roughness};
+use glam::{Affine2, Vec2, Vec3};
+
+use super::{GltfError, buffers, named};
+use crate::desc::{EmissionDesc, MaterialDesc, MaterialKind, PbrTextures, Roughness};
 use crate::file::Distribution;
+use crate::source::SceneSource;
+use crate::texture::{self, TextureDesc, TextureImage, TextureRole, Wrap};
+
+/// Where images come from, and those decoded so far (each image once per role).
+pub(super) struct Images<'a> {
+    pub(super) data: &'a [Vec<u8>],
+    pub(super) source: &'a dyn SceneSource,
+    pub(super) dir: &'a std::path::Path,
+    decoded: HashMap<(usize, TextureRole), Arc<TextureImage>>,
+}
+
+impl<'a> Images<'a> {
+    pub(super) fn new(
+        data: &'a [Vec<u8>],
+        source: &'a dyn SceneSource,
+        dir: &'a std::path::Path,
+    ) -> Self {
+        Images {
+            data,
+            source,
+            dir,
+            decoded: HashMap::new(),
+        }
+    }
+
+    /// The texture `info` names, decoded for `role`, with its sampler and transform.
+    fn texture(
+        &mut self,
+        texture: gltf::Texture,
+        tex_coord: u32,
+        transform: Option<gltf::texture::TextureTransform>,
+        role: TextureRole,
+        at: &str,
+    ) -> Result<TextureDesc, GltfError> {
+        let img = texture.source();
+        let key = (img.index(), role);
+        let image = match self.decoded.get(&key) {
+            Some(i) => i.clone(),
+            None => {
+                let here = format!(
+                    "{} ({} of {at})",
+                    named("images", img.index(), img.name()),
+                    named("textures", texture.index(), texture.name())
+                );
+                let bytes = buffers::image_bytes(&img, self.data, self.source, self.dir, &here)?;
+                let name = img.name().map_or_else(|| here.clone(), str::to_string);
+                let decoded =
+                    texture::decode(&bytes, &name, role).map_err(|m| GltfError::new(&here, m))?;
+                let decoded = Arc::new(decoded);
+                self.decoded.insert(key, decoded.clone());
+                decoded
+            }
+        };
+        let sampler = texture.sampler();
+        let wrap = |w: gltf::texture::WrappingMode| match w {
+            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+            gltf::texture::WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+            gltf::texture::WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+        };
+        let mut desc = TextureDesc::new(image);
+        desc.wrap = [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())];
+        desc.texcoord = tex_coord;
+        if let Some(t) = transform {
+            // KHR_texture_transform: T · R · S, R = [[cos, sin], [−sin, cos]] (row-major).
+            let (s, c) = t.rotation().sin_cos();
+            let rs = Affine2::from_cols(
+                Vec2::new(c, -s) * t.scale()[0],
+                Vec2::new(s, c) * t.scale()[1],
+                Vec2::from(t.offset()),
+            );
+            desc.transform = rs;
+            if let Some(tc) = t.tex_coord() {
+                desc.texcoord = tc;
+            }
+        }
+        Ok(desc)
+    }
+}
 
 /// Transmission at or above this makes a material a dielectric interface.
 const TRANSMISSIVE: f32 = 0.5;
@@ -15,14 +98,15 @@ const TRANSMISSIVE: f32 = 0.5;
 /// The materials of `doc` by index, and what each emits.
 pub(super) fn read(
     doc: &gltf::Document,
+    images: &mut Images,
     warnings: &mut Vec<String>,
-) -> (Vec<MaterialDesc>, Vec<Option<EmissionDesc>>) {
+) -> Result<(Vec<MaterialDesc>, Vec<Option<EmissionDesc>>), GltfError> {
     let mut materials = Vec::new();
     let mut emission = Vec::new();
     for m in doc.materials() {
         let index = m.index().unwrap_or(materials.len());
         let at = named("materials", index, m.name());
-        let (kind, emits) = material(&m, &at, warnings);
+        let (kind, emits) = material(&m, &at, images, warnings)?;
         materials.push(MaterialDesc {
             name: m
                 .name()
@@ -31,7 +115,7 @@ pub(super) fn read(
         });
         emission.push(emits);
     }
-    (materials, emission)
+    Ok((materials, emission))
 }
 
 /// glTF's default material: white, fully metallic, fully rough (the specification's defaults).
@@ -45,6 +129,7 @@ pub(super) fn default_material() -> MaterialDesc {
             ior: 1.5,
             specular_color: Vec3::ONE,
             specular: 1.0,
+            textures: Default::default(),
         },
     }
 }
@@ -52,16 +137,43 @@ pub(super) fn default_material() -> MaterialDesc {
 fn material(
     m: &gltf::Material,
     at: &str,
+    images: &mut Images,
     warnings: &mut Vec<String>,
-) -> (MaterialKind, Option<EmissionDesc>) {
+) -> Result<(MaterialKind, Option<EmissionDesc>), GltfError> {
     let pbr = m.pbr_metallic_roughness();
+    let mut maps = PbrTextures::default();
+    if let Some(info) = pbr.base_color_texture() {
+        let at = format!("{at} baseColorTexture");
+        maps.base_color = Some(images.texture(
+            info.texture(),
+            info.tex_coord(),
+            info.texture_transform(),
+            TextureRole::Color,
+            &at,
+        )?);
+    }
+    if let Some(info) = pbr.metallic_roughness_texture() {
+        let at = format!("{at} metallicRoughnessTexture");
+        maps.metallic_roughness = Some(images.texture(
+            info.texture(),
+            info.tex_coord(),
+            info.texture_transform(),
+            TextureRole::Data,
+            &at,
+        )?);
+    }
+    for t in [&maps.base_color, &maps.metallic_roughness]
+        .into_iter()
+        .flatten()
+    {
+        if t.texcoord != 0 {
+            warnings.push(format!(
+                "{at}: a texture reads TEXCOORD_{}; only TEXCOORD_0 is read, so it is used",
+                t.texcoord
+            ));
+        }
+    }
     let mut textures = Vec::new();
-    if pbr.base_color_texture().is_some() {
-        textures.push("baseColorTexture");
-    }
-    if pbr.metallic_roughness_texture().is_some() {
-        textures.push("metallicRoughnessTexture");
-    }
     if m.normal_texture().is_some() {
         textures.push("normalTexture");
     }
@@ -70,7 +182,7 @@ fn material(
     }
     if !textures.is_empty() {
         warnings.push(format!(
-            "{at}: {} not applied (image textures are not supported yet): its factors alone are used",
+            "{at}: {} not applied yet: its factor alone is used",
             textures.join(", ")
         ));
     }
@@ -126,19 +238,24 @@ fn material(
                 alpha_u: alpha,
                 alpha_v: alpha,
             };
-            return (
+            if !maps.is_empty() {
+                warnings.push(format!(
+                    "{at}: textures of a transmissive material not applied"
+                ));
+            }
+            return Ok((
                 MaterialKind::Dielectric {
                     eta: ior,
                     roughness,
                 },
                 emits,
-            );
+            ));
         }
         warnings.push(format!(
             "{at}: transmission {transmission} below {TRANSMISSIVE} (or on a metal) ignored: opaque"
         ));
     }
-    (
+    Ok((
         MaterialKind::MetallicRoughness {
             base_color,
             metallic,
@@ -146,7 +263,8 @@ fn material(
             ior,
             specular_color,
             specular,
+            textures: maps,
         },
         emits,
-    )
+    ))
 }

@@ -55,6 +55,8 @@ pub struct GltfMesh {
     pub origin: String,
     pub positions: Vec<Vec3>,
     pub normals: Option<Vec<Vec3>>,
+    /// TEXCOORD_0, one per vertex.
+    pub uvs: Option<Vec<glam::Vec2>>,
     pub triangles: Vec<[u32; 3]>,
     /// Index into [`GltfScene::materials`].
     pub material: u32,
@@ -140,7 +142,8 @@ pub fn load(source: &dyn SceneSource, name: &Path) -> Result<GltfScene, GltfErro
     }
     let dir = name.parent().unwrap_or(Path::new(""));
     let data = buffers::load(doc, gltf.blob.as_deref(), source, dir)?;
-    let (mut materials, emission) = materials::read(doc, &mut warnings);
+    let mut images = materials::Images::new(&data, source, dir);
+    let (mut materials, emission) = materials::read(doc, &mut images, &mut warnings)?;
     let default_material = materials.len() as u32;
 
     let scene = match doc.default_scene() {
@@ -355,6 +358,7 @@ impl Walk<'_> {
             };
             let (positions, normals) = buffers::attributes(&prim, self.data, &at, self.warnings)?;
             let n = positions.len();
+            let uvs = buffers::uvs(&prim, self.data, n, &at)?;
             if let Some(i) = tri.iter().flatten().find(|&&i| i as usize >= n) {
                 return Err(GltfError::new(
                     at,
@@ -379,6 +383,7 @@ impl Walk<'_> {
                         .map(|&n| (normal_matrix * n).normalize_or_zero())
                         .collect()
                 }),
+                uvs,
                 triangles: tri
                     .into_iter()
                     .map(|[a, b, c]| if mirrored { [a, c, b] } else { [a, b, c] })

@@ -76,6 +76,7 @@ impl Ctx<'_> {
             let geometry = Geometry {
                 positions: &m.positions,
                 normals: m.normals.as_deref(),
+                uvs: m.uvs.as_deref(),
                 triangles: &m.triangles,
             };
             let surface = Surface {

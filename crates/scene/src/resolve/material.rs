@@ -236,6 +236,7 @@ impl Ctx<'_> {
                         m.specular_color.unwrap_or(NumOrArray::One(1.0)).expand(),
                     ),
                     specular: unit(self, "specular", m.specular, 1.0),
+                    textures: Default::default(),
                 }
             }
             "subsurface" => {

@@ -54,6 +54,7 @@ impl Ctx<'_> {
                         } else {
                             None
                         },
+                        uvs: None,
                         triangles: &raw.triangles,
                     };
                     self.push_mesh(
@@ -89,6 +90,12 @@ impl Ctx<'_> {
                     let geometry = Geometry {
                         positions: &positions,
                         normals: None,
+                        uvs: Some(&[
+                            glam::Vec2::new(0.0, 0.0),
+                            glam::Vec2::new(1.0, 0.0),
+                            glam::Vec2::new(1.0, 1.0),
+                            glam::Vec2::new(0.0, 1.0),
+                        ]),
                         triangles: &[[0, 1, 2], [0, 2, 3]],
                     };
                     self.push_mesh(&path, path.clone(), geometry, surface, out);
@@ -117,6 +124,7 @@ impl Ctx<'_> {
                     let geometry = Geometry {
                         positions: &positions,
                         normals: None,
+                        uvs: None,
                         triangles: &triangles,
                     };
                     self.push_mesh(&path, path.clone(), geometry, surface, out);
@@ -289,6 +297,7 @@ impl Ctx<'_> {
                     .map(|&n| Vec3::from(nm * glam::Vec3A::from(n)).normalize_or_zero())
                     .collect()
             }),
+            uvs: g.uvs.map(<[glam::Vec2]>::to_vec),
             // A mirroring transform flips the winding; swap it back so the front face stays
             // on the side the (transformed) normals point to.
             triangles: g
@@ -323,6 +332,7 @@ pub(super) struct Surface<'e> {
 pub(super) struct Geometry<'g> {
     pub(super) positions: &'g [Vec3],
     pub(super) normals: Option<&'g [Vec3]>,
+    pub(super) uvs: Option<&'g [glam::Vec2]>,
     pub(super) triangles: &'g [[u32; 3]],
 }
 

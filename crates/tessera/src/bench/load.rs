@@ -68,7 +68,11 @@ pub fn run(args: LoadArgs) -> anyhow::Result<()> {
         s.lights,
         s.emissive_triangles
     );
-    println!("load (read, validate, flatten) {load_s:.2} s");
+    println!(
+        "textures {:.1} MiB (mip-map pyramids)",
+        s.texture_bytes as f64 / (1 << 20) as f64
+    );
+    println!("load (read, decode, validate, flatten) {load_s:.2} s");
     println!("build (BVH, lights) {build_s:.2} s");
     println!(
         "first {side}×{side} tile at 1 spp {first_s:.3} s, again {again_s:.3} s ({} rays)",

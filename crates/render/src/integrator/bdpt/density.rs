@@ -35,14 +35,15 @@ impl Ctx<'_> {
         if !consistent(si, v.wo, wi, wo_l, wi_l) {
             return (Spectrum::ZERO, 0.0, 0.0);
         }
-        let f = material.bsdf.eval(wo_l, wi_l, mode) * shading_correction(si, v.wo, wi, mode);
+        let bsdf = material.bsdf_at(si);
+        let f = bsdf.eval(wo_l, wi_l, mode) * shading_correction(si, v.wo, wi, mode);
         if is_black(f) {
             return (f, 0.0, 0.0);
         }
         (
             f,
-            material.bsdf.pdf(wo_l, wi_l, TransportMode::Radiance),
-            material.bsdf.pdf(wi_l, wo_l, TransportMode::Radiance),
+            bsdf.pdf(wo_l, wi_l, TransportMode::Radiance),
+            bsdf.pdf(wi_l, wo_l, TransportMode::Radiance),
         )
     }
 
@@ -65,7 +66,7 @@ impl Ctx<'_> {
                 let wp = (prev.p - v.p).normalize_or_zero();
                 let material = self.scene.material(si.material);
                 let frame = material.frame(si, wp);
-                material.bsdf.pdf(
+                material.bsdf_at(si).pdf(
                     frame.to_local(wp),
                     frame.to_local(wn),
                     TransportMode::Radiance,
@@ -120,7 +121,7 @@ impl Ctx<'_> {
         let fr = material.frame(si, wo);
         let wo_l = fr.to_local(wo);
         for u in [0.0, 0.5, 0.999_999] {
-            let Some(bs) = material.bsdf.sample(wo_l, u, Vec2::splat(0.5), mode) else {
+            let Some(bs) = material.bsdf_at(si).sample(wo_l, u, Vec2::splat(0.5), mode) else {
                 continue;
             };
             if !bs.specular || fr.to_world(bs.wi).dot(wi) < 1.0 - 1e-4 {

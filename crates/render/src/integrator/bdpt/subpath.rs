@@ -107,7 +107,8 @@ impl<'a> Ctx<'a> {
             let frame = material.frame(&si, wo);
             let wo_l = frame.to_local(wo);
             let u = sampler.get_4d();
-            let Some(bs) = material.bsdf.sample(wo_l, u.x, Vec2::new(u.y, u.z), mode) else {
+            let bsdf = material.bsdf_at(&si);
+            let Some(bs) = bsdf.sample(wo_l, u.x, Vec2::new(u.y, u.z), mode) else {
                 break;
             };
             let wi = frame.to_world(bs.wi);
@@ -137,7 +138,7 @@ impl<'a> Ctx<'a> {
                 }
             } else {
                 pdf_fwd = bs.pdf;
-                material.bsdf.pdf(bs.wi, wo_l, mode)
+                bsdf.pdf(bs.wi, wo_l, mode)
             };
             beta *= bs.weight() * shading_correction(&si, wo, wi, mode);
             let rev = path[cur].convert_density(pdf_rev, &path[prev]);

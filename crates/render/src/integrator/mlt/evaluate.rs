@@ -164,13 +164,11 @@ fn scatter(ctx: &Ctx, v: &Vertex, wp: Vec3A, wn: Vec3A, delta: bool) -> Option<S
         if !consistent(si, wn, wp, wo, wi) {
             return None;
         }
-        let f = material.bsdf.eval(wo, wi, TransportMode::Radiance) * (wi.z.abs() / cos_p);
-        let pdf_rad = material.bsdf.pdf(wo, wi, TransportMode::Radiance);
+        let bsdf = material.bsdf_at(si);
+        let f = bsdf.eval(wo, wi, TransportMode::Radiance) * (wi.z.abs() / cos_p);
+        let pdf_rad = bsdf.pdf(wo, wi, TransportMode::Radiance);
         let fi = material.frame(si, wp);
-        let pdf_imp =
-            material
-                .bsdf
-                .pdf(fi.to_local(wp), fi.to_local(wn), TransportMode::Importance);
+        let pdf_imp = bsdf.pdf(fi.to_local(wp), fi.to_local(wn), TransportMode::Importance);
         return Some(Scatter {
             f,
             pdf_imp,

@@ -22,7 +22,7 @@ pub(super) fn extend(
     let fr = material.frame(si, wo);
     let wo_l = fr.to_local(wo);
     let u = (rng.uniform(), Vec2::new(rng.uniform(), rng.uniform()));
-    let bs = material.bsdf.sample(wo_l, u.0, u.1, mode)?;
+    let bs = material.bsdf_at(si).sample(wo_l, u.0, u.1, mode)?;
     let wi = fr.to_world(bs.wi);
     if bs.pdf <= 0.0 || !consistent(si, wo, wi, wo_l, bs.wi) {
         return None;
@@ -47,7 +47,7 @@ pub(super) fn specular(
     let fr = material.frame(si, wo);
     let wo_l = fr.to_local(wo);
     for u in [0.0, 0.5, 0.999_999] {
-        let Some(bs) = material.bsdf.sample(wo_l, u, Vec2::splat(0.5), mode) else {
+        let Some(bs) = material.bsdf_at(si).sample(wo_l, u, Vec2::splat(0.5), mode) else {
             continue;
         };
         let wi = fr.to_world(bs.wi);

@@ -165,6 +165,8 @@ impl Placement {
                             ns: pt.n,
                             material: *m,
                             light: NO_LIGHT,
+                            uv: glam::Vec2::ZERO,
+                            uv_width: 0.0,
                         };
                         let mut stats = RayStats::default();
                         let mut e = Spectrum::ZERO;

@@ -1,0 +1,153 @@
+//! Image textures in a render: a floor with a checker of single texels, repeated, seen from
+//! near to the horizon under a sun straight above (so a pixel's value is the albedo it sees).
+//! At one sample per pixel, far away (beyond 80 m, where a pixel covers a few checks), each
+//! pixel must show their average (the mip-map's work) instead of one check's black or white
+//! (aliasing); near (about 2.4 m, where a check covers several pixels), the checks must stay
+//! sharp.
+
+use base64::Engine;
+use serde_json::json;
+use tessera_render::camera::Camera;
+use tessera_render::film::SampleRange;
+use tessera_render::render::render_frame;
+use tessera_render::{Scene, integrator};
+
+fn data_uri(bytes: &[u8]) -> String {
+    format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(bytes)
+    )
+}
+
+/// The floor: a 200 m × 100 m quad at y = 0 with texture coordinates 0..`repeat`, the
+/// camera 1 m above it looking 10° down, a directional light of π W/m² from straight above.
+fn floor_scene(repeat: f32) -> serde_json::Value {
+    let mut b = Vec::new();
+    let positions = [
+        [-1000f32, 0.0, 0.0],
+        [1000.0, 0.0, 0.0],
+        [1000.0, 0.0, -2000.0],
+        [-1000.0, 0.0, -2000.0],
+    ];
+    for p in positions {
+        for c in p {
+            b.extend(c.to_le_bytes());
+        }
+    }
+    let uvs = [[0f32, 0.0], [repeat, 0.0], [repeat, repeat], [0.0, repeat]];
+    for t in uvs {
+        for c in t {
+            b.extend(c.to_le_bytes());
+        }
+    }
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        b.extend(i.to_le_bytes());
+    }
+    // Two by two checks of 8×8 texels, white and black, 8-bit sRGB (0 and 255 decode exactly).
+    let img = image::RgbaImage::from_fn(16, 16, |x, y| {
+        let v = if (x / 8 + y / 8) % 2 == 0 { 255 } else { 0 };
+        image::Rgba([v, v, v, 255])
+    });
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .expect("png");
+    let (s, c) = (-5f32).to_radians().sin_cos(); // half of −10° about x
+    json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_specular"],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "directional", "intensity": std::f32::consts::PI * 683.002}
+        ]}},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "nodes": [
+            {"mesh": 0},
+            {"camera": 0, "translation": [0.0, 1.0, 0.0], "rotation": [s, 0.0, 0.0, c]},
+            // −z rotated −90° about x: straight down.
+            {"rotation": [-0.70710677, 0.0, 0.0, 0.70710677],
+             "extensions": {"KHR_lights_punctual": {"light": 0}}}
+        ],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "aspectRatio": 1.0, "znear": 0.01}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0},
+                       "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}}],
+        "textures": [{"source": 0}],
+        "images": [{"uri": data_uri(&png)}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [-1000, 0, -2000], "max": [1000, 0, 0]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+            {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+            {"buffer": 0, "byteOffset": 80, "byteLength": 12}
+        ],
+        "buffers": [{"byteLength": b.len(), "uri": data_uri(&b)}]
+    })
+}
+
+#[test]
+fn a_checker_is_averaged_where_pixels_cover_many_checks_and_sharp_where_they_do_not() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("floor.gltf");
+    // The image 4000 times across 2 km: checks of 25 cm, 3 cm texels.
+    std::fs::write(&path, floor_scene(4000.0).to_string()).expect("write");
+    let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    (desc.film.width, desc.film.height) = (64, 64);
+    desc.film.filter = tessera_scene::FilterDesc::Box { radius: 0.5 };
+    desc.integrator.method = "direct".into();
+    desc.integrator.spp = 1;
+    let scene = Scene::build(&desc);
+    assert!(scene.stats.texture_bytes > 0);
+    let camera = Camera::new(&desc.camera, &desc.film);
+    let integ = integrator::for_scene(&desc, &scene);
+    let image = render_frame(
+        &scene,
+        &camera,
+        integ.as_ref(),
+        8,
+        SampleRange { start: 0, end: 1 },
+    )
+    .0;
+    let value = |x: usize, y: usize| image.pixels[y * 64 + x].rgb[1];
+    // Rows by their distance: the horizon is 10° above the centre (row ≈ 32 − 10/0.5 rad…),
+    // the floor below it. Count grey (averaged) pixels among far rows and near rows.
+    let grey = |rows: std::ops::Range<usize>| {
+        let (mut g, mut n) = (0, 0);
+        for y in rows {
+            for x in 8..56 {
+                let v = value(x, y);
+                n += 1;
+                if (0.25..=0.75).contains(&v) {
+                    g += 1;
+                }
+            }
+        }
+        g as f64 / n as f64
+    };
+    // Find the horizon: the first row from the top that sees the lit floor.
+    let horizon = (0..64)
+        .find(|&y| (8..56).all(|x| value(x, y) > 0.0))
+        .expect("the floor is in view");
+    let far = grey(horizon + 1..horizon + 3);
+    let near = grey(56..64);
+    println!("horizon at row {horizon}; grey pixels far {far:.2}, near {near:.2}");
+    assert!(
+        far > 0.9,
+        "far away {far:.2} of pixels show the checks' average"
+    );
+    assert!(
+        near < 0.5,
+        "near {near:.2} of pixels are grey: the checks are blurred"
+    );
+    // The average is right: albedo ½ under π W/m² from above is ½ W·sr⁻¹·m⁻².
+    let mut far_mean = 0.0;
+    for y in horizon + 1..horizon + 3 {
+        for x in 8..56 {
+            far_mean += value(x, y) as f64 / (2.0 * 48.0);
+        }
+    }
+    assert!((far_mean - 0.5).abs() < 0.03, "far mean {far_mean}");
+}
