@@ -6,8 +6,10 @@ Cycles as the independent reference Tessera's render of the export is compared w
     python3 scripts/blender/diffuse_shot.py scenes/gltf/textured-shot --textured
 
 `--textured` gives the floor a board texture (8×8 squares of two woods' colours, with a
-grain) and hangs a picture on the wall (a colour gradient with a frame), both 8-bit sRGB PNG
-images that the exporter embeds in the .glb (`textured-shot.glb`).
+grain), hangs a picture on the wall (a colour gradient with a frame), both 8-bit sRGB PNG
+images, and gives the wall a tangent-space normal map of round bumps (8-bit, Non-Color), all
+embedded by the exporter in the .glb (`textured-shot.glb`); tangents are left to the reader
+(MikkTSpace), as Blender's exporter does by default.
 
 writes `diffuse-shot.glb` and `cycles.exr` (linear Rec.709 radiance, Standard view transform,
 no denoiser, no clamping, path tracing to depth 64) into the folder. Every material is
@@ -61,6 +63,31 @@ def textured(name, img):
     return m
 
 
+def bumps(x, y):
+    """A tangent-space normal (encoded in [0, 1]) of a field of round bumps, 32 texels apart;
+    y up, as Blender stores rows and as glTF's normal maps point."""
+    k = 2.0 * math.pi / 32.0
+    dx = 0.6 * math.cos(k * x) * math.sin(k * y)
+    dy = 0.6 * math.sin(k * x) * math.cos(k * y)
+    l = math.sqrt(dx * dx + dy * dy + 1.0)
+    return (0.5 - 0.5 * dx / l, 0.5 - 0.5 * dy / l, 0.5 + 0.5 / l)
+
+
+def bumpy(name, color, img):
+    m = diffuse(name, color)
+    nodes = m.node_tree.nodes
+    img.colorspace_settings.name = "Non-Color"
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    tex.interpolation = "Linear"
+    nm = nodes.new("ShaderNodeNormalMap")
+    nm.space = "TANGENT"
+    nm.inputs["Strength"].default_value = 1.0
+    m.node_tree.links.new(tex.outputs["Color"], nm.inputs["Color"])
+    m.node_tree.links.new(nm.outputs["Normal"], nodes["Principled BSDF"].inputs["Normal"])
+    return m
+
+
 def board(x, y):
     cell = (x // 32 + y // 32) % 2
     grain = 0.06 * math.sin(x * 0.7 + 3.0 * math.sin(y * 0.05))
@@ -93,7 +120,9 @@ def build(width, height, textures):
         add(bpy.context.object, textured("Picture", image("Picture", 128, picture)), "Picture")
     bpy.ops.mesh.primitive_plane_add(size=8.0, location=(0, 3.0, 4.0),
                                      rotation=(math.radians(90), 0, 0))
-    add(bpy.context.object, diffuse("Wall", (0.5, 0.55, 0.7)), "Wall")
+    wall = bumpy("Wall", (0.5, 0.55, 0.7), image("Bumps", 256, bumps)) if textures else diffuse(
+        "Wall", (0.5, 0.55, 0.7))
+    add(bpy.context.object, wall, "Wall")
 
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(-1.1, 0, 0.5), segments=48,
                                          ring_count=24)

@@ -2,7 +2,7 @@
 //! from a validated [`SceneDesc`] and shared read-only by every thread. The camera is not part
 //! of it: a camera-only fly-through builds the scene once and renders every frame from it.
 
-use glam::{Mat3A, Vec2, Vec3A};
+use glam::{Mat3A, Vec2, Vec3A, Vec4};
 use tessera_scene::{FilmDesc, IntegratorDesc, LightDesc, SceneDesc};
 
 use crate::bsdf::{self, Bsdf, BsdfFlags};
@@ -49,6 +49,8 @@ pub struct TexturedPbr {
     specular: f32,
     base_color_map: Option<MipMap>,
     metallic_roughness_map: Option<MipMap>,
+    /// A tangent-space normal map and its scale on x and y (applied where the hit is found).
+    normal_map: Option<(MipMap, f32)>,
 }
 
 impl TexturedPbr {
@@ -128,6 +130,7 @@ impl Material {
                     .metallic_roughness
                     .as_ref()
                     .map(|t| textures.mipmap(t)),
+                normal_map: maps.normal.as_ref().map(|(t, s)| (textures.mipmap(t), *s)),
             }));
         }
         m
@@ -187,6 +190,27 @@ impl Material {
     }
 }
 
+/// The shading normal `ns` turned by a tangent-space normal-map texel `texel` (xyz in [0, 1]
+/// encoding [−1, 1], x and y scaled by `scale`), in the frame of tangent `t` (xyz, w the
+/// bitangent's sign: B = w · ns × T) made orthogonal to `ns` (glTF 2.0 §3.9.3, MikkTSpace).
+/// Kept as it was where the frame degenerates or the result would face away from `ng`.
+#[inline]
+fn perturb(ns: Vec3A, ng: Vec3A, t: Vec4, texel: Vec4, scale: f32) -> Vec3A {
+    let tangent = Vec3A::from(t.truncate());
+    let tangent = (tangent - ns * ns.dot(tangent)).normalize_or_zero();
+    if tangent == Vec3A::ZERO {
+        return ns;
+    }
+    let bitangent = ns.cross(tangent) * if t.w < 0.0 { -1.0 } else { 1.0 };
+    let m = Vec3A::new(
+        (texel.x * 2.0 - 1.0) * scale,
+        (texel.y * 2.0 - 1.0) * scale,
+        texel.z * 2.0 - 1.0,
+    );
+    let n = (tangent * m.x + bitangent * m.y + ns * m.z).normalize_or_zero();
+    if n.dot(ng) > 0.0 { n } else { ns }
+}
+
 /// A ray's hit on a surface.
 #[derive(Debug, Clone, Copy)]
 pub struct SurfaceInteraction {
@@ -235,6 +259,8 @@ struct MeshRuntime {
     normals: Option<Vec<Vec3A>>,
     /// Per-vertex texture coordinates, and per triangle √(uv area / world area).
     uvs: Option<(Vec<Vec2>, Vec<f32>)>,
+    /// Per triangle corner: tangent and bitangent sign, for normal maps.
+    tangents: Option<Vec<[Vec4; 3]>>,
 }
 
 struct SphereRuntime {
@@ -306,7 +332,8 @@ impl Scene {
                 .map(|n| n.iter().map(|&v| Vec3A::from(v)).collect());
             let mut indices = Vec::with_capacity(m.triangles.len());
             let mut uv_scale = Vec::new();
-            for &[a, b, c] in &m.triangles {
+            let mut tangents = m.tangents.as_ref().map(|t| Vec::with_capacity(t.len()));
+            for (ti, &[a, b, c]) in m.triangles.iter().enumerate() {
                 let v = [a, b, c].map(|i| Vec3A::from(m.positions[i as usize]));
                 // With vertex normals, the normals decide the front face: wind to agree.
                 let winding = (v[1] - v[0]).cross(v[2] - v[0]);
@@ -319,6 +346,10 @@ impl Scene {
                     (v, [a, b, c])
                 };
                 indices.push(idx);
+                if let (Some(out), Some(t)) = (&mut tangents, &m.tangents) {
+                    let [t0, t1, t2] = t[ti];
+                    out.push(if flip { [t0, t2, t1] } else { [t0, t1, t2] });
+                }
                 if let Some(uv) = &m.uvs {
                     let [ta, tb, tc] = [a, b, c].map(|i| uv[i as usize]);
                     let uv_area = (tb - ta).perp_dot(tc - ta).abs();
@@ -356,6 +387,7 @@ impl Scene {
                 },
                 normals,
                 uvs,
+                tangents,
             });
         }
 
@@ -489,6 +521,13 @@ impl Scene {
         &self.materials[i as usize]
     }
 
+    /// The normal map of material `i`, if it has one.
+    #[inline]
+    fn normal_map(&self, i: u32) -> Option<(&MipMap, f32)> {
+        let t = self.materials[i as usize].textured.as_ref()?;
+        t.normal_map.as_ref().map(|(m, s)| (m, *s))
+    }
+
     /// The closest surface along `ray`.
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         let hit = self.accel.intersect(ray, f32::INFINITY)?;
@@ -517,6 +556,14 @@ impl Scene {
                         if n.dot(hit.n) > 0.0 { n } else { hit.n }
                     }
                     None => hit.n,
+                };
+                let ns = match (&mesh.tangents, self.normal_map(mesh.material)) {
+                    (Some(t), Some((map, scale))) => {
+                        let [c0, c1, c2] = t[local];
+                        let t = c0 * b[0] + c1 * b[1] + c2 * b[2];
+                        perturb(ns, hit.n, t, map.lookup(uv, uv_width), scale)
+                    }
+                    _ => ns,
                 };
                 (
                     ns,

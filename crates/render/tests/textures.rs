@@ -4,6 +4,11 @@
 //! pixel must show their average (the mip-map's work) instead of one check's black or white
 //! (aliasing); near (about 2.4 m, where a check covers several pixels), the checks must stay
 //! sharp.
+//!
+//! Normal maps: on the same floor, a texel tilting the normal toward the tangent (+u) or the
+//! bitangent (up the image, i.e. toward −v in glTF's coordinates; tangents generated in
+//! MikkTSpace from the file's coordinates) makes the floor face a sun tilted the same way:
+//! exactly what the cosine law says.
 
 use base64::Engine;
 use serde_json::json;
@@ -19,9 +24,24 @@ fn data_uri(bytes: &[u8]) -> String {
     )
 }
 
-/// The floor: a 200 m × 100 m quad at y = 0 with texture coordinates 0..`repeat`, the
-/// camera 1 m above it looking 10° down, a directional light of π W/m² from straight above.
+fn png_of(img: &image::RgbaImage) -> Vec<u8> {
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .expect("png");
+    png
+}
+
 fn floor_scene(repeat: f32) -> serde_json::Value {
+    floor_with(repeat, None)
+}
+
+/// The floor: a 2 km square at y = 0 (from z = 0 away from the camera) with texture
+/// coordinates 0..`repeat` both ways (u along +x, v along −z), the camera 1 m above it
+/// looking 10° down, a directional light of π W/m² from straight above.
+///
+/// With `normal`, a white material with that normal-map texel everywhere instead with that normal-map texel everywhere instead
+/// of the checker.
+fn floor_with(repeat: f32, normal: Option<[u8; 3]>) -> serde_json::Value {
     let mut b = Vec::new();
     let positions = [
         [-1000f32, 0.0, 0.0],
@@ -48,9 +68,24 @@ fn floor_scene(repeat: f32) -> serde_json::Value {
         let v = if (x / 8 + y / 8) % 2 == 0 { 255 } else { 0 };
         image::Rgba([v, v, v, 255])
     });
-    let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .expect("png");
+    let png = png_of(&img);
+    let (material, image) = match normal {
+        None => (
+            json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0},
+                   "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}}),
+            png,
+        ),
+        Some([x, y, z]) => (
+            json!({"pbrMetallicRoughness": {"metallicFactor": 0.0},
+                   "normalTexture": {"index": 0},
+                   "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}}),
+            png_of(&image::RgbaImage::from_pixel(
+                4,
+                4,
+                image::Rgba([x, y, z, 255]),
+            )),
+        ),
+    };
     let (s, c) = (-5f32).to_radians().sin_cos(); // half of −10° about x
     json!({
         "asset": {"version": "2.0"},
@@ -69,10 +104,9 @@ fn floor_scene(repeat: f32) -> serde_json::Value {
         ],
         "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "aspectRatio": 1.0, "znear": 0.01}}],
         "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
-        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0},
-                       "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}}],
+        "materials": [material],
         "textures": [{"source": 0}],
-        "images": [{"uri": data_uri(&png)}],
+        "images": [{"uri": data_uri(&image)}],
         "accessors": [
             {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
              "min": [-1000, 0, -2000], "max": [1000, 0, 0]},
@@ -150,4 +184,87 @@ fn a_checker_is_averaged_where_pixels_cover_many_checks_and_sharp_where_they_do_
         }
     }
     assert!((far_mean - 0.5).abs() < 0.03, "far mean {far_mean}");
+}
+
+/// The floor's radiance (all pixels agree: a plane under a sun) with normal-map texel
+/// `normal` (none: no normal map), the sun arriving from `from`.
+fn lit_floor(normal: Option<[u8; 3]>, from: glam::Vec3) -> f32 {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("floor.gltf");
+    std::fs::write(&path, floor_with(100.0, normal).to_string()).expect("write");
+    let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    if normal.is_none() {
+        // The checker's material, made white: compare like with like.
+        if let tessera_scene::MaterialKind::MetallicRoughness { textures, .. } =
+            &mut desc.materials[0].kind
+        {
+            textures.base_color = None;
+        }
+    }
+    assert!(
+        desc.warnings.iter().all(|w| !w.contains("normal")),
+        "{:?}",
+        desc.warnings
+    );
+    (desc.film.width, desc.film.height) = (16, 16);
+    // Looking straight down, so that no tilt here turns the shading normal from the viewer.
+    desc.camera.position = glam::Vec3::new(0.0, 2.0, -5.0);
+    desc.camera.look_at = glam::Vec3::new(0.0, 0.0, -5.0);
+    desc.camera.up = glam::Vec3::new(0.0, 0.0, -1.0);
+    desc.integrator.method = "direct".into();
+    desc.integrator.spp = 1;
+    desc.lights = vec![tessera_scene::LightDesc::Directional {
+        direction: -from.normalize(),
+        irradiance: glam::Vec3::splat(std::f32::consts::PI),
+    }];
+    let scene = Scene::build(&desc);
+    let camera = Camera::new(&desc.camera, &desc.film);
+    let integ = integrator::for_scene(&desc, &scene);
+    let image = render_frame(
+        &scene,
+        &camera,
+        integ.as_ref(),
+        8,
+        SampleRange { start: 0, end: 1 },
+    )
+    .0;
+    image.pixels[8 * 16 + 8].rgb[1]
+}
+
+#[test]
+fn normal_maps_turn_the_shading_normal_toward_the_tangent_and_the_bitangent() {
+    let (s, c) = 30f32.to_radians().sin_cos();
+    // The sun 30° from straight above, toward +x (the tangent, +u) or toward +z (up the
+    // image: the floor's v grows toward −z, away from the camera).
+    let toward_u = glam::Vec3::new(s, c, 0.0);
+    let toward_up = glam::Vec3::new(0.0, c, s);
+    let enc = |v: f32| (((v * 0.5 + 0.5) * 255.0).round()) as u8;
+    let plain = lit_floor(None, toward_u);
+    assert!(
+        (plain - c).abs() < 1e-3,
+        "without a normal map: {plain}, cos 30° = {c}"
+    );
+    // A flat normal map changes nothing (beyond 8 bits' rounding of 0.5).
+    let flat = lit_floor(Some([128, 128, 255]), toward_u);
+    assert!(
+        (flat - plain).abs() < 5e-3,
+        "flat map {flat} against {plain}"
+    );
+    // Tilted 30° toward the sun: facing it.
+    let tilt_u = lit_floor(Some([enc(s), 128, enc(c)]), toward_u);
+    assert!(
+        tilt_u > 0.995,
+        "tilted toward +u, facing a sun there: {tilt_u}"
+    );
+    let tilt_v = lit_floor(Some([128, enc(s), enc(c)]), toward_up);
+    assert!(
+        tilt_v > 0.995,
+        "tilted up the image, facing a sun there: {tilt_v}"
+    );
+    // Tilted away from the sun: 60° off it.
+    let away = lit_floor(Some([enc(-s), 128, enc(c)]), toward_u);
+    assert!(
+        (away - 0.5).abs() < 0.01,
+        "tilted away: {away}, cos 60° = 0.5"
+    );
 }

@@ -221,11 +221,13 @@ pub enum MaterialKind {
 pub struct PbrTextures {
     pub base_color: Option<crate::texture::TextureDesc>,
     pub metallic_roughness: Option<crate::texture::TextureDesc>,
+    /// A tangent-space normal map (linear) and its scale on x and y.
+    pub normal: Option<(crate::texture::TextureDesc, f32)>,
 }
 
 impl PbrTextures {
     pub fn is_empty(&self) -> bool {
-        self.base_color.is_none() && self.metallic_roughness.is_none()
+        self.base_color.is_none() && self.metallic_roughness.is_none() && self.normal.is_none()
     }
 }
 
@@ -255,6 +257,8 @@ pub struct MeshDesc {
     pub normals: Option<Vec<Vec3>>,
     /// Per-vertex texture coordinates (TEXCOORD_0), if the mesh has them.
     pub uvs: Option<Vec<glam::Vec2>>,
+    /// Tangent frames per triangle corner (xyz, w the bitangent's sign), for normal maps.
+    pub tangents: Option<Vec<[glam::Vec4; 3]>>,
     pub triangles: Vec<[u32; 3]>,
     pub material: u32,
     pub emission: Option<EmissionDesc>,

@@ -289,6 +289,42 @@ pub(super) fn uvs(
     Ok(Some(uvs))
 }
 
+/// TANGENT (float xyzw, w the bitangent's sign), if present: one per vertex.
+pub(super) fn tangents(
+    prim: &gltf::Primitive,
+    data: &[Vec<u8>],
+    vertices: usize,
+    at: &str,
+) -> Result<Option<Vec<glam::Vec4>>, GltfError> {
+    let Some(acc) = prim.get(&gltf::Semantic::Tangents) else {
+        return Ok(None);
+    };
+    check(
+        &acc,
+        data,
+        "TANGENT",
+        &[DataType::F32],
+        Dimensions::Vec4,
+        at,
+    )?;
+    let reader = prim.reader(|b| data.get(b.index()).map(Vec::as_slice));
+    let t: Vec<glam::Vec4> = reader
+        .read_tangents()
+        .ok_or_else(|| GltfError::new(at, "cannot read TANGENT"))?
+        .map(glam::Vec4::from)
+        .collect();
+    if t.len() != vertices || t.iter().any(|v| !v.is_finite()) {
+        return Err(GltfError::new(
+            at,
+            format!(
+                "{} TANGENT values for {vertices} positions: expected one finite value each",
+                t.len()
+            ),
+        ));
+    }
+    Ok(Some(t))
+}
+
 /// Positions and (if present) normals, every value finite.
 pub(super) fn attributes(
     prim: &gltf::Primitive,

@@ -162,9 +162,19 @@ fn material(
             &at,
         )?);
     }
-    for t in [&maps.base_color, &maps.metallic_roughness]
-        .into_iter()
-        .flatten()
+    if let Some(n) = m.normal_texture() {
+        let at = format!("{at} normalTexture");
+        let tex = images.texture(n.texture(), n.tex_coord(), None, TextureRole::Data, &at)?;
+        maps.normal = Some((tex, n.scale()));
+    }
+    let normal = maps.normal.as_ref().map(|n| &n.0);
+    for t in [
+        maps.base_color.as_ref(),
+        maps.metallic_roughness.as_ref(),
+        normal,
+    ]
+    .into_iter()
+    .flatten()
     {
         if t.texcoord != 0 {
             warnings.push(format!(
@@ -174,9 +184,6 @@ fn material(
         }
     }
     let mut textures = Vec::new();
-    if m.normal_texture().is_some() {
-        textures.push("normalTexture");
-    }
     if m.emissive_texture().is_some() {
         textures.push("emissiveTexture");
     }

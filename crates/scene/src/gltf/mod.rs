@@ -11,6 +11,7 @@
 
 mod buffers;
 mod materials;
+mod tangents;
 
 use std::path::Path;
 
@@ -57,6 +58,9 @@ pub struct GltfMesh {
     pub normals: Option<Vec<Vec3>>,
     /// TEXCOORD_0, one per vertex.
     pub uvs: Option<Vec<glam::Vec2>>,
+    /// Tangent frames per triangle corner (xyz, w the bitangent's sign), where the
+    /// material has a normal map.
+    pub tangents: Option<Vec<[glam::Vec4; 3]>>,
     pub triangles: Vec<[u32; 3]>,
     /// Index into [`GltfScene::materials`].
     pub material: u32,
@@ -372,6 +376,46 @@ impl Walk<'_> {
                     self.default_material
                 }
             };
+            let tangents = match (&uvs, prim.material().normal_texture().is_some()) {
+                (Some(uv), true) => {
+                    let t = tangents::corners(
+                        &prim,
+                        self.data,
+                        &positions,
+                        normals.as_deref(),
+                        uv,
+                        &tri,
+                        &at,
+                    )?;
+                    if t.is_none() {
+                        self.warnings.push(format!(
+                            "{at}: no tangent frames could be made: its normal map is not applied"
+                        ));
+                    }
+                    t
+                }
+                (None, true) => {
+                    self.warnings.push(format!(
+                        "{at}: a normal map without TEXCOORD_0 cannot be placed: not applied"
+                    ));
+                    None
+                }
+                _ => None,
+            };
+            // Tangents turn with the mesh; a mirroring transform flips the bitangent.
+            let linear = Mat3::from_mat4(*world);
+            let sign = if mirrored { -1.0 } else { 1.0 };
+            let tangents = tangents.map(|t| {
+                t.into_iter()
+                    .map(|c| {
+                        let c = c.map(|v| {
+                            let d = (linear * v.truncate()).normalize_or_zero();
+                            d.extend(v.w * sign)
+                        });
+                        if mirrored { [c[0], c[2], c[1]] } else { c }
+                    })
+                    .collect()
+            });
             self.meshes.push(GltfMesh {
                 origin: at,
                 positions: positions
@@ -384,6 +428,7 @@ impl Walk<'_> {
                         .collect()
                 }),
                 uvs,
+                tangents,
                 triangles: tri
                     .into_iter()
                     .map(|[a, b, c]| if mirrored { [a, c, b] } else { [a, b, c] })

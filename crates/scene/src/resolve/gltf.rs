@@ -77,6 +77,7 @@ impl Ctx<'_> {
                 positions: &m.positions,
                 normals: m.normals.as_deref(),
                 uvs: m.uvs.as_deref(),
+                tangents: m.tangents.as_deref(),
                 triangles: &m.triangles,
             };
             let surface = Surface {

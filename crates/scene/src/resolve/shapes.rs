@@ -55,6 +55,7 @@ impl Ctx<'_> {
                             None
                         },
                         uvs: None,
+                        tangents: None,
                         triangles: &raw.triangles,
                     };
                     self.push_mesh(
@@ -96,6 +97,7 @@ impl Ctx<'_> {
                             glam::Vec2::new(1.0, 1.0),
                             glam::Vec2::new(0.0, 1.0),
                         ]),
+                        tangents: None,
                         triangles: &[[0, 1, 2], [0, 2, 3]],
                     };
                     self.push_mesh(&path, path.clone(), geometry, surface, out);
@@ -125,6 +127,7 @@ impl Ctx<'_> {
                         positions: &positions,
                         normals: None,
                         uvs: None,
+                        tangents: None,
                         triangles: &triangles,
                     };
                     self.push_mesh(&path, path.clone(), geometry, surface, out);
@@ -298,6 +301,19 @@ impl Ctx<'_> {
                     .collect()
             }),
             uvs: g.uvs.map(<[glam::Vec2]>::to_vec),
+            // Tangents turn with the shape (a mirroring transform flips the bitangent and,
+            // below, the winding).
+            tangents: g.tangents.map(|t| {
+                t.iter()
+                    .map(|c| {
+                        let c = c.map(|v| {
+                            let d = m.transform_vector3(v.truncate()).normalize_or_zero();
+                            d.extend(if mirrored { -v.w } else { v.w })
+                        });
+                        if mirrored { [c[0], c[2], c[1]] } else { c }
+                    })
+                    .collect()
+            }),
             // A mirroring transform flips the winding; swap it back so the front face stays
             // on the side the (transformed) normals point to.
             triangles: g
@@ -333,6 +349,7 @@ pub(super) struct Geometry<'g> {
     pub(super) positions: &'g [Vec3],
     pub(super) normals: Option<&'g [Vec3]>,
     pub(super) uvs: Option<&'g [glam::Vec2]>,
+    pub(super) tangents: Option<&'g [[glam::Vec4; 3]]>,
     pub(super) triangles: &'g [[u32; 3]],
 }
 
