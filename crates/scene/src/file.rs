@@ -29,6 +29,23 @@ pub struct SceneFile {
     pub shapes: Vec<Tagged>,
     #[serde(default)]
     pub lights: Vec<Tagged>,
+    /// The sky: an equirectangular image or a constant, around the whole scene.
+    #[serde(default)]
+    pub environment: Option<EnvironmentFile>,
+}
+
+/// `"environment": {"image": "sky.exr", "strength": 1, "rotation_deg": 0}`: a latitude–
+/// longitude OpenEXR image of radiance (omitted: a constant sky of radiance `strength`),
+/// scaled by `strength` and turned by `rotation_deg` about the up axis (+y).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EnvironmentFile {
+    #[serde(default)]
+    pub image: Option<String>,
+    #[serde(default)]
+    pub strength: Option<f32>,
+    #[serde(default)]
+    pub rotation_deg: Option<f32>,
 }
 
 /// Length units a scene may be written in.

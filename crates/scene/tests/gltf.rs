@@ -649,3 +649,44 @@ fn a_missing_or_broken_image_is_refused_naming_the_image_and_its_material() {
         "{msg}"
     );
 }
+
+/// `scenes/gltf-interior/`: Blender's export of a textured room (`room.glb`, from
+/// `scripts/blender/interior.py`) placed by a scene.json under a sky seen through its window.
+#[test]
+fn the_blender_interior_has_its_textures_normal_map_spot_light_and_sky() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gltf-interior/scene.json");
+    let d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    let textured = |name: &str| {
+        d.materials
+            .iter()
+            .find(|m| m.name.ends_with(name))
+            .and_then(|m| match &m.kind {
+                MaterialKind::MetallicRoughness { textures, .. } => Some(textures.clone()),
+                _ => None,
+            })
+            .unwrap_or_else(|| panic!("no metallic-roughness material {name}"))
+    };
+    assert!(textured("Wood").base_color.is_some());
+    assert!(textured("Painting").base_color.is_some());
+    assert!(textured("Bumpy plaster").normal.is_some());
+    let wall = d
+        .meshes
+        .iter()
+        .find(|m| m.origin.contains("Back wall"))
+        .expect("the back wall");
+    assert!(wall.tangents.is_some() && wall.uvs.is_some());
+    assert!(matches!(
+        d.materials
+            .iter()
+            .find(|m| m.name.ends_with("Glass"))
+            .map(|m| &m.kind),
+        Some(MaterialKind::Dielectric { .. })
+    ));
+    assert!(d.lights.iter().any(|l| matches!(l, LightDesc::Spot { .. })));
+    assert!(
+        d.lights
+            .iter()
+            .any(|l| matches!(l, LightDesc::Environment { image: Some(_), .. }))
+    );
+}

@@ -649,3 +649,53 @@ fn layered_materials_and_their_errors() {
         assert!(paths.contains(&expected), "{expected} not in {p:?}");
     }
 }
+
+#[test]
+fn a_top_level_environment_is_the_environment_light_it_stands_for() {
+    let top = scene(QUAD, POINT).replace(
+        r#""lights": ["#,
+        r#""environment": { "strength": 2, "rotation_deg": 90 }, "lights": ["#,
+    );
+    let light = scene(
+        QUAD,
+        &format!(
+            r#"{POINT}, {{ "type": "environment", "radiance": 2, "transform": [{{ "rotate": {{ "axis": [0, 1, 0], "angle_deg": 90 }} }}] }}"#
+        ),
+    );
+    let (_a, a) = try_load(&top, &[]);
+    let (_b, b) = try_load(&light, &[]);
+    let (a, b) = (a.expect("valid"), b.expect("valid"));
+    match (&a.lights[1], &b.lights[1]) {
+        (
+            LightDesc::Environment {
+                image: None,
+                scale: sa,
+                to_world: ma,
+            },
+            LightDesc::Environment {
+                image: None,
+                scale: sb,
+                to_world: mb,
+            },
+        ) => {
+            assert_eq!(sa, sb);
+            assert!(ma.abs_diff_eq(*mb, 1e-6), "{ma} against {mb}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // Given twice, or with an image that is not there: refused, saying where.
+    let twice = light.replace(
+        r#""lights": ["#,
+        r#""environment": { "strength": 1 }, "lights": ["#,
+    );
+    let (_, path, msg) = one_problem(&twice, &[]);
+    assert_eq!(path, "environment");
+    assert!(msg.contains("lights[1]"), "{msg}");
+    let missing = scene(QUAD, POINT).replace(
+        r#""lights": ["#,
+        r#""environment": { "image": "sky.exr" }, "lights": ["#,
+    );
+    let (_, path, msg) = one_problem(&missing, &[]);
+    assert_eq!(path, "environment.image");
+    assert!(msg.contains("sky.exr"), "{msg}");
+}

@@ -308,6 +308,35 @@ impl Ctx<'_> {
         })
     }
 
+    /// The scene's top-level `environment`.
+    pub(super) fn environment(&mut self, e: &EnvironmentFile) -> Option<LightDesc> {
+        let strength = e.strength.unwrap_or(1.0);
+        if !(strength >= 0.0 && strength.is_finite()) {
+            self.problem(
+                "environment.strength",
+                format!("expected a finite, non-negative number, got {strength}"),
+            );
+            return None;
+        }
+        let rotation = e.rotation_deg.unwrap_or(0.0);
+        if !rotation.is_finite() {
+            self.problem(
+                "environment.rotation_deg",
+                "expected a finite number of degrees",
+            );
+            return None;
+        }
+        let image = match &e.image {
+            None => None,
+            Some(f) => Some(self.env_image("environment.image", f)?),
+        };
+        Some(LightDesc::Environment {
+            image,
+            scale: Vec3::splat(strength),
+            to_world: Mat3::from_rotation_y(rotation.to_radians()),
+        })
+    }
+
     pub(super) fn env_image(&mut self, path: &str, file: &str) -> Option<EnvImage> {
         let rel = confine(file).map_err(|msg| self.problem(path, msg)).ok()?;
         let shown = self.source.display_path(&rel);

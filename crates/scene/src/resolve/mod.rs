@@ -257,6 +257,19 @@ impl Ctx<'_> {
             .filter_map(|(i, t)| self.light(&format!("lights[{i}]"), t, metres_per_unit))
             .collect();
         lights.append(&mut out.lights);
+        if let Some(env) = &f.environment {
+            let already = lights
+                .iter()
+                .position(|l| matches!(l, LightDesc::Environment { .. }));
+            if let Some(i) = already {
+                self.problem(
+                    "environment",
+                    format!("an environment is given here and as lights[{i}]: expected one"),
+                );
+            } else if let Some(l) = self.environment(env) {
+                lights.push(l);
+            }
+        }
         for w in &self.warnings {
             tracing::warn!(scene = %self.file.display(), "{w}");
         }
