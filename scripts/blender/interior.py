@@ -21,18 +21,7 @@ from mathutils import Vector
 
 sys.path.insert(0, os.path.dirname(__file__))
 from diffuse_shot import board, bumps, image, textured  # noqa: E402
-
-
-def principled(name, color, metallic=0.0, roughness=0.5, transmission=0.0, ior=1.5):
-    m = bpy.data.materials.new(name)
-    m.use_nodes = True
-    b = m.node_tree.nodes["Principled BSDF"]
-    b.inputs["Base Color"].default_value = (*color, 1.0)
-    b.inputs["Metallic"].default_value = metallic
-    b.inputs["Roughness"].default_value = roughness
-    b.inputs["IOR"].default_value = ior
-    b.inputs["Transmission Weight"].default_value = transmission
-    return m
+from product_shot import principled  # noqa: E402
 
 
 def normal_mapped(name, color, img):

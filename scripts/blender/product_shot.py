@@ -16,7 +16,7 @@ import sys
 import bpy
 
 
-def principled(name, color, metallic, roughness, transmission=0.0, ior=1.5,
+def principled(name, color, metallic=0.0, roughness=0.5, transmission=0.0, ior=1.5,
                emission=None, strength=0.0):
     m = bpy.data.materials.new(name)
     m.use_nodes = True

@@ -41,12 +41,8 @@ pub struct Material {
 /// The glTF metallic-roughness BRDF with image textures multiplying its factors.
 #[derive(Debug)]
 pub struct TexturedPbr {
-    base_color: Vec3A,
-    metallic: f32,
-    roughness: f32,
-    ior: f32,
-    specular_color: Vec3A,
-    specular: f32,
+    /// The BRDF of the factors alone.
+    factors: bsdf::MetallicRoughness,
     base_color_map: Option<MipMap>,
     metallic_roughness_map: Option<MipMap>,
     /// A tangent-space normal map and its scale on x and y (applied where the hit is found).
@@ -57,24 +53,18 @@ impl TexturedPbr {
     /// The BSDF at texture coordinates `uv` for a footprint `width` wide (uv units).
     #[inline]
     fn at(&self, uv: Vec2, width: f32) -> bsdf::MetallicRoughness {
-        let mut base = self.base_color;
-        let (mut metallic, mut roughness) = (self.metallic, self.roughness);
-        if let Some(m) = &self.base_color_map {
-            base *= Vec3A::from(m.lookup(uv, width).truncate());
-        }
-        if let Some(m) = &self.metallic_roughness_map {
-            let t = m.lookup(uv, width);
-            roughness *= t.y;
-            metallic *= t.z;
-        }
-        bsdf::MetallicRoughness::new(
-            base.clamp(Vec3A::ZERO, Vec3A::ONE),
-            metallic,
-            roughness,
-            self.ior,
-            self.specular_color,
-            self.specular,
-        )
+        let base = self
+            .base_color_map
+            .as_ref()
+            .map_or(Vec3A::ONE, |m| Vec3A::from(m.lookup(uv, width).truncate()));
+        let (metallic, roughness) = self
+            .metallic_roughness_map
+            .as_ref()
+            .map_or((1.0, 1.0), |m| {
+                let t = m.lookup(uv, width);
+                (t.z, t.y)
+            });
+        self.factors.scaled(base, metallic, roughness)
     }
 }
 
@@ -107,24 +97,12 @@ impl Material {
     /// The material of `kind`, its textures' pyramids built in (or taken from) `textures`.
     pub fn with_textures(kind: &tessera_scene::MaterialKind, textures: &mut Textures) -> Material {
         let mut m = Material::from_desc(kind);
-        if let tessera_scene::MaterialKind::MetallicRoughness {
-            base_color,
-            metallic,
-            roughness,
-            ior,
-            specular_color,
-            specular,
-            textures: maps,
-        } = kind
+        if let tessera_scene::MaterialKind::MetallicRoughness { textures: maps, .. } = kind
             && !maps.is_empty()
+            && let Some(factors) = bsdf::metallic_roughness_of(kind)
         {
             m.textured = Some(Box::new(TexturedPbr {
-                base_color: (*base_color).into(),
-                metallic: *metallic,
-                roughness: *roughness,
-                ior: *ior,
-                specular_color: (*specular_color).into(),
-                specular: *specular,
+                factors,
                 base_color_map: maps.base_color.as_ref().map(|t| textures.mipmap(t)),
                 metallic_roughness_map: maps
                     .metallic_roughness
@@ -557,13 +535,17 @@ impl Scene {
                     }
                     None => hit.n,
                 };
-                let ns = match (&mesh.tangents, self.normal_map(mesh.material)) {
-                    (Some(t), Some((map, scale))) => {
-                        let [c0, c1, c2] = t[local];
-                        let t = c0 * b[0] + c1 * b[1] + c2 * b[2];
-                        perturb(ns, hit.n, t, map.lookup(uv, uv_width), scale)
-                    }
-                    _ => ns,
+                // Only meshes of normal-mapped materials carry tangents.
+                let ns = match &mesh.tangents {
+                    Some(t) => match self.normal_map(mesh.material) {
+                        Some((map, scale)) => {
+                            let [c0, c1, c2] = t[local];
+                            let t = c0 * b[0] + c1 * b[1] + c2 * b[2];
+                            perturb(ns, hit.n, t, map.lookup(uv, uv_width), scale)
+                        }
+                        None => ns,
+                    },
+                    None => ns,
                 };
                 (
                     ns,

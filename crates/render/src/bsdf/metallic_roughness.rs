@@ -172,6 +172,20 @@ impl MetallicRoughness {
         }
     }
 
+    /// This BRDF with its base colour, metalness and roughness multiplied by `base`,
+    /// `metallic` and `roughness` (texture values, each in [0, 1]).
+    pub fn scaled(&self, base: Spectrum, metallic: f32, roughness: f32) -> Self {
+        let roughness = (self.roughness * roughness).clamp(0.0, 1.0);
+        let alpha = (roughness * roughness).max(MIN_ALPHA);
+        MetallicRoughness {
+            base_color: (self.base_color * base).clamp(Spectrum::ZERO, Spectrum::ONE),
+            metallic: (self.metallic * metallic).clamp(0.0, 1.0),
+            roughness,
+            microfacet: Microfacet::new(Distribution::Ggx, alpha, alpha),
+            ..self.clone()
+        }
+    }
+
     /// Schlick's (1 − cos)⁵.
     #[inline]
     fn schlick(cos: f32) -> f32 {

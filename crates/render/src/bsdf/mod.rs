@@ -199,23 +199,9 @@ pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
             }
         }
         MaterialKind::Mirror { reflectance } => Box::new(Mirror::new(v(reflectance))),
-        // Textures are the scene's to apply per hit (`scene::Material::bsdf_at`).
-        MaterialKind::MetallicRoughness {
-            base_color,
-            metallic,
-            roughness,
-            ior,
-            specular_color,
-            specular,
-            ..
-        } => Box::new(MetallicRoughness::new(
-            v(base_color),
-            metallic,
-            roughness,
-            ior,
-            v(specular_color),
-            specular,
-        )),
+        MaterialKind::MetallicRoughness { .. } => {
+            Box::new(metallic_roughness_of(kind).expect("a metallic-roughness material"))
+        }
         // The interface of a translucent object; what enters is the BSSRDF's (`bssrdf`).
         MaterialKind::Subsurface { eta, .. } => Box::new(SmoothDielectric::new(eta)),
         MaterialKind::KubelkaMunk {
@@ -268,6 +254,31 @@ fn reflected_pdf(wo: Vec3A, wi: Vec3A, pdf_h: impl FnOnce(Vec3A) -> f32) -> f32 
     let h = (wo + wi).normalize();
     let d = wo.dot(h);
     if d <= 0.0 { 0.0 } else { pdf_h(h) / (4.0 * d) }
+}
+
+/// The glTF BRDF of a metallic-roughness material, by its factors alone: textures are the
+/// scene's to apply per hit (`scene::Material::bsdf_at`).
+pub fn metallic_roughness_of(kind: &MaterialKind) -> Option<MetallicRoughness> {
+    let MaterialKind::MetallicRoughness {
+        base_color,
+        metallic,
+        roughness,
+        ior,
+        specular_color,
+        specular,
+        ..
+    } = *kind
+    else {
+        return None;
+    };
+    Some(MetallicRoughness::new(
+        base_color.into(),
+        metallic,
+        roughness,
+        ior,
+        specular_color.into(),
+        specular,
+    ))
 }
 
 fn microfacet_of(r: &Roughness) -> Option<Microfacet> {

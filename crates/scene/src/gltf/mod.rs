@@ -17,7 +17,7 @@ use std::path::Path;
 
 use glam::{Mat3, Mat4, Vec3};
 
-use crate::desc::{EmissionDesc, MaterialDesc};
+use crate::desc::{EmissionDesc, LightDesc, MaterialDesc};
 use crate::photometry::K_M;
 use crate::source::SceneSource;
 
@@ -44,7 +44,8 @@ pub struct GltfScene {
     /// What each material emits (radiance in W·sr⁻¹·m⁻²), if it does.
     pub emission: Vec<Option<EmissionDesc>>,
     pub camera: Option<GltfCamera>,
-    pub lights: Vec<GltfLight>,
+    /// KHR_lights_punctual lights in world space (metres), radiometric.
+    pub lights: Vec<LightDesc>,
     /// What was read but is not modelled, for the render summary and the job's decisions.
     pub warnings: Vec<String>,
 }
@@ -76,22 +77,6 @@ pub struct GltfCamera {
     pub yfov: f32,
     /// Width / height, if the file gives it.
     pub aspect: Option<f32>,
-}
-
-/// A KHR_lights_punctual light in world space, radiometric (luminous-equivalent watts).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum GltfLight {
-    /// Intensity in W·sr⁻¹.
-    Point { position: Vec3, intensity: Vec3 },
-    Spot {
-        position: Vec3,
-        direction: Vec3,
-        intensity: Vec3,
-        cos_inner: f32,
-        cos_outer: f32,
-    },
-    /// `direction` is where the light travels; irradiance in W·m⁻².
-    Directional { direction: Vec3, irradiance: Vec3 },
 }
 
 /// What went wrong, and where in the file (`meshes[2] "Chair" primitives[0]`).
@@ -211,7 +196,7 @@ struct Walk<'a> {
     meshes: Vec<GltfMesh>,
     /// Perspective cameras with where they come from.
     cameras: Vec<(GltfCamera, String)>,
-    lights: Vec<GltfLight>,
+    lights: Vec<LightDesc>,
     warnings: &'a mut Vec<String>,
     uses_default_material: bool,
 }
@@ -313,11 +298,11 @@ impl Walk<'_> {
             return Err(GltfError::new(at, "expected an invertible node transform"));
         }
         self.lights.push(match light.kind() {
-            Kind::Point => GltfLight::Point {
+            Kind::Point => LightDesc::Point {
                 position,
                 intensity: radiometric,
             },
-            Kind::Directional => GltfLight::Directional {
+            Kind::Directional => LightDesc::Directional {
                 direction,
                 irradiance: radiometric,
             },
@@ -339,12 +324,12 @@ impl Walk<'_> {
                         ),
                     ));
                 }
-                GltfLight::Spot {
+                LightDesc::Spot {
                     position,
                     direction,
                     intensity: radiometric,
-                    cos_inner: inner_cone_angle.cos(),
-                    cos_outer: outer_cone_angle.cos(),
+                    cos_falloff_start: inner_cone_angle.cos(),
+                    cos_cone: outer_cone_angle.cos(),
                 }
             }
         });

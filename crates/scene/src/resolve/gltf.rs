@@ -3,7 +3,7 @@
 //! the file's.
 
 use super::*;
-use crate::gltf::{GltfLight, GltfScene};
+use crate::gltf::GltfScene;
 
 /// Film width of a scene made from a glTF file alone; the height follows the camera's aspect.
 const GLTF_FILM_WIDTH: u32 = 1280;
@@ -102,35 +102,28 @@ impl Ctx<'_> {
         let per_unit2 = (out.metres_per_unit * out.metres_per_unit) as f32;
         let dir = |d: Vec3| to_world.transform_vector3(d).normalize_or_zero();
         for l in &g.lights {
-            out.lights.push(match *l {
-                GltfLight::Point {
+            let mut l = l.clone();
+            match &mut l {
+                LightDesc::Point {
                     position,
                     intensity,
-                } => LightDesc::Point {
-                    position: to_world.transform_point3(position),
-                    intensity: intensity / per_unit2,
-                },
-                GltfLight::Spot {
+                }
+                | LightDesc::Spot {
                     position,
-                    direction,
                     intensity,
-                    cos_inner,
-                    cos_outer,
-                } => LightDesc::Spot {
-                    position: to_world.transform_point3(position),
-                    direction: dir(direction),
-                    intensity: intensity / per_unit2,
-                    cos_falloff_start: cos_inner,
-                    cos_cone: cos_outer,
-                },
-                GltfLight::Directional {
-                    direction,
-                    irradiance,
-                } => LightDesc::Directional {
-                    direction: dir(direction),
-                    irradiance,
-                },
-            });
+                    ..
+                } => {
+                    *position = to_world.transform_point3(*position);
+                    *intensity /= per_unit2;
+                }
+                LightDesc::Directional { .. } | LightDesc::Environment { .. } => {}
+            }
+            if let LightDesc::Spot { direction, .. } | LightDesc::Directional { direction, .. } =
+                &mut l
+            {
+                *direction = dir(*direction);
+            }
+            out.lights.push(l);
         }
     }
 

@@ -45,6 +45,22 @@ pub(crate) fn hash_scene(h: &mut Sha256, desc: &SceneDesc) {
             Some(n) => floats(h, n),
             None => h.update(b"flat"),
         }
+        // Texture coordinates and tangents decide what textures and normal maps show.
+        if let Some(uv) = &m.uvs {
+            h.update(b"uv");
+            for t in uv {
+                h.update(t.x.to_le_bytes());
+                h.update(t.y.to_le_bytes());
+            }
+        }
+        if let Some(t) = &m.tangents {
+            h.update(b"tangents");
+            for c in t.iter().flatten() {
+                for x in c.to_array() {
+                    h.update(x.to_le_bytes());
+                }
+            }
+        }
         h.update((m.triangles.len() as u64).to_le_bytes());
         for t in &m.triangles {
             for i in t {
