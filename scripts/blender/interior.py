@@ -1,26 +1,27 @@
-"""A textured interior built in Blender and exported with Blender's glTF exporter, plus the
-scene.json that places the export under a sky and sets its camera.
+"""A textured interior built in Blender and exported with Blender's glTF exporter, with the
+sky behind its window, and Cycles' render of the same Blender scene as a reference.
 
     pip install bpy==5.0.1
-    python3 scripts/blender/interior.py scenes/gltf-interior
+    python3 scripts/blender/interior.py scenes/gltf-interior --spp 1024 --size 192x108
 
-writes `room.glb` (a 6 × 5 × 3 m room: a wooden floor texture, a picture on a normal-mapped
-plaster back wall, a window in the right wall, a gold sphere, a glass sphere, a
-pedestal, a spot light and a dim point light), `sky.exr` (a latitude–longitude sky: blue
-above, a bright horizon, dark ground) and `scene.json` (Blender's camera, converted to glTF's
-Y-up frame, the glTF file as a shape, the sky as the environment behind the window).
+writes `sky.exr` (a latitude–longitude sky: blue above, a bright horizon, dark ground; also
+the Blender world's environment texture), `scene.glb` (a 6 × 5 × 3 m room: a wooden floor
+texture, a picture on a normal-mapped plaster back wall, a window in the right wall, a gold
+sphere, a glass sphere, a pedestal, a spot light and a dim point light, Blender's camera; the
+scene's custom property `tessera_environment` names the sky, exported as the glTF scene's
+extras since glTF has no environment of its own) and, with `--spp` > 0, `cycles.exr`: Cycles'
+path-traced render (no denoiser, Standard view transform, linear EXR) at `--size`.
 """
 
-import json
+import argparse
 import math
 import os
 import sys
 
 import bpy
-from mathutils import Vector
 
 sys.path.insert(0, os.path.dirname(__file__))
-from diffuse_shot import board, bumps, image, textured  # noqa: E402
+from diffuse_shot import board, bumps, image, render_cycles, textured  # noqa: E402
 from product_shot import principled  # noqa: E402
 
 
@@ -85,10 +86,34 @@ def sky(path, width=256, height=128):
     img.save()
 
 
-def main(out):
+def world(scene, sky_path):
+    """The sky as the world's environment texture, for Cycles' reference."""
+    w = bpy.data.worlds.new("Sky")
+    w.use_nodes = True
+    nodes = w.node_tree.nodes
+    env = nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(sky_path)
+    env.image.colorspace_settings.name = "Linear Rec.709"
+    env.projection = "EQUIRECTANGULAR"
+    w.node_tree.links.new(env.outputs["Color"], nodes["Background"].inputs["Color"])
+    nodes["Background"].inputs["Strength"].default_value = 1.0
+    scene.world = w
+    # What Tessera reads from the glTF scene's extras.
+    scene["tessera_environment"] = {"image": "sky.exr", "strength": 1.0, "rotation_deg": 0.0}
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out", nargs="?", default="gltf-interior")
+    ap.add_argument("--spp", type=int, default=0)
+    ap.add_argument("--size", default="192x108")
+    a = ap.parse_args()
+    out = a.out
     os.makedirs(out, exist_ok=True)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
+    sky(os.path.abspath(os.path.join(out, "sky.exr")))
+    world(scene, os.path.abspath(os.path.join(out, "sky.exr")))
     white = principled("Plaster", (0.8, 0.8, 0.78), roughness=0.9)
 
     # Floor with a wooden board texture, two images across the 6 m.
@@ -147,43 +172,25 @@ def main(out):
     scene.collection.objects.link(camera)
     scene.camera = camera
 
+    # The exported camera's aspect ratio is the render's.
+    scene.render.resolution_x = 960
+    scene.render.resolution_y = 540
+    scene.render.resolution_percentage = 100
     bpy.ops.export_scene.gltf(
-        filepath=os.path.join(out, "room.glb"),
+        filepath=os.path.join(out, "scene.glb"),
         export_format="GLB",
         export_cameras=True,
         export_lights=True,
+        export_extras=True,
         export_import_convert_lighting_mode="SPEC",
         export_yup=True,
     )
-    sky(os.path.abspath(os.path.join(out, "sky.exr")))
-
-    # Blender's camera in glTF's frame: (x, y, z) Z-up becomes (x, z, −y).
-    yup = lambda v: [round(v.x, 6), round(v.z, 6), round(-v.y, 6)]
-    m = camera.matrix_world.to_3x3()
-    position = camera.location
-    forward = m @ Vector((0, 0, -1))
-    up = m @ Vector((0, 1, 0))
-    doc = {
-        "name": "Blender interior",
-        "units": "m",
-        "camera": {
-            "type": "pinhole",
-            "position": yup(position),
-            "look_at": yup(position + forward),
-            "up": yup(up),
-            "fov_deg": 55,
-            "fov_axis": "y",
-        },
-        "film": {"width": 960, "height": 540},
-        "integrator": {"type": "path", "spp": 64},
-        "materials": {},
-        "shapes": [{"type": "gltf", "file": "room.glb"}],
-        "environment": {"image": "sky.exr", "strength": 1.0, "rotation_deg": 0},
-    }
-    with open(os.path.join(out, "scene.json"), "w") as fh:
-        json.dump(doc, fh, indent=2)
-        fh.write("\n")
+    if a.spp > 0:
+        w, h = (int(v) for v in a.size.split("x"))
+        scene.render.resolution_x = w
+        scene.render.resolution_y = h
+        render_cycles(scene, a.spp, os.path.abspath(os.path.join(out, "cycles.exr")))
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "gltf-interior")
+    main()

@@ -1,22 +1,74 @@
 """Writes a glTF 2.0 binary (.glb) of a dense displaced grid — a terrain of about N
 triangles with vertex normals — under a sun (KHR_lights_punctual directional) and a point
 light, seen by a perspective camera: the production-size geometry for `tessera bench load`.
-Python's standard library only.
+With `--textures SIDE` the ground also gets texture coordinates and three external PNG
+textures of SIDE × SIDE RGB texels beside the file (base colour, metallic-roughness, normal
+map), filled with noise so that they compress no better than photographs: production-size
+textures. Python's standard library only.
 
     python3 scripts/gltf/make_dense.py /tmp/dense.glb --triangles 2000000
+    python3 scripts/gltf/make_dense.py /tmp/big/dense.glb --triangles 2000000 --textures 4096
 """
 
 import argparse
 import array
 import json
 import math
+import os
 import struct
+import zlib
+
+
+def write_png(path, side, row):
+    """An 8-bit RGB PNG of `side` rows, row j's bytes from `row(j)`."""
+    raw = bytearray()
+    for j in range(side):
+        raw += b"\0"  # filter: none
+        raw += row(j)
+
+    def chunk(kind, data):
+        c = struct.pack(">I", len(data)) + kind + data
+        return c + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    with open(path, "wb") as f:
+        f.write(b"\x89PNG\r\n\x1a\n")
+        f.write(chunk(b"IHDR", struct.pack(">IIBBBBB", side, side, 8, 2, 0, 0, 0)))
+        f.write(chunk(b"IDAT", zlib.compress(bytes(raw), 6)))
+        f.write(chunk(b"IEND", b""))
+    return os.path.getsize(path)
+
+
+def textures(folder, side):
+    """Base colour (earthy noise), metallic-roughness (rough, non-metal) and a normal map
+    (small random tilts), each SIDE × SIDE; returns their file names and total bytes."""
+    earth = bytes(60 + (b * 140) // 255 for b in range(256))
+    rough = bytes(150 + (b % 100) for b in range(256))
+    tilt = bytes(112 + (b & 31) for b in range(256))
+
+    def base(_):
+        return os.urandom(side * 3).translate(earth)
+
+    def mr(_):
+        r = bytearray(os.urandom(side * 3).translate(rough))
+        r[0::3] = bytes(side)  # R unused
+        r[2::3] = bytes(side)  # B: metal 0
+        return bytes(r)
+
+    def normal(_):
+        r = bytearray(os.urandom(side * 3).translate(tilt))
+        r[2::3] = b"\xff" * side  # z up
+        return bytes(r)
+
+    names = ["dense_base.png", "dense_mr.png", "dense_normal.png"]
+    total = sum(write_png(os.path.join(folder, n), side, f) for n, f in zip(names, [base, mr, normal]))
+    return names, total
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("out")
     ap.add_argument("--triangles", type=int, default=2_000_000)
+    ap.add_argument("--textures", type=int, default=0, help="texture side in texels (0: none)")
     a = ap.parse_args()
     n = max(2, int(math.sqrt(a.triangles / 2)))  # cells per side
     size = 20.0
@@ -26,6 +78,8 @@ def main():
 
     pos = array.array("f")
     nor = array.array("f")
+    uv = array.array("f")
+    repeat = 4.0  # the textures tile 4 × 4 times across the ground
     h = size / n
     for j in range(n + 1):
         z = -size / 2 + j * h
@@ -37,6 +91,7 @@ def main():
             dz = (height(x, z + 1e-3) - height(x, z - 1e-3)) / 2e-3
             l = math.sqrt(dx * dx + 1 + dz * dz)
             nor.extend((-dx / l, 1 / l, -dz / l))
+            uv.extend((i / n * repeat, j / n * repeat))
     idx = array.array("I")
     for j in range(n):
         for i in range(n):
@@ -46,6 +101,8 @@ def main():
             d0 = c0 + 1
             idx.extend((a0, c0, b0, b0, c0, d0))
     blobs = [pos.tobytes(), nor.tobytes(), idx.tobytes()]
+    if a.textures:
+        blobs.append(uv.tobytes())
     offsets, off = [], 0
     for b in blobs:
         offsets.append(off)
@@ -89,6 +146,26 @@ def main():
         ],
         "buffers": [{"byteLength": len(binary)}],
     }
+    if a.textures:
+        folder = os.path.dirname(os.path.abspath(a.out))
+        names, tex_bytes = textures(folder, a.textures)
+        doc["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = 3
+        doc["accessors"].append(
+            {"bufferView": 3, "componentType": 5126, "count": verts, "type": "VEC2"})
+        doc["bufferViews"] = [
+            {"buffer": 0, "byteOffset": offsets[k], "byteLength": len(blobs[k])}
+            for k in range(4)
+        ]
+        doc["images"] = [{"uri": n} for n in names]
+        doc["samplers"] = [{"wrapS": 10497, "wrapT": 10497}]
+        doc["textures"] = [{"source": k, "sampler": 0} for k in range(3)]
+        pbr = doc["materials"][0]["pbrMetallicRoughness"]
+        pbr["baseColorFactor"] = [1.0, 1.0, 1.0, 1.0]
+        pbr["roughnessFactor"] = 1.0
+        pbr["baseColorTexture"] = {"index": 0}
+        pbr["metallicRoughnessTexture"] = {"index": 1}
+        doc["materials"][0]["normalTexture"] = {"index": 2}
+        print(f"{len(names)} textures of {a.textures}² texels: {tex_bytes / 2**20:.1f} MiB of PNG")
     js = json.dumps(doc).encode()
     js += b" " * (-len(js) % 4)
     binary += b"\0" * (-len(binary) % 4)

@@ -3,12 +3,12 @@
 //! of it: a camera-only fly-through builds the scene once and renders every frame from it.
 
 use glam::{Mat3A, Vec2, Vec3A, Vec4};
-use tessera_scene::{FilmDesc, IntegratorDesc, LightDesc, SceneDesc};
+use tessera_scene::{Coverage, CoverageMode, FilmDesc, IntegratorDesc, LightDesc, SceneDesc};
 
 use crate::bsdf::{self, Bsdf, BsdfFlags};
 use crate::bssrdf::Subsurface;
 use crate::filter::Filter;
-use crate::geometry::{Accel, Prim};
+use crate::geometry::{Accel, Prim, PrimHit};
 use crate::light::{
     DirectionalLight, EnvironmentLight, Light, LightSample, LightSet, PointLight, ShadowTarget,
     SphereLight, SpotLight, Target, TriangleLight,
@@ -25,6 +25,10 @@ pub const NO_LIGHT: u32 = u32::MAX;
 /// distance itself from registering the emitter as its own occluder. Relative to the segment,
 /// so it is scale-free.
 const SHADOW_EPSILON: f32 = 1e-4;
+
+/// Most surfaces a ray passes through where they are not there (cut-out or blended coverage)
+/// before the next one counts as a hit: a bound on work through dense foliage.
+const MAX_HOLES: u32 = 256;
 
 /// A material: its BSDF and how to orient it, and for a translucent one what lies beneath
 /// its interface.
@@ -47,6 +51,8 @@ pub struct TexturedPbr {
     metallic_roughness_map: Option<MipMap>,
     /// A tangent-space normal map and its scale on x and y (applied where the hit is found).
     normal_map: Option<(MipMap, f32)>,
+    /// Where the surface is there at all (tested where rays are traced).
+    coverage: Option<Coverage>,
 }
 
 impl TexturedPbr {
@@ -65,6 +71,25 @@ impl TexturedPbr {
                 (t.z, t.y)
             });
         self.factors.scaled(base, metallic, roughness)
+    }
+
+    /// Whether the surface is there at `uv` (footprint `width`) for a ray whose own uniform
+    /// number is `u`: coverage α = factor × the base colour texture's alpha, kept where
+    /// α ≥ the cutoff (mask) or with probability α (blend).
+    #[inline]
+    fn covers(&self, uv: Vec2, width: f32, u: f32) -> bool {
+        let Some(c) = self.coverage else {
+            return true;
+        };
+        let alpha = c.factor
+            * self
+                .base_color_map
+                .as_ref()
+                .map_or(1.0, |m| m.lookup(uv, width).w);
+        match c.mode {
+            CoverageMode::Mask { cutoff } => alpha >= cutoff,
+            CoverageMode::Blend => u < alpha,
+        }
     }
 }
 
@@ -109,6 +134,7 @@ impl Material {
                     .as_ref()
                     .map(|t| textures.mipmap(t)),
                 normal_map: maps.normal.as_ref().map(|(t, s)| (textures.mipmap(t), *s)),
+                coverage: maps.coverage,
             }));
         }
         m
@@ -241,6 +267,23 @@ struct MeshRuntime {
     tangents: Option<Vec<[Vec4; 3]>>,
 }
 
+impl MeshRuntime {
+    /// Texture coordinates at barycentrics `b` of triangle `local`, and the width in uv of a
+    /// footprint `width` wide in the scene.
+    #[inline]
+    fn uv(&self, local: usize, b: [f32; 3], width: f32) -> (Vec2, f32) {
+        match &self.uvs {
+            Some((uvs, scale)) => {
+                let [i0, i1, i2] = self.indices[local];
+                let uv =
+                    uvs[i0 as usize] * b[0] + uvs[i1 as usize] * b[1] + uvs[i2 as usize] * b[2];
+                (uv, scale[local] * width)
+            }
+            None => (Vec2::ZERO, 0.0),
+        }
+    }
+}
+
 struct SphereRuntime {
     material: u32,
     light: u32,
@@ -278,6 +321,8 @@ pub struct Scene {
     pub stats: SceneStats,
     /// A camera pixel's angular width (radians), for texture footprints.
     pixel_angle: f32,
+    /// Whether any material has partial coverage: rays then test it at each hit.
+    holes: bool,
 }
 
 impl Scene {
@@ -460,11 +505,14 @@ impl Scene {
             texture_bytes: 0,
         };
         let mut textures = Textures::default();
-        let materials = desc
+        let materials: Vec<Material> = desc
             .materials
             .iter()
             .map(|m| Material::with_textures(&m.kind, &mut textures))
             .collect();
+        let holes = materials
+            .iter()
+            .any(|m| m.textured.as_ref().is_some_and(|t| t.coverage.is_some()));
         let stats = SceneStats {
             texture_bytes: textures.bytes(),
             ..stats
@@ -491,6 +539,7 @@ impl Scene {
             objects,
             stats,
             pixel_angle,
+            holes,
         }
     }
 
@@ -506,23 +555,81 @@ impl Scene {
         t.normal_map.as_ref().map(|(m, s)| (m, *s))
     }
 
-    /// The closest surface along `ray`.
+    /// The closest surface along `ray` (passing through where surfaces are not there).
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
-        let hit = self.accel.intersect(ray, f32::INFINITY)?;
+        let hit = if self.holes {
+            self.through_holes(ray, f32::INFINITY)?
+        } else {
+            self.accel.intersect(ray, f32::INFINITY)?
+        };
+        Some(self.interaction(hit))
+    }
+
+    /// Whether something is there along `ray` before `t_max`.
+    #[inline]
+    fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        if self.holes {
+            self.through_holes(ray, t_max).is_some()
+        } else {
+            self.accel.occluded(ray, t_max)
+        }
+    }
+
+    /// The first hit along `ray` before `t_max` where the surface is there (its `t` from the
+    /// ray's origin), passing through at most [`MAX_HOLES`] where it is not (the next hit
+    /// then counts as there).
+    fn through_holes(&self, ray: &Ray, t_max: f32) -> Option<PrimHit> {
+        let mut from = *ray;
+        let mut hit = self.accel.intersect(&from, t_max)?;
+        for _ in 0..MAX_HOLES {
+            let t = (hit.p - ray.o).dot(ray.d);
+            if self.covers(ray, &hit, t) {
+                return Some(PrimHit { t, ..hit });
+            }
+            // On from just beyond the surface.
+            from = Ray::new(offset_ray_origin(hit.p, hit.p_error, hit.n, ray.d), ray.d);
+            let left = t_max - (from.o - ray.o).dot(ray.d);
+            if left <= 0.0 {
+                return None;
+            }
+            hit = self.accel.intersect(&from, left)?;
+        }
+        let t = (hit.p - ray.o).dot(ray.d);
+        Some(PrimHit { t, ..hit })
+    }
+
+    /// Whether the surface `hit` (at distance `t` along `ray`) is there. A blended surface is
+    /// there with a probability; its uniform number hashes the ray and the triangle, so the
+    /// same ray always meets the same surfaces (determinism) and each layer decides apart.
+    #[inline]
+    fn covers(&self, ray: &Ray, hit: &PrimHit, t: f32) -> bool {
+        let Prim::Triangle { id, b } = hit.prim else {
+            return true;
+        };
+        let mesh = &self.meshes[self.triangle_mesh[id as usize] as usize];
+        let Some(textured) = self.materials[mesh.material as usize].textured.as_ref() else {
+            return true;
+        };
+        if textured.coverage.is_none() {
+            return true;
+        }
+        let local = (id - mesh.first_triangle) as usize;
+        let (uv, width) = mesh.uv(local, b, t * self.pixel_angle);
+        let bits = |v: Vec3A| {
+            let [x, y, z] = v.to_array().map(f32::to_bits);
+            ((x as u64) << 32 | y as u64) ^ ((z as u64) << 16)
+        };
+        let h = crate::sampler::hash::hash(&[bits(ray.o), bits(ray.d), id as u64]);
+        textured.covers(uv, width, crate::sampler::hash::u32_to_unit(h as u32))
+    }
+
+    /// The surface interaction at `hit`.
+    fn interaction(&self, hit: PrimHit) -> SurfaceInteraction {
         let (ns, material, light, uv, uv_width) = match hit.prim {
             Prim::Triangle { id, b } => {
                 let mesh = &self.meshes[self.triangle_mesh[id as usize] as usize];
                 let local = (id - mesh.first_triangle) as usize;
-                let (uv, uv_width) = match &mesh.uvs {
-                    Some((uvs, scale)) => {
-                        let [i0, i1, i2] = mesh.indices[local];
-                        let uv = uvs[i0 as usize] * b[0]
-                            + uvs[i1 as usize] * b[1]
-                            + uvs[i2 as usize] * b[2];
-                        (uv, scale[local] * hit.t * self.pixel_angle)
-                    }
-                    None => (Vec2::ZERO, 0.0),
-                };
+                let (uv, uv_width) = mesh.uv(local, b, hit.t * self.pixel_angle);
                 let ns = match &mesh.normals {
                     Some(normals) => {
                         let [i0, i1, i2] = mesh.indices[local];
@@ -560,7 +667,7 @@ impl Scene {
                 (hit.n, s.material, s.light, Vec2::ZERO, 0.0)
             }
         };
-        Some(SurfaceInteraction {
+        SurfaceInteraction {
             p: hit.p,
             p_error: hit.p_error,
             t: hit.t,
@@ -570,7 +677,7 @@ impl Scene {
             light,
             uv,
             uv_width,
-        })
+        }
     }
 
     /// Whether nothing blocks the light sample `ls` as seen from `si`.
@@ -578,7 +685,7 @@ impl Scene {
         match ls.target {
             ShadowTarget::Infinite => {
                 let o = offset_ray_origin(si.p, si.p_error, si.ng, ls.wi);
-                !self.accel.occluded(&Ray::new(o, ls.wi), f32::INFINITY)
+                !self.occluded(&Ray::new(o, ls.wi), f32::INFINITY)
             }
             ShadowTarget::Point { p, p_error, n } => {
                 self.unoccluded_between((si.p, si.p_error, si.ng), (p, p_error, n))
@@ -600,9 +707,6 @@ impl Scene {
         let target = end(b, o);
         let d = target - o;
         let dist = d.length();
-        dist == 0.0
-            || !self
-                .accel
-                .occluded(&Ray::new(o, d / dist), dist * (1.0 - SHADOW_EPSILON))
+        dist == 0.0 || !self.occluded(&Ray::new(o, d / dist), dist * (1.0 - SHADOW_EPSILON))
     }
 }

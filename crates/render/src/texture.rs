@@ -7,14 +7,33 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use glam::{Affine2, Vec2, Vec4};
-use tessera_scene::texture::{TextureDesc, TextureImage, Wrap};
+use rayon::prelude::*;
+use tessera_scene::texture::{Texels, TextureDesc, TextureImage, Wrap};
 
 /// One level of a pyramid, rows top to bottom.
 #[derive(Debug)]
 struct Level {
     width: u32,
     height: u32,
-    texels: Vec<Vec4>,
+    texels: LevelTexels,
+}
+
+/// The finest level is the image itself (shared with the scene description, not copied);
+/// coarser levels are stored like it (8-bit sRGB stays 8-bit sRGB, averaged in linear).
+#[derive(Debug)]
+enum LevelTexels {
+    Image(Arc<TextureImage>),
+    Own(Texels),
+}
+
+impl Level {
+    #[inline]
+    fn texels(&self) -> &Texels {
+        match &self.texels {
+            LevelTexels::Image(i) => &i.texels,
+            LevelTexels::Own(t) => t,
+        }
+    }
 }
 
 /// An image's mip-map pyramid, finest first.
@@ -24,45 +43,48 @@ pub struct Pyramid {
 }
 
 impl Pyramid {
-    pub fn new(image: &TextureImage) -> Self {
+    pub fn new(image: &Arc<TextureImage>) -> Self {
         let mut levels = vec![Level {
             width: image.width,
             height: image.height,
-            texels: image.texels.clone(),
+            texels: LevelTexels::Image(image.clone()),
         }];
         while let Some(l) = levels.last()
             && (l.width > 1 || l.height > 1)
         {
             let (w, h) = ((l.width / 2).max(1), (l.height / 2).max(1));
-            let mut texels = Vec::with_capacity((w * h) as usize);
-            for y in 0..h {
-                for x in 0..w {
-                    // The 2×2 texels below (fewer at an odd edge, which clamps).
-                    let at = |dx: u32, dy: u32| {
-                        let (sx, sy) = (
-                            (2 * x + dx).min(l.width - 1),
-                            (2 * y + dy).min(l.height - 1),
-                        );
-                        l.texels[(sy * l.width + sx) as usize]
-                    };
-                    texels.push((at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1)) * 0.25);
-                }
-            }
+            let below = l.texels();
+            // Rows in parallel: the pyramid of a production texture has tens of millions of texels.
+            let linear: Vec<Vec4> = (0..h)
+                .into_par_iter()
+                .flat_map_iter(|y| {
+                    (0..w).map(move |x| {
+                        // The 2×2 texels below (fewer at an odd edge, which clamps).
+                        let at = |dx: u32, dy: u32| {
+                            let (sx, sy) = (
+                                (2 * x + dx).min(l.width - 1),
+                                (2 * y + dy).min(l.height - 1),
+                            );
+                            below.get((sy * l.width + sx) as usize)
+                        };
+                        (at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1)) * 0.25
+                    })
+                })
+                .collect();
+            let texels = below.like(&linear);
             levels.push(Level {
                 width: w,
                 height: h,
-                texels,
+                texels: LevelTexels::Own(texels),
             });
         }
         Pyramid { levels }
     }
 
-    /// Bytes the pyramid takes.
+    /// Bytes the pyramid takes (the finest level included, though the scene description
+    /// holds it too).
     pub fn bytes(&self) -> usize {
-        self.levels
-            .iter()
-            .map(|l| l.texels.len() * std::mem::size_of::<Vec4>())
-            .sum()
+        self.levels.iter().map(|l| l.texels().bytes()).sum()
     }
 }
 
@@ -105,6 +127,7 @@ impl MipMap {
     #[inline]
     fn bilinear(&self, l: usize, st: Vec2) -> Vec4 {
         let level = &self.pyramid.levels[l];
+        let texels = level.texels();
         let x = st.x * level.width as f32 - 0.5;
         let y = st.y * level.height as f32 - 0.5;
         let (x0, y0) = (x.floor(), y.floor());
@@ -113,7 +136,7 @@ impl MipMap {
         let texel = |dx: i64, dy: i64| {
             let tx = wrap(x0 + dx, level.width, self.wrap[0]);
             let ty = wrap(y0 + dy, level.height, self.wrap[1]);
-            level.texels[(ty * level.width + tx) as usize]
+            texels.get((ty * level.width + tx) as usize)
         };
         let top = texel(0, 0) * (1.0 - fx) + texel(1, 0) * fx;
         let bottom = texel(0, 1) * (1.0 - fx) + texel(1, 1) * fx;
@@ -244,7 +267,8 @@ mod tests {
         let p = Pyramid::new(&checker(16).image);
         assert_eq!(p.levels.len(), 5);
         for l in &p.levels {
-            let mean = l.texels.iter().map(|t| t.x).sum::<f32>() / l.texels.len() as f32;
+            let t = l.texels();
+            let mean = (0..t.len()).map(|i| t.get(i).x).sum::<f32>() / t.len() as f32;
             assert!(
                 (mean - 0.5).abs() < 1e-6,
                 "level {}×{}: {mean}",

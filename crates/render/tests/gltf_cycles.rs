@@ -11,18 +11,20 @@
 
 use std::path::Path;
 
-use tessera_render::camera::Camera;
-use tessera_render::film::SampleRange;
-use tessera_render::render::render_frame;
-use tessera_render::{Scene, integrator, read_exr};
+use tessera_render::method::local::Local;
+use tessera_render::method::{self, Job};
+use tessera_render::{Scene, read_exr};
 
 const SPP: u32 = 256;
-/// Samples per pixel of the Cycles reference.
-const REFERENCE_SPP: f64 = 2048.0;
+
+fn scenes() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes")
+}
 
 #[test]
 fn blenders_export_renders_as_cycles_renders_the_blender_scene() {
-    agrees_with_cycles("diffuse-shot", 0.02, 1.5);
+    let dir = scenes().join("gltf/diffuse-shot");
+    agrees_with_cycles(&dir.join("diffuse-shot.glb"), "path", 2048, 0.01, 0.02, 1.5);
 }
 
 /// Two known differences, both systematic, widen the tolerances here. The normal-mapped wall
@@ -34,71 +36,123 @@ fn blenders_export_renders_as_cycles_renders_the_blender_scene() {
 /// relMSE away from edges was 1.4× the noise's prediction, with it 1.7×.
 #[test]
 fn blenders_textured_export_renders_as_cycles_renders_the_blender_scene() {
-    agrees_with_cycles("textured-shot", 0.035, 2.0);
+    let dir = scenes().join("gltf/textured-shot");
+    agrees_with_cycles(
+        &dir.join("textured-shot.glb"),
+        "path",
+        2048,
+        0.01,
+        0.035,
+        2.0,
+    );
 }
 
-/// Tessera's render of `name`'s glTF against Cycles' render of the Blender scene: the image
-/// mean within 1 %, each of 4×4 blocks within `block_tolerance`, and the relMSE away from
+/// The Blender interior (`scenes/gltf-interior/`, `scripts/blender/interior.py --spp 4096
+/// --size 192x108`): textures, a normal-mapped wall, a spot and a point light, gold and glass
+/// spheres, the sky through a window (the world's environment texture in Blender, the glTF
+/// scene's extras for us), Cycles at 4096 spp.
+///
+/// Rendered by BDPT: light from the spot reflected by the gold sphere onto the walls is a
+/// caustic that path tracing (ours, and Cycles') finds only by chance, in fireflies that
+/// swing a quarter of the image by a quarter at 256 spp. Known, systematic differences: the
+/// spot's edge (Blender's exporter writes its blend as an inner cone; Cycles fades with a
+/// smoothstep over its own blend width, we with pbrt's smoothstep from the inner to the outer
+/// cone) darkens the blocks around the pedestal by 2–4 %, and the normal-mapped wall is
+/// brighter as in the textured shot.
+#[test]
+fn blenders_interior_renders_as_cycles_renders_the_blender_scene() {
+    let dir = scenes().join("gltf-interior");
+    agrees_with_cycles(&dir.join("scene.glb"), "bdpt", 4096, 0.02, 0.06, 1.5);
+}
+
+/// Tessera's render of the glTF file `glb` against Cycles' render of the Blender scene beside
+/// it (`cycles.exr`, `reference_spp` samples per pixel): the image mean within
+/// `mean_tolerance`, each of 4×4 blocks within `block_tolerance`, and the relMSE away from
 /// edges at most `noise_factor` times what the two renders' noise explains.
-fn agrees_with_cycles(name: &str, block_tolerance: f64, noise_factor: f64) {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../scenes/gltf")
-        .join(name);
+fn agrees_with_cycles(
+    glb: &Path,
+    method: &str,
+    reference_spp: u32,
+    mean_tolerance: f64,
+    block_tolerance: f64,
+    noise_factor: f64,
+) {
+    let root = glb.parent().expect("a folder");
     let reference = read_exr(&root.join("cycles.exr")).expect("the Cycles render");
-    let mut desc =
-        tessera_scene::load(&root.join(format!("{name}.glb"))).unwrap_or_else(|e| panic!("{e}"));
+    let mut desc = tessera_scene::load(glb).unwrap_or_else(|e| panic!("{e}"));
     assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
     desc.film.width = reference.width;
     desc.film.height = reference.height;
-    desc.integrator.method = "path".into();
+    desc.integrator.method = method.into();
     desc.integrator.seed = 7;
-    let camera = Camera::new(&desc.camera, &desc.film);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(2)
         .build()
         .expect("pool");
+    // Through the method's own plan, tasks and fold, as `tessera render` runs it.
     let render = |seed: u64| {
         let mut d = desc.clone();
         d.integrator.seed = seed;
+        d.integrator.spp = SPP;
         let scene = Scene::build(&d);
-        let integ = integrator::for_scene(&d, &scene);
-        let range = SampleRange { start: 0, end: SPP };
-        pool.install(|| render_frame(&scene, &camera, integ.as_ref(), 8, range).0)
+        let job = Job::new(d.clone(), 1);
+        let plan = method::plan(&job).unwrap_or_else(|e| panic!("{method}: {e}"));
+        let noop = |_| {};
+        pool.install(|| {
+            let local = Local::new(plan.as_ref(), &scene, &d, 2, &noop);
+            local.passes().unwrap_or_else(|e| panic!("{method}: {e}"));
+            local
+                .frame(1)
+                .unwrap_or_else(|e| panic!("{method}: {e}"))
+                .image
+        })
     };
     let image = render(7);
     let other = render(8);
 
     let (w, h) = (reference.width as usize, reference.height as usize);
     let r = |i: usize| reference.pixels[i].to_array();
-    // Mean over the image: within 1 % (measured at equal spp: 0.01 %, textured 0.13 %).
     let ours: f64 = image.pixels.iter().flat_map(|p| p.rgb).map(f64::from).sum();
     let theirs: f64 = (0..w * h).flat_map(r).map(f64::from).sum();
     let ratio = ours / theirs;
-    assert!((ratio - 1.0).abs() < 0.01, "mean ours/Cycles = {ratio}");
+    println!("{}: mean ours/Cycles {ratio:.5}", glb.display());
+    assert!(
+        (ratio - 1.0).abs() < mean_tolerance,
+        "mean ours/Cycles = {ratio}"
+    );
     // And over each of 4×4 blocks, so that one light's error cannot hide behind another's:
     // pixel filters move light between neighbours, not between blocks.
+    let mut worst = (0.0f64, 1.0, 0, 0);
     for by in 0..4 {
         for bx in 0..4 {
             let (mut a, mut b) = (0.0f64, 0.0f64);
             for y in by * h / 4..(by + 1) * h / 4 {
                 for x in bx * w / 4..(bx + 1) * w / 4 {
                     let i = y * w + x;
+                    // Both renders: twice the samples against the blocks' noise.
                     a += image.pixels[i].rgb.iter().map(|&v| v as f64).sum::<f64>();
-                    b += r(i).iter().map(|&v| v as f64).sum::<f64>();
+                    a += other.pixels[i].rgb.iter().map(|&v| v as f64).sum::<f64>();
+                    b += 2.0 * r(i).iter().map(|&v| v as f64).sum::<f64>();
                 }
             }
             let q = a / b;
-            assert!(
-                (q - 1.0).abs() < block_tolerance,
-                "block ({bx}, {by}): ours/Cycles = {q}"
-            );
+            print!("{q:.3} ");
+            if (q - 1.0).abs() > worst.0 {
+                worst = ((q - 1.0).abs(), q, bx, by);
+            }
         }
+        println!();
     }
+    let (_, q, bx, by) = worst;
+    assert!(
+        (q - 1.0).abs() < block_tolerance,
+        "block ({bx}, {by}): ours/Cycles = {q}"
+    );
 
     // Pixel by pixel away from edges (where the two renderers' pixel filters differ): the
     // relMSE against Cycles is what the two renders' noise explains. Ours is measured between
     // two seeds (their relMSE is twice one render's); Cycles' is taken as ours per sample
-    // over its 2048 samples.
+    // over its samples.
     let luminance = |i: usize| {
         let [a, b, c] = r(i);
         (a + b + c) / 3.0
@@ -130,7 +184,7 @@ fn agrees_with_cycles(name: &str, block_tolerance: f64, noise_factor: f64) {
             let var = (x - other.pixels[i].rgb[c] as f64).powi(2) / 2.0;
             let denom = rv * rv + 0.01;
             measured += (x - rv).powi(2) / denom;
-            expected += var * (1.0 + SPP as f64 / REFERENCE_SPP) / denom;
+            expected += var * (1.0 + SPP as f64 / reference_spp as f64) / denom;
             n += 1;
         }
     }

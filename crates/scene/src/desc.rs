@@ -214,21 +214,43 @@ pub enum MaterialKind {
     },
 }
 
-/// The image textures of a metallic-roughness material: the base colour's (sRGB-decoded,
-/// multiplies `base_color`) and the metallic-roughness one's (linear; blue is metalness,
-/// green roughness, multiplying the factors).
+/// What varies over a metallic-roughness material's surface: the base colour's texture
+/// (sRGB-decoded, multiplies `base_color`; its alpha is coverage), the metallic-roughness one
+/// (linear; blue is metalness, green roughness, multiplying the factors), a normal map, and
+/// coverage (glTF's alphaMode).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct PbrTextures {
     pub base_color: Option<crate::texture::TextureDesc>,
     pub metallic_roughness: Option<crate::texture::TextureDesc>,
     /// A tangent-space normal map (linear) and its scale on x and y.
     pub normal: Option<(crate::texture::TextureDesc, f32)>,
+    /// Where the surface is not there at all; `None` for an opaque one.
+    pub coverage: Option<Coverage>,
 }
 
 impl PbrTextures {
     pub fn is_empty(&self) -> bool {
-        self.base_color.is_none() && self.metallic_roughness.is_none() && self.normal.is_none()
+        self.base_color.is_none()
+            && self.metallic_roughness.is_none()
+            && self.normal.is_none()
+            && self.coverage.is_none()
     }
+}
+
+/// A surface's coverage α = `factor` × the base colour texture's alpha (glTF alphaMode):
+/// `Mask` keeps the surface where α ≥ the cutoff and removes it elsewhere (cut-out leaves,
+/// fences); `Blend` keeps it with probability α, so a ray passes with probability 1 − α
+/// (stochastic transparency, unbiased for every method).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Coverage {
+    pub factor: f32,
+    pub mode: CoverageMode,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CoverageMode {
+    Mask { cutoff: f32 },
+    Blend,
 }
 
 /// One Kubelka–Munk layer: absorption K and scattering S per mm, thickness in mm (only the

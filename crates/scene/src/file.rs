@@ -37,7 +37,7 @@ pub struct SceneFile {
 /// `"environment": {"image": "sky.exr", "strength": 1, "rotation_deg": 0}`: a latitude–
 /// longitude OpenEXR image of radiance (omitted: a constant sky of radiance `strength`),
 /// scaled by `strength` and turned by `rotation_deg` about the up axis (+y).
-#[derive(Debug, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct EnvironmentFile {
     #[serde(default)]

@@ -1,6 +1,7 @@
 //! Image textures as the scene gives them: decoded once (PNG or JPEG, 8 or 16 bits per
-//! channel), in linear values — colour decoded from sRGB, data (roughness, metalness) as
-//! stored — with the sampler's wrap modes and the texture coordinate transform.
+//! channel) into texels that read as linear values — colour decoded from sRGB, data
+//! (roughness, metalness, normals) as stored — with the sampler's wrap modes and the texture
+//! coordinate transform.
 
 use std::sync::Arc;
 
@@ -15,15 +16,144 @@ pub enum TextureRole {
     Data,
 }
 
-/// A decoded image, RGBA in linear values, rows top to bottom.
+/// Texels as the file stores them (4 channels), and how their values decode to linear:
+/// production textures are large, so 8-bit files stay 4 bytes a texel and are decoded where
+/// they are read.
+#[derive(Clone)]
+pub enum Texels {
+    /// 8-bit RGB in sRGB encoding, alpha linear (colour from an 8-bit file).
+    Srgb8(Vec<[u8; 4]>),
+    /// 8-bit linear values (data from an 8-bit file).
+    Linear8(Vec<[u8; 4]>),
+    /// 16-bit linear values (data from a 16-bit file).
+    Linear16(Vec<[u16; 4]>),
+    /// Linear values (colour from a 16-bit file, decoded once; generated textures).
+    Float(Vec<Vec4>),
+}
+
+impl std::fmt::Debug for Texels {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kind = match self {
+            Texels::Srgb8(_) => "sRGB8",
+            Texels::Linear8(_) => "linear8",
+            Texels::Linear16(_) => "linear16",
+            Texels::Float(_) => "float",
+        };
+        write!(f, "Texels({kind} × {})", self.len())
+    }
+}
+
+impl Texels {
+    pub fn len(&self) -> usize {
+        match self {
+            Texels::Srgb8(t) | Texels::Linear8(t) => t.len(),
+            Texels::Linear16(t) => t.len(),
+            Texels::Float(t) => t.len(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Bytes the texels take.
+    pub fn bytes(&self) -> usize {
+        match self {
+            Texels::Srgb8(t) | Texels::Linear8(t) => t.len() * 4,
+            Texels::Linear16(t) => t.len() * 8,
+            Texels::Float(t) => t.len() * 16,
+        }
+    }
+
+    /// Texel `i` in linear values.
+    #[inline]
+    pub fn get(&self, i: usize) -> Vec4 {
+        match self {
+            Texels::Srgb8(t) => {
+                let [r, g, b, a] = t[i];
+                let lut = srgb8_table();
+                Vec4::new(
+                    lut[r as usize],
+                    lut[g as usize],
+                    lut[b as usize],
+                    a as f32 / 255.0,
+                )
+            }
+            Texels::Linear8(t) => Vec4::from(t[i].map(f32::from)) / 255.0,
+            Texels::Linear16(t) => Vec4::from(t[i].map(f32::from)) / 65535.0,
+            Texels::Float(t) => t[i],
+        }
+    }
+
+    /// Texels of the same kind holding the linear `values` (rounded to the nearest code).
+    pub fn like(&self, values: &[Vec4]) -> Texels {
+        let code = |v: f32, max: f32| (v.clamp(0.0, 1.0) * max).round();
+        match self {
+            Texels::Srgb8(_) => Texels::Srgb8(
+                values
+                    .iter()
+                    .map(|v| {
+                        let e = |c: f32| code(linear_to_srgb(c), 255.0) as u8;
+                        [e(v.x), e(v.y), e(v.z), code(v.w, 255.0) as u8]
+                    })
+                    .collect(),
+            ),
+            Texels::Linear8(_) => Texels::Linear8(
+                values
+                    .iter()
+                    .map(|v| v.to_array().map(|c| code(c, 255.0) as u8))
+                    .collect(),
+            ),
+            Texels::Linear16(_) => Texels::Linear16(
+                values
+                    .iter()
+                    .map(|v| v.to_array().map(|c| code(c, 65535.0) as u16))
+                    .collect(),
+            ),
+            Texels::Float(_) => Texels::Float(values.to_vec()),
+        }
+    }
+
+    /// FNV-1a over the stored values in 8-byte words: a content hash, not a cryptographic one.
+    fn hash(&self) -> u64 {
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        let mut eat = |w: u64| {
+            h ^= w;
+            h = h.wrapping_mul(0x100_0000_01b3);
+        };
+        match self {
+            Texels::Srgb8(t) | Texels::Linear8(t) => {
+                t.iter().for_each(|p| eat(u32::from_le_bytes(*p) as u64))
+            }
+            Texels::Linear16(t) => t
+                .iter()
+                .for_each(|p| eat(p.iter().fold(0u64, |w, &c| (w << 16) | c as u64))),
+            Texels::Float(t) => t.iter().for_each(|p| {
+                let [a, b, c, d] = p.to_array().map(f32::to_bits);
+                eat(((a as u64) << 32) | b as u64);
+                eat(((c as u64) << 32) | d as u64);
+            }),
+        }
+        h
+    }
+}
+
+/// The 256 linear values of 8-bit sRGB codes.
+fn srgb8_table() -> &'static [f32; 256] {
+    static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)))
+}
+
+/// A decoded image, rows top to bottom.
 #[derive(Clone)]
 pub struct TextureImage {
     /// Where it came from, for messages (`images[2] "wood.png"`).
     pub name: String,
     pub width: u32,
     pub height: u32,
-    pub texels: Vec<Vec4>,
-    /// A content hash (FNV-1a of the decoded texels), so that scenes compare and hash by it.
+    pub texels: Texels,
+    /// A content hash (of the stored texels and their kind), so that scenes compare and hash
+    /// by it.
     pub hash: u64,
 }
 
@@ -46,12 +176,23 @@ impl PartialEq for TextureImage {
 impl TextureImage {
     /// Bytes the texels take.
     pub fn bytes(&self) -> usize {
-        self.texels.len() * std::mem::size_of::<Vec4>()
+        self.texels.bytes()
     }
 
-    /// Builds an image from linear texels (tests, generated textures).
-    pub fn from_texels(name: &str, width: u32, height: u32, texels: Vec<Vec4>) -> Self {
-        let hash = fnv(&texels);
+    /// Texel (x, y) in linear values.
+    #[inline]
+    pub fn texel(&self, x: u32, y: u32) -> Vec4 {
+        self.texels.get((y * self.width + x) as usize)
+    }
+
+    pub fn new(name: &str, width: u32, height: u32, texels: Texels) -> Self {
+        let kind = match &texels {
+            Texels::Srgb8(_) => 1u64,
+            Texels::Linear8(_) => 2,
+            Texels::Linear16(_) => 3,
+            Texels::Float(_) => 4,
+        };
+        let hash = texels.hash() ^ kind;
         TextureImage {
             name: name.into(),
             width,
@@ -60,19 +201,11 @@ impl TextureImage {
             hash,
         }
     }
-}
 
-fn fnv(texels: &[Vec4]) -> u64 {
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
-    for t in texels {
-        for c in t.to_array() {
-            for b in c.to_bits().to_le_bytes() {
-                h ^= b as u64;
-                h = h.wrapping_mul(0x100_0000_01b3);
-            }
-        }
+    /// Builds an image from linear texels (tests, generated textures).
+    pub fn from_texels(name: &str, width: u32, height: u32, texels: Vec<Vec4>) -> Self {
+        Self::new(name, width, height, Texels::Float(texels))
     }
-    h
 }
 
 /// The sRGB transfer function's inverse (IEC 61966-2-1): encoded value in [0, 1] to linear.
@@ -84,7 +217,17 @@ pub fn srgb_to_linear(v: f32) -> f32 {
     }
 }
 
-/// Decodes a PNG or JPEG file's bytes for `role`; `name` is for messages.
+/// The sRGB transfer function (IEC 61966-2-1): linear value in [0, 1] to encoded.
+pub fn linear_to_srgb(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Decodes a PNG or JPEG file's bytes for `role`; `name` is for messages. 8-bit files keep
+/// their codes; 16-bit data keeps its codes; 16-bit colour is decoded to linear floats.
 pub fn decode(bytes: &[u8], name: &str, role: TextureRole) -> Result<TextureImage, String> {
     let img = image::load_from_memory(bytes)
         .map_err(|e| format!("cannot decode the image (PNG or JPEG expected): {e}"))?;
@@ -92,16 +235,35 @@ pub fn decode(bytes: &[u8], name: &str, role: TextureRole) -> Result<TextureImag
     if width == 0 || height == 0 {
         return Err("the image is empty".into());
     }
-    let rgba = img.into_rgba32f();
-    let decode = |v: f32| match role {
-        TextureRole::Color => srgb_to_linear(v),
-        TextureRole::Data => v,
+    let eight = matches!(
+        img.color(),
+        image::ColorType::L8
+            | image::ColorType::La8
+            | image::ColorType::Rgb8
+            | image::ColorType::Rgba8
+    );
+    let texels = match (eight, role) {
+        (true, role) => {
+            let rgba: Vec<[u8; 4]> = img.into_rgba8().pixels().map(|p| p.0).collect();
+            match role {
+                TextureRole::Color => Texels::Srgb8(rgba),
+                TextureRole::Data => Texels::Linear8(rgba),
+            }
+        }
+        (false, TextureRole::Data) => {
+            Texels::Linear16(img.into_rgba16().pixels().map(|p| p.0).collect())
+        }
+        (false, TextureRole::Color) => Texels::Float(
+            img.into_rgba32f()
+                .pixels()
+                .map(|p| {
+                    let d = srgb_to_linear;
+                    Vec4::new(d(p[0]), d(p[1]), d(p[2]), p[3])
+                })
+                .collect(),
+        ),
     };
-    let texels: Vec<Vec4> = rgba
-        .pixels()
-        .map(|p| Vec4::new(decode(p[0]), decode(p[1]), decode(p[2]), p[3]))
-        .collect();
-    Ok(TextureImage::from_texels(name, width, height, texels))
+    Ok(TextureImage::new(name, width, height, texels))
 }
 
 /// How coordinates outside [0, 1] map back into the image (glTF's sampler modes).
@@ -163,14 +325,40 @@ mod tests {
         img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
             .expect("png");
         let c = decode(&png, "t.png", TextureRole::Color).expect("decode");
-        assert!((c.texels[0].x - 0.215_860_5).abs() < 1e-5 && c.texels[0].z == 1.0);
+        assert_eq!(c.bytes(), 8, "8-bit texels stay 4 bytes");
+        assert!((c.texel(0, 0).x - 0.215_860_5).abs() < 1e-5 && c.texel(0, 0).z == 1.0);
         assert!(
-            (c.texels[1].w - 128.0 / 255.0).abs() < 1e-6,
+            (c.texel(1, 0).w - 128.0 / 255.0).abs() < 1e-6,
             "alpha is linear"
         );
         let d = decode(&png, "t.png", TextureRole::Data).expect("decode");
-        assert!((d.texels[0].x - 128.0 / 255.0).abs() < 1e-6);
+        assert!((d.texel(0, 0).x - 128.0 / 255.0).abs() < 1e-6);
         assert_ne!(c, d);
         assert!(decode(b"not an image", "x.png", TextureRole::Data).is_err());
+    }
+
+    #[test]
+    fn sixteen_bit_files_keep_their_precision_and_codes_round_trip() {
+        let img = image::ImageBuffer::<image::Rgba<u16>, _>::from_raw(
+            1,
+            1,
+            vec![1000u16, 30000, 65535, 65535],
+        )
+        .expect("image");
+        let mut png = Vec::new();
+        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .expect("png");
+        let d = decode(&png, "t.png", TextureRole::Data).expect("decode");
+        assert!((d.texel(0, 0).x - 1000.0 / 65535.0).abs() < 1e-7);
+        let c = decode(&png, "t.png", TextureRole::Color).expect("decode");
+        assert!((c.texel(0, 0).y - srgb_to_linear(30000.0 / 65535.0)).abs() < 1e-6);
+        // Every 8-bit sRGB code survives decoding and re-encoding.
+        let codes: Vec<[u8; 4]> = (0..=255u8).map(|v| [v, v, v, v]).collect();
+        let t = Texels::Srgb8(codes.clone());
+        let linear: Vec<Vec4> = (0..256).map(|i| t.get(i)).collect();
+        match t.like(&linear) {
+            Texels::Srgb8(back) => assert_eq!(back, codes),
+            _ => panic!("kind changed"),
+        }
     }
 }

@@ -328,17 +328,65 @@ fn emission_transmission_ior_and_specular_extensions_are_read() {
 }
 
 #[test]
-fn unread_textures_and_alpha_are_named_in_warnings_not_dropped_silently() {
+fn unread_textures_are_named_in_warnings_not_dropped_silently() {
     let d = load_doc(&document(json!({
-        "materials": [{"name": "Wood", "alphaMode": "MASK",
-            "emissiveTexture": {"index": 0}}],
+        "materials": [{"name": "Wood", "emissiveTexture": {"index": 0}}],
         "textures": [{"source": 0}],
         "images": [{"uri": "wood.png"}]
     })));
     let w = d.warnings.join("\n");
     assert!(w.contains("materials[0] \"Wood\""), "{w}");
     assert!(w.contains("emissiveTexture not applied"), "{w}");
-    assert!(w.contains("alphaMode Mask"), "{w}");
+}
+
+/// alphaMode: MASK with its cutoff (0.5 by default), BLEND, and OPAQUE (whatever the alpha);
+/// coverage is the base colour factor's alpha (times the texture's, at render time).
+#[test]
+fn alpha_modes_become_coverage() {
+    use tessera_scene::{Coverage, CoverageMode};
+    let coverage = |material: Value| {
+        let d = load_doc(&document(json!({"materials": [material]})));
+        assert!(
+            d.warnings.iter().all(|w| !w.contains("alpha")),
+            "{:?}",
+            d.warnings
+        );
+        match &d.materials[0].kind {
+            MaterialKind::MetallicRoughness { textures, .. } => textures.coverage,
+            k => panic!("expected the metallic-roughness BRDF, got {k:?}"),
+        }
+    };
+    let pbr = json!({"baseColorFactor": [1, 1, 1, 0.25]});
+    assert_eq!(
+        coverage(json!({"alphaMode": "MASK", "alphaCutoff": 0.2, "pbrMetallicRoughness": pbr})),
+        Some(Coverage {
+            factor: 0.25,
+            mode: CoverageMode::Mask { cutoff: 0.2 }
+        })
+    );
+    assert_eq!(
+        coverage(json!({"alphaMode": "MASK"})),
+        Some(Coverage {
+            factor: 1.0,
+            mode: CoverageMode::Mask { cutoff: 0.5 }
+        })
+    );
+    assert_eq!(
+        coverage(json!({"alphaMode": "BLEND", "pbrMetallicRoughness": pbr})),
+        Some(Coverage {
+            factor: 0.25,
+            mode: CoverageMode::Blend
+        })
+    );
+    assert_eq!(
+        coverage(json!({"alphaMode": "OPAQUE", "pbrMetallicRoughness": pbr})),
+        None
+    );
+    assert_eq!(
+        coverage(json!({"alphaMode": "BLEND"})),
+        None,
+        "fully covered is opaque"
+    );
 }
 
 #[test]
@@ -610,12 +658,12 @@ fn textures_are_read_with_their_coordinates_samplers_transforms_and_colour_space
         glam::Vec2::new(2.5, 3.0)
     );
     // Colour is decoded from sRGB; the same image as data is read as stored.
-    assert!((base.image.texels[0].x - 0.215_860_5).abs() < 1e-5);
+    assert!((base.image.texel(0, 0).x - 0.215_860_5).abs() < 1e-5);
     let mr = textures
         .metallic_roughness
         .as_ref()
         .expect("metallic-roughness texture");
-    assert!((mr.image.texels[0].x - 128.0 / 255.0).abs() < 1e-6);
+    assert!((mr.image.texel(0, 0).x - 128.0 / 255.0).abs() < 1e-6);
     assert_eq!(mr.wrap, [Wrap::Repeat; 2]);
 }
 
@@ -650,11 +698,12 @@ fn a_missing_or_broken_image_is_refused_naming_the_image_and_its_material() {
     );
 }
 
-/// `scenes/gltf-interior/`: Blender's export of a textured room (`room.glb`, from
-/// `scripts/blender/interior.py`) placed by a scene.json under a sky seen through its window.
+/// `scenes/gltf-interior/`: Blender's export of a textured room (`scene.glb`, from
+/// `scripts/blender/interior.py`), alone a whole scene: its camera, and the sky seen through
+/// its window named by the scene's extras.
 #[test]
 fn the_blender_interior_has_its_textures_normal_map_spot_light_and_sky() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gltf-interior/scene.json");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gltf-interior/scene.glb");
     let d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     assert!(d.warnings.is_empty(), "{:?}", d.warnings);
     let textured = |name: &str| {
@@ -688,5 +737,84 @@ fn the_blender_interior_has_its_textures_normal_map_spot_light_and_sky() {
         d.lights
             .iter()
             .any(|l| matches!(l, LightDesc::Environment { image: Some(_), .. }))
+    );
+}
+
+/// glTF has no sky: a scene's `extras.tessera_environment` names one, relative to the file,
+/// used when the file is the whole scene and named in a warning when a scene.json includes it.
+#[test]
+fn a_scenes_extras_name_its_sky_relative_to_the_file() {
+    let sky = |strength: f32| {
+        document(json!({"scenes": [{"nodes": [0], "extras": {
+            "author": "someone",
+            "tessera_environment": {"strength": strength, "rotation_deg": 90}
+        }}]}))
+    };
+    let d = load_doc(&sky(2.0));
+    let env = d
+        .lights
+        .iter()
+        .find_map(|l| match l {
+            LightDesc::Environment {
+                image: None, scale, ..
+            } => Some(*scale),
+            _ => None,
+        })
+        .expect("a constant environment from the extras");
+    assert!(close(env, Vec3::splat(2.0)));
+    // Without the key the file has no sky; other extras are the user's business.
+    let plain = load_doc(&document(
+        json!({"scenes": [{"nodes": [0], "extras": {"a": 1}}]}),
+    ));
+    assert!(plain.lights.is_empty());
+    assert!(
+        !plain.warnings.iter().any(|w| w.contains("extras")),
+        "{:?}",
+        plain.warnings
+    );
+
+    // The image is found beside the file, here in a sub-folder of the scene.json's.
+    let img = std::fs::read(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/gltf-interior/sky.exr"),
+    )
+    .expect("the interior's sky");
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    std::fs::create_dir(dir.path().join("sub")).expect("mkdir");
+    let with_image = document(json!({"scenes": [{"nodes": [0], "extras": {
+        "tessera_environment": {"image": "sky.exr"}}}]}));
+    std::fs::write(dir.path().join("sub/a.gltf"), with_image.to_string()).expect("write");
+    std::fs::write(dir.path().join("sub/sky.exr"), &img).expect("write");
+    let alone =
+        tessera_scene::load(&dir.path().join("sub/a.gltf")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        alone
+            .lights
+            .iter()
+            .any(|l| matches!(l, LightDesc::Environment { image: Some(_), .. }))
+    );
+    let json = json!({"units": "m",
+        "camera": {"type": "pinhole", "position": [0, 0, 5], "look_at": [0, 0, 0], "fov_deg": 40},
+        "film": {"width": 8, "height": 8}, "materials": {},
+        "shapes": [{"type": "gltf", "file": "sub/a.gltf"}]});
+    std::fs::write(dir.path().join("scene.json"), json.to_string()).expect("write");
+    let placed =
+        tessera_scene::load(&dir.path().join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(placed.lights.is_empty());
+    assert!(
+        placed
+            .warnings
+            .iter()
+            .any(|w| w.contains("tessera_environment") && w.contains("not used")),
+        "{:?}",
+        placed.warnings
+    );
+
+    // A malformed sky is an error naming the scene and the key.
+    let bad = document(json!({"scenes": [{"nodes": [0], "extras": {
+        "tessera_environment": {"strenght": 1}}}]}));
+    let msg = error_of(&[("bad.gltf", bad.to_string().into_bytes())], "bad.gltf");
+    assert!(
+        msg.contains("scenes[0] extras.tessera_environment") && msg.contains("strenght"),
+        "{msg}"
     );
 }

@@ -1,9 +1,10 @@
 //! glTF materials as Tessera materials: the metallic-roughness BRDF with KHR_materials_ior
 //! and KHR_materials_specular; transmissive ones (KHR_materials_transmission) as a dielectric
-//! interface; emission from `emissiveFactor` × KHR_materials_emissive_strength. The base
-//! colour and metallic-roughness textures are read (with their samplers and
-//! KHR_texture_transform); the normal, emissive and occlusion textures are not yet (normal and
-//! emissive are named in a warning; occlusion is a rasteriser's stand-in for what we compute).
+//! interface; emission from `emissiveFactor` × KHR_materials_emissive_strength; alphaMode as
+//! coverage (MASK cut out at the cutoff, BLEND stochastic). The base colour, metallic-roughness
+//! and normal textures are read (with their samplers and KHR_texture_transform); the emissive
+//! texture is not yet (named in a warning), the occlusion texture never (a rasteriser's
+//! stand-in for what we compute).
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -11,7 +12,9 @@ use std::sync::Arc;
 use glam::{Affine2, Vec2, Vec3};
 
 use super::{GltfError, buffers, named};
-use crate::desc::{EmissionDesc, MaterialDesc, MaterialKind, PbrTextures, Roughness};
+use crate::desc::{
+    Coverage, CoverageMode, EmissionDesc, MaterialDesc, MaterialKind, PbrTextures, Roughness,
+};
 use crate::file::Distribution;
 use crate::source::SceneSource;
 use crate::texture::{self, TextureDesc, TextureImage, TextureRole, Wrap};
@@ -193,11 +196,30 @@ fn material(
             textures.join(", ")
         ));
     }
-    let alpha = m.alpha_mode();
-    if alpha != gltf::material::AlphaMode::Opaque {
-        warnings.push(format!("{at}: alphaMode {alpha:?} rendered as opaque"));
-    }
-    let [r, g, b, _] = pbr.base_color_factor();
+    let [r, g, b, a] = pbr.base_color_factor();
+    let factor = a.clamp(0.0, 1.0);
+    maps.coverage = match m.alpha_mode() {
+        gltf::material::AlphaMode::Opaque => None,
+        gltf::material::AlphaMode::Mask => {
+            let cutoff = m.alpha_cutoff().unwrap_or(0.5);
+            if !(cutoff.is_finite() && cutoff >= 0.0) {
+                return Err(GltfError::new(
+                    format!("{at} alphaCutoff"),
+                    format!("expected a non-negative number, got {cutoff}"),
+                ));
+            }
+            Some(Coverage {
+                factor,
+                mode: CoverageMode::Mask { cutoff },
+            })
+        }
+        // Fully covered everywhere is opaque; say nothing more.
+        gltf::material::AlphaMode::Blend if factor >= 1.0 && maps.base_color.is_none() => None,
+        gltf::material::AlphaMode::Blend => Some(Coverage {
+            factor,
+            mode: CoverageMode::Blend,
+        }),
+    };
     let base_color = Vec3::new(r, g, b).clamp(Vec3::ZERO, Vec3::ONE);
     let metallic = pbr.metallic_factor().clamp(0.0, 1.0);
     let roughness = pbr.roughness_factor().clamp(0.0, 1.0);

@@ -18,6 +18,7 @@ use std::path::Path;
 use glam::{Mat3, Mat4, Vec3};
 
 use crate::desc::{EmissionDesc, LightDesc, MaterialDesc};
+use crate::file::EnvironmentFile;
 use crate::photometry::K_M;
 use crate::source::SceneSource;
 
@@ -46,9 +47,17 @@ pub struct GltfScene {
     pub camera: Option<GltfCamera>,
     /// KHR_lights_punctual lights in world space (metres), radiometric.
     pub lights: Vec<LightDesc>,
+    /// The sky the glTF scene's `extras.tessera_environment` names (glTF has no environment
+    /// of its own): used when the file is the whole scene, its image relative to the file.
+    pub environment: Option<EnvironmentFile>,
     /// What was read but is not modelled, for the render summary and the job's decisions.
     pub warnings: Vec<String>,
 }
+
+/// The key in a glTF scene's `extras` (Blender: a custom property of the scene, exported with
+/// "Include → Custom Properties") holding `{"image", "strength", "rotation_deg"}`, as the
+/// top-level `environment` of a scene.json.
+pub const ENVIRONMENT_EXTRA: &str = "tessera_environment";
 
 /// One primitive of one mesh instance, in world space.
 #[derive(Debug, Clone)]
@@ -148,6 +157,7 @@ pub fn load(source: &dyn SceneSource, name: &Path) -> Result<GltfScene, GltfErro
             s
         }
     };
+    let environment = environment(&scene)?;
     let mut walk = Walk {
         data: &data,
         default_material,
@@ -186,7 +196,36 @@ pub fn load(source: &dyn SceneSource, name: &Path) -> Result<GltfScene, GltfErro
         emission,
         camera,
         lights,
+        environment,
         warnings,
+    })
+}
+
+/// The scene's `extras.tessera_environment`, if it has one; other extras are the user's.
+fn environment(scene: &gltf::Scene) -> Result<Option<EnvironmentFile>, GltfError> {
+    let Some(raw) = scene.extras() else {
+        return Ok(None);
+    };
+    let at = format!(
+        "{} extras.{ENVIRONMENT_EXTRA}",
+        named("scenes", scene.index(), scene.name())
+    );
+    let extras: serde_json::Map<String, serde_json::Value> = match serde_json::from_str(raw.get()) {
+        Ok(m) => m,
+        // Extras may be anything; only an object can hold ours.
+        Err(_) => return Ok(None),
+    };
+    let Some(v) = extras.get(ENVIRONMENT_EXTRA) else {
+        return Ok(None);
+    };
+    serde_json::from_value(v.clone()).map(Some).map_err(|e| {
+        GltfError::new(
+            at,
+            format!(
+                "expected {{\"image\": \"sky.exr\", \"strength\": 1, \"rotation_deg\": 0}} \
+                 (each optional): {e}"
+            ),
+        )
     })
 }
 

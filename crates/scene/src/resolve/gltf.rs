@@ -64,6 +64,15 @@ impl Ctx<'_> {
         let Some(g) = self.gltf_file(&format!("{path}.file"), &s.file) else {
             return;
         };
+        // (A glTF file alone is a scene whose one shape is the file: its sky is used.)
+        if g.environment.is_some() && !is_gltf(&self.file) {
+            self.warnings.push(format!(
+                "{path}: {} names a sky in its scene's extras.{}; as a shape it is not used \
+                 (the scene.json's own `environment` is the sky)",
+                s.file,
+                crate::gltf::ENVIRONMENT_EXTRA
+            ));
+        }
         let metres = Affine3A::from_scale(Vec3::splat((1.0 / out.metres_per_unit) as f32));
         let to_world = parent * self.transform(path, &s.transform) * metres;
         let base = out.first_material + out.materials.len() as u32;
@@ -183,13 +192,25 @@ impl Ctx<'_> {
             }
         };
         let height = ((GLTF_FILM_WIDTH as f32 / aspect).round() as u32).clamp(1, MAX_FILM_SIDE);
-        let json = serde_json::json!({
+        let mut json = serde_json::json!({
             "units": "m",
             "camera": camera,
             "film": {"width": GLTF_FILM_WIDTH, "height": height},
             "materials": {},
             "shapes": [{"type": "gltf", "file": file}],
         });
+        if let Some(e) = &g.environment {
+            // The image is named relative to the glTF file, as its buffers and images are.
+            let image = e.image.as_ref().map(|i| {
+                let dir = name.parent().unwrap_or(Path::new(""));
+                dir.join(i).to_string_lossy().into_owned()
+            });
+            json["environment"] = serde_json::json!({
+                "image": image,
+                "strength": e.strength,
+                "rotation_deg": e.rotation_deg,
+            });
+        }
         match serde_json::from_value(json) {
             Ok(f) => Some(f),
             Err(e) => {
