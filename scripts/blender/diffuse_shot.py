@@ -214,6 +214,12 @@ def main():
     ap.add_argument("--spp", type=int, default=4096)
     ap.add_argument("--size", default="160x90")
     ap.add_argument("--textured", action="store_true")
+    ap.add_argument(
+        "--obj",
+        action="store_true",
+        help="also export the scene with Blender's OBJ exporter (OBJ + MTL, textures as PNG "
+        "files beside it, Y up as glTF) and skip Cycles when --spp is 0",
+    )
     a = ap.parse_args()
     w, h = (int(v) for v in a.size.split("x"))
     os.makedirs(a.out, exist_ok=True)
@@ -227,7 +233,24 @@ def main():
         export_import_convert_lighting_mode="SPEC",
         export_yup=True,
     )
-    render_cycles(scene, a.spp, os.path.abspath(os.path.join(a.out, "cycles.exr")))
+    if a.obj:
+        for img in bpy.data.images:
+            if img.packed_file is not None or img.source == "GENERATED":
+                img.filepath_raw = os.path.abspath(os.path.join(a.out, img.name + ".png"))
+                img.file_format = "PNG"
+                img.save()
+        bpy.ops.wm.obj_export(
+            filepath=os.path.join(a.out, name.replace(".glb", ".obj")),
+            export_materials=True,
+            export_normals=True,
+            export_uv=True,
+            export_selected_objects=False,
+            path_mode="STRIP",
+            forward_axis="NEGATIVE_Z",
+            up_axis="Y",
+        )
+    if a.spp > 0:
+        render_cycles(scene, a.spp, os.path.abspath(os.path.join(a.out, "cycles.exr")))
 
 
 if __name__ == "__main__":

@@ -2,7 +2,7 @@
 //! from a validated [`SceneDesc`] and shared read-only by every thread. The camera is not part
 //! of it: a camera-only fly-through builds the scene once and renders every frame from it.
 
-use glam::{Mat3A, Vec2, Vec3A, Vec4};
+use glam::{Mat2, Mat3A, Vec2, Vec3A, Vec4};
 use tessera_scene::{Coverage, CoverageMode, FilmDesc, IntegratorDesc, LightDesc, SceneDesc};
 
 use crate::bsdf::{self, Bsdf, BsdfFlags};
@@ -42,6 +42,31 @@ pub struct Material {
     pub textured: Option<Box<TexturedPbr>>,
 }
 
+/// A tangent-space normal map: its texture, the scale on x and y, and `axes`, which turn a
+/// texel's (x, y) into the tangent frame's where the texture coordinates are transformed
+/// (KHR_texture_transform): the texel's x points along increasing s, its y up the image
+/// (decreasing t); each is carried back to the mesh's (u, v) by the transform's inverse.
+#[derive(Debug)]
+struct NormalMap {
+    map: MipMap,
+    scale: f32,
+    axes: Mat2,
+}
+
+impl NormalMap {
+    fn new(map: MipMap, scale: f32, transform: Mat2) -> Self {
+        let inverse = transform.inverse();
+        let a = inverse.col(0).normalize_or_zero();
+        let b = inverse.col(1).normalize_or_zero();
+        // Texel (x, y) is the direction a·x − b·y in (u, v); the tangent frame's y is −v.
+        NormalMap {
+            map,
+            scale,
+            axes: Mat2::from_cols(Vec2::new(a.x, -a.y), Vec2::new(-b.x, b.y)),
+        }
+    }
+}
+
 /// The glTF metallic-roughness BRDF with image textures multiplying its factors.
 #[derive(Debug)]
 pub struct TexturedPbr {
@@ -50,7 +75,7 @@ pub struct TexturedPbr {
     base_color_map: Option<MipMap>,
     metallic_roughness_map: Option<MipMap>,
     /// A tangent-space normal map and its scale on x and y (applied where the hit is found).
-    normal_map: Option<(MipMap, f32)>,
+    normal_map: Option<NormalMap>,
     /// Where the surface is there at all (tested where rays are traced).
     coverage: Option<Coverage>,
 }
@@ -133,7 +158,10 @@ impl Material {
                     .metallic_roughness
                     .as_ref()
                     .map(|t| textures.mipmap(t)),
-                normal_map: maps.normal.as_ref().map(|(t, s)| (textures.mipmap(t), *s)),
+                normal_map: maps
+                    .normal
+                    .as_ref()
+                    .map(|(t, s)| NormalMap::new(textures.mipmap(t), *s, t.transform.matrix2)),
                 coverage: maps.coverage,
             }));
         }
@@ -195,22 +223,20 @@ impl Material {
 }
 
 /// The shading normal `ns` turned by a tangent-space normal-map texel `texel` (xyz in [0, 1]
-/// encoding [−1, 1], x and y scaled by `scale`), in the frame of tangent `t` (xyz, w the
-/// bitangent's sign: B = w · ns × T) made orthogonal to `ns` (glTF 2.0 §3.9.3, MikkTSpace).
-/// Kept as it was where the frame degenerates or the result would face away from `ng`.
+/// encoding [−1, 1], x and y turned by `axes` and scaled by `scale`), in the frame of tangent
+/// `t` (xyz, w the bitangent's sign: B = w · ns × T) made orthogonal to `ns` (glTF 2.0
+/// §3.9.3, MikkTSpace). Kept as it was where the frame degenerates or the result would face
+/// away from `ng`.
 #[inline]
-fn perturb(ns: Vec3A, ng: Vec3A, t: Vec4, texel: Vec4, scale: f32) -> Vec3A {
+fn perturb(ns: Vec3A, ng: Vec3A, t: Vec4, texel: Vec4, scale: f32, axes: Mat2) -> Vec3A {
     let tangent = Vec3A::from(t.truncate());
     let tangent = (tangent - ns * ns.dot(tangent)).normalize_or_zero();
     if tangent == Vec3A::ZERO {
         return ns;
     }
     let bitangent = ns.cross(tangent) * if t.w < 0.0 { -1.0 } else { 1.0 };
-    let m = Vec3A::new(
-        (texel.x * 2.0 - 1.0) * scale,
-        (texel.y * 2.0 - 1.0) * scale,
-        texel.z * 2.0 - 1.0,
-    );
+    let xy = axes * (Vec2::new(texel.x, texel.y) * 2.0 - Vec2::ONE) * scale;
+    let m = Vec3A::new(xy.x, xy.y, texel.z * 2.0 - 1.0);
     let n = (tangent * m.x + bitangent * m.y + ns * m.z).normalize_or_zero();
     if n.dot(ng) > 0.0 { n } else { ns }
 }
@@ -550,9 +576,9 @@ impl Scene {
 
     /// The normal map of material `i`, if it has one.
     #[inline]
-    fn normal_map(&self, i: u32) -> Option<(&MipMap, f32)> {
+    fn normal_map(&self, i: u32) -> Option<&NormalMap> {
         let t = self.materials[i as usize].textured.as_ref()?;
-        t.normal_map.as_ref().map(|(m, s)| (m, *s))
+        t.normal_map.as_ref()
     }
 
     /// The closest surface along `ray` (passing through where surfaces are not there).
@@ -645,10 +671,11 @@ impl Scene {
                 // Only meshes of normal-mapped materials carry tangents.
                 let ns = match &mesh.tangents {
                     Some(t) => match self.normal_map(mesh.material) {
-                        Some((map, scale)) => {
+                        Some(n) => {
                             let [c0, c1, c2] = t[local];
                             let t = c0 * b[0] + c1 * b[1] + c2 * b[2];
-                            perturb(ns, hit.n, t, map.lookup(uv, uv_width), scale)
+                            let texel = n.map.lookup(uv, uv_width);
+                            perturb(ns, hit.n, t, texel, n.scale, n.axes)
                         }
                         None => ns,
                     },

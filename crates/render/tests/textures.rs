@@ -189,9 +189,26 @@ fn a_checker_is_averaged_where_pixels_cover_many_checks_and_sharp_where_they_do_
 /// The floor's radiance (all pixels agree: a plane under a sun) with normal-map texel
 /// `normal` (none: no normal map), the sun arriving from `from`.
 fn lit_floor(normal: Option<[u8; 3]>, from: glam::Vec3) -> f32 {
+    lit_floor_through(normal, from, None)
+}
+
+/// As [`lit_floor`], the normal map's coordinates through KHR_texture_transform `transform`.
+fn lit_floor_through(
+    normal: Option<[u8; 3]>,
+    from: glam::Vec3,
+    transform: Option<serde_json::Value>,
+) -> f32 {
     let dir = tempfile::tempdir().expect("temp dir");
     let path = dir.path().join("floor.gltf");
-    std::fs::write(&path, floor_with(100.0, normal).to_string()).expect("write");
+    let mut doc = floor_with(100.0, normal);
+    if let Some(t) = transform {
+        doc["materials"][0]["normalTexture"]["extensions"] = json!({"KHR_texture_transform": t});
+        doc["extensionsUsed"]
+            .as_array_mut()
+            .expect("extensionsUsed")
+            .push(json!("KHR_texture_transform"));
+    }
+    std::fs::write(&path, doc.to_string()).expect("write");
     let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     if normal.is_none() {
         // The checker's material, made white: compare like with like.
@@ -267,4 +284,42 @@ fn normal_maps_turn_the_shading_normal_toward_the_tangent_and_the_bitangent() {
         (away - 0.5).abs() < 0.01,
         "tilted away: {away}, cos 60° = 0.5"
     );
+}
+
+/// A normal map's texture transform turns its tangent frame with its coordinates: rotated by
+/// 90° (KHR_texture_transform: u' = v, v' = −u, as Blender's exporter and the sample model
+/// mean it), a texel tilting toward +s tilts the floor toward +v (toward −z here: down the
+/// image); mirrored in u (scale −1), toward −u.
+#[test]
+fn a_normal_maps_texture_transform_turns_its_tilt_with_it() {
+    let (s, c) = 30f32.to_radians().sin_cos();
+    let enc = |v: f32| (((v * 0.5 + 0.5) * 255.0).round()) as u8;
+    let tilt = Some([enc(s), 128, enc(c)]);
+    let quarter = json!({"rotation": std::f32::consts::FRAC_PI_2});
+    let toward_plus_v = glam::Vec3::new(0.0, c, -s);
+    let turned = lit_floor_through(tilt, toward_plus_v, Some(quarter.clone()));
+    assert!(
+        turned > 0.995,
+        "rotated a quarter turn, facing +v: {turned}"
+    );
+    let toward_u = glam::Vec3::new(s, c, 0.0);
+    let not_there = lit_floor_through(tilt, toward_u, Some(quarter));
+    assert!(
+        (not_there - c * c).abs() < 0.01,
+        "rotated away from +u: {not_there}, expected cos² 30° = {}",
+        c * c
+    );
+    let mirrored = lit_floor_through(
+        tilt,
+        glam::Vec3::new(-s, c, 0.0),
+        Some(json!({"scale": [-1.0, 1.0]})),
+    );
+    assert!(mirrored > 0.995, "mirrored in u, facing −u: {mirrored}");
+    // Offsets and uniform scales leave the frame alone.
+    let moved = lit_floor_through(
+        tilt,
+        toward_u,
+        Some(json!({"offset": [0.3, 0.1], "scale": [2.0, 2.0]})),
+    );
+    assert!(moved > 0.995, "moved and scaled, facing +u: {moved}");
 }

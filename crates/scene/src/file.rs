@@ -484,7 +484,9 @@ pub struct PowerFile {
 #[serde(deny_unknown_fields)]
 pub struct MeshShape {
     pub file: String,
-    pub material: String,
+    /// The material of every face; omitted, an OBJ's own (its MTL library, by `usemtl`).
+    #[serde(default)]
+    pub material: Option<String>,
     #[serde(default)]
     pub emission: Option<EmissionFile>,
     #[serde(default)]

@@ -46,7 +46,7 @@ impl<'a> Images<'a> {
         &mut self,
         texture: gltf::Texture,
         tex_coord: u32,
-        transform: Option<gltf::texture::TextureTransform>,
+        transform: Option<Transform>,
         role: TextureRole,
         at: &str,
     ) -> Result<TextureDesc, GltfError> {
@@ -80,18 +80,53 @@ impl<'a> Images<'a> {
         desc.texcoord = tex_coord;
         if let Some(t) = transform {
             // KHR_texture_transform: T · R · S, R = [[cos, sin], [−sin, cos]] (row-major).
-            let (s, c) = t.rotation().sin_cos();
+            let (s, c) = t.rotation.sin_cos();
             let rs = Affine2::from_cols(
-                Vec2::new(c, -s) * t.scale()[0],
-                Vec2::new(s, c) * t.scale()[1],
-                Vec2::from(t.offset()),
+                Vec2::new(c, -s) * t.scale[0],
+                Vec2::new(s, c) * t.scale[1],
+                Vec2::from(t.offset),
             );
+            if !rs.is_finite() || rs.matrix2.determinant() == 0.0 {
+                return Err(GltfError::new(
+                    format!("{at} KHR_texture_transform"),
+                    "expected a finite, invertible transform (non-zero scale)",
+                ));
+            }
             desc.transform = rs;
-            if let Some(tc) = t.tex_coord() {
+            if let Some(tc) = t.tex_coord {
                 desc.texcoord = tc;
             }
         }
         Ok(desc)
+    }
+}
+
+/// KHR_texture_transform's content: uv' = T(offset) · R(rotation) · S(scale) · uv.
+#[derive(serde::Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub(super) struct Transform {
+    #[serde(default)]
+    offset: [f32; 2],
+    #[serde(default)]
+    rotation: f32,
+    #[serde(default = "unit_scale")]
+    scale: [f32; 2],
+    #[serde(default)]
+    tex_coord: Option<u32>,
+}
+
+fn unit_scale() -> [f32; 2] {
+    [1.0, 1.0]
+}
+
+impl Transform {
+    fn of(t: gltf::texture::TextureTransform) -> Transform {
+        Transform {
+            offset: t.offset(),
+            rotation: t.rotation(),
+            scale: t.scale(),
+            tex_coord: t.tex_coord(),
+        }
     }
 }
 
@@ -150,7 +185,7 @@ fn material(
         maps.base_color = Some(images.texture(
             info.texture(),
             info.tex_coord(),
-            info.texture_transform(),
+            info.texture_transform().map(Transform::of),
             TextureRole::Color,
             &at,
         )?);
@@ -160,14 +195,30 @@ fn material(
         maps.metallic_roughness = Some(images.texture(
             info.texture(),
             info.tex_coord(),
-            info.texture_transform(),
+            info.texture_transform().map(Transform::of),
             TextureRole::Data,
             &at,
         )?);
     }
     if let Some(n) = m.normal_texture() {
         let at = format!("{at} normalTexture");
-        let tex = images.texture(n.texture(), n.tex_coord(), None, TextureRole::Data, &at)?;
+        // The crate leaves a normal texture's KHR_texture_transform unparsed.
+        let transform = match n.extension_value("KHR_texture_transform") {
+            None => None,
+            Some(v) => Some(serde_json::from_value::<Transform>(v.clone()).map_err(|e| {
+                GltfError::new(
+                    format!("{at} KHR_texture_transform"),
+                    format!("expected offset, rotation, scale and texCoord: {e}"),
+                )
+            })?),
+        };
+        let tex = images.texture(
+            n.texture(),
+            n.tex_coord(),
+            transform,
+            TextureRole::Data,
+            &at,
+        )?;
         maps.normal = Some((tex, n.scale()));
     }
     let normal = maps.normal.as_ref().map(|n| &n.0);

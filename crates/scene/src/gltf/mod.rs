@@ -13,6 +13,8 @@ mod buffers;
 mod materials;
 mod tangents;
 
+pub(crate) use tangents::mikktspace;
+
 use std::path::Path;
 
 use glam::{Mat3, Mat4, Vec3};

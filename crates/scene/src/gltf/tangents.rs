@@ -26,6 +26,17 @@ pub(super) fn corners(
                 .collect(),
         ));
     }
+    Ok(mikktspace(positions, normals, uvs, triangles))
+}
+
+/// MikkTSpace tangents (xyz, w the bitangent's sign) per triangle corner, from texture
+/// coordinates in glTF's convention (v down the image); `None` where they cannot be made.
+pub(crate) fn mikktspace(
+    positions: &[Vec3],
+    normals: Option<&[Vec3]>,
+    uvs: &[Vec2],
+    triangles: &[[u32; 3]],
+) -> Option<Vec<[Vec4; 3]>> {
     let mut g = Mikk {
         positions,
         normals,
@@ -33,7 +44,7 @@ pub(super) fn corners(
         triangles,
         out: vec![[Vec4::ZERO; 3]; triangles.len()],
     };
-    Ok(bevy_mikktspace::generate_tangents(&mut g).then_some(g.out))
+    bevy_mikktspace::generate_tangents(&mut g).then_some(g.out)
 }
 
 struct Mikk<'a> {

@@ -1,4 +1,4 @@
-//! Triangle mesh files: Wavefront OBJ and Stanford PLY.
+//! Triangle mesh files: Wavefront OBJ (with its MTL materials) and Stanford PLY.
 
 mod obj;
 mod ply;
@@ -11,7 +11,79 @@ pub struct RawMesh {
     pub positions: Vec<Vec3>,
     /// Per-vertex normals, same length as `positions`; zero where the file gave none.
     pub normals: Option<Vec<Vec3>>,
+    /// Per-vertex texture coordinates, v down the image (glTF's convention).
+    pub uvs: Option<Vec<glam::Vec2>>,
     pub triangles: Vec<[u32; 3]>,
+    /// Per triangle, its index into `materials` (`u32::MAX`: none), where the file names
+    /// materials (OBJ `usemtl`).
+    pub face_materials: Option<Vec<u32>>,
+    /// The materials of the file's libraries (OBJ `mtllib`), as written.
+    pub materials: Vec<MtlMaterial>,
+    /// Why the file's material library could not be read, if it could not.
+    pub library_error: Option<String>,
+    /// What was read but not used (a `usemtl` naming no material of the library).
+    pub warnings: Vec<String>,
+}
+
+/// One `newmtl` of an MTL library, as written (colours, exponents, texture statements with
+/// their options); what it becomes is decided where the scene is resolved.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MtlMaterial {
+    pub name: String,
+    pub kd: Option<Vec3>,
+    pub ks: Option<Vec3>,
+    pub ke: Option<Vec3>,
+    pub ns: Option<f32>,
+    pub ni: Option<f32>,
+    pub d: Option<f32>,
+    pub illum: Option<u8>,
+    pub map_kd: Option<String>,
+    pub map_ks: Option<String>,
+    pub map_ns: Option<String>,
+    pub map_d: Option<String>,
+    /// `map_Bump`, `bump` or `norm`: Blender's and most exporters' tangent-space normal map.
+    pub map_bump: Option<String>,
+    /// Other statements (`Pr`, `Pm`, `map_Ke`, `Tf`, …), sorted by keyword.
+    pub other: Vec<(String, String)>,
+}
+
+impl MtlMaterial {
+    fn from_tobj(m: &tobj::Material) -> Self {
+        let mut other: Vec<(String, String)> = m
+            .unknown_param
+            .iter()
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect();
+        other.sort();
+        let norm = other
+            .iter()
+            .position(|(k, _)| k == "norm")
+            .map(|i| other.remove(i).1);
+        MtlMaterial {
+            name: m.name.clone(),
+            kd: m.diffuse.map(Vec3::from),
+            ks: m.specular.map(Vec3::from),
+            ke: m.emissive.map(Vec3::from),
+            ns: m.shininess,
+            ni: m.optical_density,
+            d: m.dissolve,
+            illum: m.illumination_model,
+            map_kd: m.diffuse_texture.clone(),
+            map_ks: m.specular_texture.clone(),
+            map_ns: m.shininess_texture.clone(),
+            map_d: m.dissolve_texture.clone(),
+            map_bump: m.normal_texture.clone().or(norm),
+            other,
+        }
+    }
+
+    /// A statement among `other`.
+    pub fn get(&self, key: &str) -> Option<&str> {
+        self.other
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.as_str())
+    }
 }
 
 /// A problem inside a mesh file: where (`line 12`, `vertex 3`) and what was expected.
@@ -31,10 +103,15 @@ impl MeshError {
 }
 
 /// Reads a mesh, choosing the format by the file extension, and checks it: finite
-/// coordinates, indices in range, at least one triangle.
-pub fn parse(bytes: &[u8], extension: &str) -> Result<RawMesh, MeshError> {
+/// coordinates, indices in range, at least one triangle. `side` reads the files it names
+/// (an OBJ's material libraries), relative to it.
+pub fn parse(
+    bytes: &[u8],
+    extension: &str,
+    side: &dyn Fn(&str) -> Result<Vec<u8>, String>,
+) -> Result<RawMesh, MeshError> {
     let mesh = match extension.to_ascii_lowercase().as_str() {
-        "obj" => obj::parse(bytes)?,
+        "obj" => obj::parse(bytes, side)?,
         "ply" => ply::parse(bytes)?,
         other => {
             return Err(MeshError::new(
@@ -56,6 +133,14 @@ fn check(mesh: &RawMesh) -> Result<(), MeshError> {
                 "expected finite coordinates, got ({}, {}, {})",
                 p.x, p.y, p.z
             ),
+        ));
+    }
+    if let Some(uvs) = &mesh.uvs
+        && let Some(i) = uvs.iter().position(|t| !t.is_finite())
+    {
+        return Err(MeshError::new(
+            format!("texture coordinates of vertex {i}"),
+            "expected finite components",
         ));
     }
     if let Some(normals) = &mesh.normals

@@ -1,162 +1,290 @@
-//! Wavefront OBJ: `v`, `vn` and polygon `f` records (triangulated as fans), with 1-based and
-//! negative (relative) indices. Texture coordinates, groups, materials and smoothing groups
-//! are ignored. Errors give the line number.
+//! Wavefront OBJ through the `tobj` crate: positions, normals, texture coordinates and
+//! polygons (triangulated as fans, 1-based and negative indices), with the materials of its
+//! `mtllib` files and the `usemtl` group of every face. Texture coordinates are turned to
+//! glTF's convention (v down the image: v' = 1 − v). tobj's errors do not say where; the
+//! line is found again here so that every error names it.
 
-use std::collections::HashMap;
+use std::cell::RefCell;
+use std::io::Cursor;
+use std::path::Path;
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
-use super::{MeshError, RawMesh, fan};
+use super::{MeshError, MtlMaterial, RawMesh};
 
-pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
+/// Reads `bytes`; `side` reads a file the OBJ names (its material libraries), relative to it.
+pub(super) fn parse(
+    bytes: &[u8],
+    side: &dyn Fn(&str) -> Result<Vec<u8>, String>,
+) -> Result<RawMesh, MeshError> {
     let text = std::str::from_utf8(bytes)
         .map_err(|e| MeshError::new("", format!("expected UTF-8 text: {e}")))?;
-    let mut positions = Vec::new();
-    let mut file_normals = Vec::new();
-    // Faces as (position, normal) index pairs; vertices are split per distinct pair only when
-    // the file has normals.
-    let mut corners: Vec<(u32, Option<u32>)> = Vec::new();
-    let mut polygons: Vec<(usize, usize)> = Vec::new(); // ranges into `corners`
-
-    for (line_index, raw) in text.lines().enumerate() {
-        let line_no = line_index + 1;
-        let at = || format!("line {line_no}");
-        let line = raw.split('#').next().unwrap_or("").trim();
-        let mut tokens = line.split_whitespace();
-        match tokens.next() {
-            Some("v") => {
-                positions.push(parse_vec3(&mut tokens).map_err(|m| MeshError::new(at(), m))?)
+    let options = tobj::LoadOptions {
+        single_index: true,
+        triangulate: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let library_problem: RefCell<Option<String>> = RefCell::new(None);
+    let loaded = tobj::load_obj_buf(&mut Cursor::new(bytes), &options, |p: &Path| {
+        let name = p.to_string_lossy();
+        match side(&name) {
+            Ok(b) => tobj::load_mtl_buf(&mut Cursor::new(b)).inspect_err(|e| {
+                *library_problem.borrow_mut() = Some(format!(
+                    "material library {name}: {e} (expected MTL statements)"
+                ));
+            }),
+            Err(e) => {
+                *library_problem.borrow_mut() =
+                    Some(format!("cannot read material library {name}: {e}"));
+                Err(tobj::LoadError::OpenFileFailed)
             }
-            Some("vn") => {
-                file_normals.push(parse_vec3(&mut tokens).map_err(|m| MeshError::new(at(), m))?)
-            }
-            Some("f") => {
-                let start = corners.len();
-                for token in tokens {
-                    let mut parts = token.split('/');
-                    let v = parts.next().unwrap_or("");
-                    let _vt = parts.next();
-                    let vn = parts.next().filter(|s| !s.is_empty());
-                    let p =
-                        resolve_index(v, positions.len()).map_err(|m| MeshError::new(at(), m))?;
-                    let n = vn
-                        .map(|s| resolve_index(s, file_normals.len()))
-                        .transpose()
-                        .map_err(|m| MeshError::new(at(), m))?;
-                    corners.push((p, n));
-                }
-                if corners.len() - start < 3 {
-                    return Err(MeshError::new(
-                        at(),
-                        "expected a face with at least 3 vertices",
-                    ));
-                }
-                polygons.push((start, corners.len()));
-            }
-            _ => {} // comments, blank lines, vt, o, g, s, usemtl, mtllib, l, p, ...
         }
-    }
+    });
+    let (models, materials) = loaded.map_err(|e| located(text, e))?;
+    let (materials, library_error) = match materials {
+        Ok(m) => (m, None),
+        Err(e) => (
+            Vec::new(),
+            Some(
+                library_problem
+                    .into_inner()
+                    .unwrap_or_else(|| format!("its material library: {e}")),
+            ),
+        ),
+    };
 
-    let mut triangles = Vec::new();
-    let has_normals = corners.iter().any(|c| c.1.is_some());
-    if !has_normals {
-        for &(a, b) in &polygons {
-            let poly: Vec<u32> = corners[a..b].iter().map(|c| c.0).collect();
-            fan(&poly, &mut triangles);
-        }
-        return Ok(RawMesh {
-            positions,
-            normals: None,
-            triangles,
-        });
-    }
-
-    // Give every distinct (position, normal) pair its own vertex.
-    let mut vertex_of: HashMap<(u32, Option<u32>), u32> = HashMap::new();
-    let mut out_positions = Vec::new();
-    let mut out_normals = Vec::new();
-    for &(a, b) in &polygons {
-        let poly: Vec<u32> = corners[a..b]
-            .iter()
-            .map(|&(p, n)| {
-                *vertex_of.entry((p, n)).or_insert_with(|| {
-                    out_positions.push(positions[p as usize]);
-                    out_normals.push(n.map_or(Vec3::ZERO, |n| file_normals[n as usize]));
-                    (out_positions.len() - 1) as u32
-                })
-            })
-            .collect();
-        fan(&poly, &mut triangles);
-    }
-    Ok(RawMesh {
-        positions: out_positions,
-        normals: Some(out_normals),
-        triangles,
-    })
-}
-
-fn parse_vec3<'a>(tokens: &mut impl Iterator<Item = &'a str>) -> Result<Vec3, String> {
-    let mut v = [0.0f32; 3];
-    for (i, slot) in v.iter_mut().enumerate() {
-        let token = tokens
-            .next()
-            .ok_or_else(|| format!("expected 3 coordinates, got {i}"))?;
-        *slot = token
-            .parse()
-            .map_err(|_| format!("expected a number, got \"{token}\""))?;
-        if !slot.is_finite() {
-            return Err(format!("expected a finite coordinate, got \"{token}\""));
-        }
-    }
-    Ok(Vec3::from(v))
-}
-
-/// OBJ indices are 1-based; negative ones count back from the last element defined so far.
-fn resolve_index(token: &str, defined: usize) -> Result<u32, String> {
-    let i: i64 = token
-        .parse()
-        .map_err(|_| format!("expected a vertex index, got \"{token}\""))?;
-    let resolved = if i > 0 { i - 1 } else { defined as i64 + i };
-    if i == 0 || resolved < 0 || resolved >= defined as i64 {
-        return Err(format!(
-            "index {i} is out of range: {defined} defined so far"
+    // tobj reads "nan" and "inf" as numbers.
+    let finite = |m: &tobj::Model| m.mesh.positions.iter().all(|c| c.is_finite());
+    if !models.iter().all(finite) {
+        return Err(MeshError::new(
+            first_bad_line(text, "v").map_or_else(String::new, |n| format!("line {n}")),
+            "expected `v x y z` with three finite numbers",
         ));
     }
-    Ok(resolved as u32)
+    let mut mesh = RawMesh::default();
+    let has_normals = models.iter().any(|m| !m.mesh.normals.is_empty());
+    let has_uvs = models.iter().any(|m| !m.mesh.texcoords.is_empty());
+    let mut normals = Vec::new();
+    let mut uvs = Vec::new();
+    let mut face_materials = Vec::new();
+    for model in &models {
+        let m = &model.mesh;
+        let first = mesh.positions.len() as u32;
+        let count = m.positions.len() / 3;
+        mesh.positions.extend(
+            m.positions
+                .chunks_exact(3)
+                .map(|p| Vec3::new(p[0], p[1], p[2])),
+        );
+        if has_normals {
+            if m.normals.len() == m.positions.len() {
+                normals.extend(
+                    m.normals
+                        .chunks_exact(3)
+                        .map(|n| Vec3::new(n[0], n[1], n[2])),
+                );
+            } else {
+                // Faces without `vn`: zero, which shading takes as "use the face's normal".
+                normals.extend(std::iter::repeat_n(Vec3::ZERO, count));
+            }
+        }
+        if has_uvs {
+            if m.texcoords.len() == count * 2 {
+                uvs.extend(
+                    m.texcoords
+                        .chunks_exact(2)
+                        .map(|t| Vec2::new(t[0], 1.0 - t[1])),
+                );
+            } else {
+                uvs.extend(std::iter::repeat_n(Vec2::ZERO, count));
+            }
+        }
+        let material = m.material_id.map_or(u32::MAX, |i| i as u32);
+        for t in m.indices.chunks_exact(3) {
+            mesh.triangles
+                .push([first + t[0], first + t[1], first + t[2]]);
+            face_materials.push(material);
+        }
+    }
+    mesh.normals = has_normals.then_some(normals);
+    mesh.uvs = has_uvs.then_some(uvs);
+    if face_materials.iter().any(|&m| m != u32::MAX)
+        || !materials.is_empty()
+        || library_error.is_some()
+    {
+        mesh.face_materials = Some(face_materials);
+    }
+    mesh.library_error = library_error;
+    mesh.materials = materials.iter().map(MtlMaterial::from_tobj).collect();
+    if mesh.library_error.is_none() {
+        // tobj gives the faces of an unknown usemtl no material, silently.
+        for (i, raw) in text.lines().enumerate() {
+            if let Some(name) = raw.trim().strip_prefix("usemtl ") {
+                let name = name.trim();
+                if !materials.iter().any(|m| m.name == name) {
+                    mesh.warnings.push(format!(
+                        "line {}: usemtl {name} names no material of the library: its faces \
+                         get the OBJ default material",
+                        i + 1
+                    ));
+                }
+            }
+        }
+    }
+    Ok(mesh)
+}
+
+/// tobj's error, with the line it comes from.
+fn located(text: &str, e: tobj::LoadError) -> MeshError {
+    use tobj::LoadError as E;
+    let (record, expected) = match e {
+        E::PositionParseError => ("v", "`v x y z` with three finite numbers"),
+        E::NormalParseError => ("vn", "`vn x y z` with three numbers"),
+        E::TexcoordParseError => ("vt", "`vt u v` with numbers"),
+        E::FaceParseError | E::InvalidPolygon => (
+            "f",
+            "`f` with at least three corners v, v/vt, v//vn or v/vt/vn",
+        ),
+        E::FaceVertexOutOfBounds | E::FaceTexCoordOutOfBounds | E::FaceNormalOutOfBounds => (
+            "f",
+            "a face's indices to refer to records defined before it (1-based, or negative \
+             counting back), but one is out of range",
+        ),
+        _ => ("", "an OBJ file"),
+    };
+    let line = (!record.is_empty())
+        .then(|| first_bad_line(text, record))
+        .flatten();
+    MeshError::new(
+        line.map_or_else(String::new, |n| format!("line {n}")),
+        format!("expected {expected} ({e})"),
+    )
+}
+
+/// The first line of `record` that does not read (numbers, or indices in range).
+fn first_bad_line(text: &str, record: &str) -> Option<usize> {
+    let mut defined = [0usize; 3]; // v, vt, vn
+    for (i, raw) in text.lines().enumerate() {
+        let line = raw.split('#').next().unwrap_or("").trim();
+        let mut tokens = line.split_whitespace();
+        let head = tokens.next();
+        let numbers = |n: usize, tokens: std::str::SplitWhitespace| {
+            let v: Vec<Option<f32>> = tokens.map(|t| t.parse::<f32>().ok()).collect();
+            v.len() >= n && v.iter().all(|x| x.is_some_and(f32::is_finite))
+        };
+        let bad = match head {
+            Some("v") => {
+                defined[0] += 1;
+                record == "v" && !numbers(3, tokens)
+            }
+            Some("vt") => {
+                defined[1] += 1;
+                record == "vt" && !numbers(1, tokens)
+            }
+            Some("vn") => {
+                defined[2] += 1;
+                record == "vn" && !numbers(3, tokens)
+            }
+            Some("f") if record == "f" => {
+                let corners: Vec<&str> = tokens.collect();
+                corners.len() < 3
+                    || corners.iter().any(|c| {
+                        c.split('/').enumerate().any(|(k, s)| {
+                            !(s.is_empty() && k > 0) && !index_ok(s, defined[k.min(2)])
+                        })
+                    })
+            }
+            _ => false,
+        };
+        if bad {
+            return Some(i + 1);
+        }
+    }
+    None
+}
+
+fn index_ok(token: &str, defined: usize) -> bool {
+    token.parse::<i64>().is_ok_and(|i| {
+        let r = if i > 0 { i - 1 } else { defined as i64 + i };
+        i != 0 && r >= 0 && r < defined as i64
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn quad_is_triangulated_and_negative_indices_resolve() {
-        let m = parse(b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf -4 -3 -2 -1\n").unwrap();
-        assert_eq!(m.positions.len(), 4);
-        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3]]);
-        assert!(m.normals.is_none());
+    fn read(src: &[u8]) -> Result<RawMesh, MeshError> {
+        parse(src, &|name| Err(format!("no file {name} here")))
     }
 
     #[test]
-    fn normals_split_vertices_per_distinct_pair() {
-        let src =
-            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 0 -1\nf 1//1 2//1 3//1\nf 1//2 3//2 2//2\n";
-        let m = parse(src).unwrap();
+    fn quad_is_triangulated_and_negative_indices_resolve() {
+        let m = read(b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf -4 -3 -2 -1\n").unwrap();
+        assert_eq!(m.positions.len(), 4);
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+        assert!(m.normals.is_none() && m.uvs.is_none() && m.face_materials.is_none());
+    }
+
+    #[test]
+    fn normals_and_texture_coordinates_split_vertices_per_distinct_corner() {
+        let src = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.25 0.75\nvn 0 0 1\nvn 0 0 -1\n\
+                    f 1/1/1 2/1/1 3/1/1\nf 1/1/2 3/1/2 2/1/2\n";
+        let m = read(src).unwrap();
         assert_eq!(m.positions.len(), 6);
         let n = m.normals.unwrap();
         assert_eq!(n[0], Vec3::Z);
         assert_eq!(n[3], -Vec3::Z);
+        // v up in the OBJ, down in ours.
+        assert_eq!(m.uvs.unwrap()[0], Vec2::new(0.25, 0.25));
+    }
+
+    #[test]
+    fn materials_come_from_the_library_by_usemtl() {
+        let obj = b"mtllib lib.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n\
+                    usemtl red\nf 1 2 3\nusemtl blue\nf 2 4 3\n";
+        let mtl =
+            b"newmtl blue\nKd 0 0 1\nnewmtl red\nKd 1 0 0\nNs 50\nmap_Kd -s 2 2 1 wood grain.png\n";
+        let m = parse(obj, &|name| {
+            assert_eq!(name, "lib.mtl");
+            Ok(mtl.to_vec())
+        })
+        .unwrap();
+        assert!(m.library_error.is_none());
+        let names: Vec<&str> = m.materials.iter().map(|x| x.name.as_str()).collect();
+        let faces = m.face_materials.expect("materials per face");
+        assert_eq!(names[faces[0] as usize], "red");
+        assert_eq!(names[faces[1] as usize], "blue");
+        let red = &m.materials[faces[0] as usize];
+        assert_eq!(red.kd, Some(Vec3::X));
+        assert_eq!(red.ns, Some(50.0));
+        assert_eq!(red.map_kd.as_deref(), Some("-s 2 2 1 wood grain.png"));
+        // An unknown name is said.
+        let m = parse(
+            &[obj.as_slice(), b"usemtl green\nf 1 2 3\n"].concat(),
+            &|_| Ok(mtl.to_vec()),
+        )
+        .unwrap();
+        assert!(
+            m.warnings[0].contains("line 10: usemtl green"),
+            "{:?}",
+            m.warnings
+        );
+        // A library that cannot be read is said, not ignored.
+        let m = read(obj).unwrap();
+        assert!(m.library_error.expect("an error").contains("lib.mtl"));
     }
 
     #[test]
     fn errors_name_the_line() {
-        let e = parse(b"v 0 0 0\nv 1 nan 0\n").unwrap_err();
-        assert_eq!(e.location, "line 2");
-        assert!(e.message.contains("finite"));
-        let e = parse(b"v 0 0 0\nv 1 0 0\nf 1 2 7\n").unwrap_err();
+        let e = read(b"v 0 0 0\nv 1 0 0\nf 1 2 7\n").unwrap_err();
         assert_eq!(e.location, "line 3");
-        assert!(e.message.contains("out of range"));
-        let e = parse(b"v 0 0 0\nv 1 0 x\n").unwrap_err();
-        assert!(e.message.contains("\"x\""));
+        assert!(e.message.contains("indices"), "{}", e.message);
+        let e = read(b"v 0 0 0\nv 1 nan 0\nf 1 2 1\n").unwrap_err();
+        assert_eq!(e.location, "line 2");
+        let e = read(b"v 0 0 0\nv 1 0 x\n").unwrap_err();
+        assert_eq!(e.location, "line 2");
+        assert!(e.message.contains("three finite numbers"), "{}", e.message);
     }
 }

@@ -155,6 +155,7 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
         positions: vertices.iter().map(|v| Vec3::from(v.p)).collect(),
         normals: has_normals.then(|| vertices.iter().map(|v| Vec3::from(v.n)).collect()),
         triangles,
+        ..RawMesh::default()
     })
 }
 

@@ -7,6 +7,7 @@ mod camera;
 mod gltf;
 mod light;
 mod material;
+mod mtl;
 mod shapes;
 
 pub use gltf::is_gltf;

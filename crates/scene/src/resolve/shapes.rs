@@ -36,11 +36,16 @@ impl Ctx<'_> {
                     let Some(s) = self.body::<MeshShape>(&path, t) else {
                         continue;
                     };
+                    let Some(material) = &s.material else {
+                        // The file's own materials (an OBJ's MTL library).
+                        self.mtl_mesh(&path, parent, &s, out);
+                        continue;
+                    };
                     let surface = self.surface(
                         &path,
                         parent,
                         &s.transform,
-                        &s.material,
+                        material,
                         s.emission.as_ref(),
                         env,
                     );
@@ -246,8 +251,21 @@ impl Ctx<'_> {
                             .extension()
                             .map(|e| e.to_string_lossy().into_owned())
                             .unwrap_or_default();
-                        match mesh::parse(&bytes, &ext) {
-                            Ok(m) => Some(m),
+                        // Files the mesh names (an OBJ's material libraries), beside it.
+                        let dir = rel.parent().unwrap_or(Path::new("")).to_path_buf();
+                        let source = ctx.source;
+                        let side = |name: &str| {
+                            let joined = dir.join(name);
+                            let rel = crate::source::confine(&joined.to_string_lossy())?;
+                            source.read(&rel).map_err(|e| e.to_string())
+                        };
+                        match mesh::parse(&bytes, &ext, &side) {
+                            Ok(m) => {
+                                for w in &m.warnings {
+                                    ctx.warnings.push(format!("{}: {w}", shown.display()));
+                                }
+                                Some(m)
+                            }
                             Err(e) => {
                                 ctx.problems.push(Problem {
                                     file: shown,
