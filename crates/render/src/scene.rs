@@ -353,6 +353,8 @@ pub struct Scene {
 
 impl Scene {
     pub fn build(desc: &SceneDesc) -> Scene {
+        // Image textures, each image's pyramid once, shared by materials and emitters.
+        let mut textures = Textures::default();
         let mut triangles: Vec<[Vec3A; 3]> = Vec::new();
         let mut meshes = Vec::with_capacity(desc.meshes.len());
         let mut triangle_mesh = Vec::new();
@@ -413,11 +415,12 @@ impl Scene {
                 triangle_mesh.push(mi as u32);
                 let light = match &m.emission {
                     Some(e) if winding.length_squared() > 0.0 => {
-                        lights.push(Light::Triangle(TriangleLight::new(
-                            v,
-                            Vec3A::from(e.radiance),
-                            e.two_sided,
-                        )));
+                        let mut light = TriangleLight::new(v, Vec3A::from(e.radiance), e.two_sided);
+                        if let (Some(t), Some(uv)) = (&e.texture, &m.uvs) {
+                            let corners = idx.map(|i| uv[i as usize]);
+                            light = light.with_texture(textures.mipmap(t), corners);
+                        }
+                        lights.push(Light::Triangle(light));
                         emissive_triangles += 1;
                         lights.len() as u32 - 1
                     }
@@ -530,7 +533,6 @@ impl Scene {
             emissive_triangles,
             texture_bytes: 0,
         };
-        let mut textures = Textures::default();
         let materials: Vec<Material> = desc
             .materials
             .iter()

@@ -143,6 +143,12 @@ impl MipMap {
         top * (1.0 - fy) + bottom * fy
     }
 
+    /// The image's mean (its coarsest level).
+    pub fn mean(&self) -> Vec4 {
+        let last = self.pyramid.levels.last().expect("a pyramid has a level");
+        last.texels().get(0)
+    }
+
     /// The texture at `uv` for a footprint `width` wide in uv units: trilinear between the two
     /// levels whose texel size brackets the width (bilinear at the finest level below one
     /// texel; 0 asks for the finest).

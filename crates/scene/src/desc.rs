@@ -262,11 +262,13 @@ pub struct KmLayer {
     pub thickness: f32,
 }
 
-/// An area emitter's radiance, constant over its surface.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// An area emitter's radiance, constant over its surface or multiplied by an image texture
+/// (sRGB-decoded colour, glTF's emissiveTexture) at the surface's texture coordinates.
+#[derive(Debug, Clone, PartialEq)]
 pub struct EmissionDesc {
     pub radiance: Vec3,
     pub two_sided: bool,
+    pub texture: Option<crate::texture::TextureDesc>,
 }
 
 /// A triangle mesh in world space.

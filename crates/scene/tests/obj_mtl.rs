@@ -94,7 +94,7 @@ fn usemtl_groups_become_meshes_with_the_mtl_materials() {
         .find(|m| m.origin.contains("lamp"))
         .expect("the lamp");
     assert_eq!(
-        lamp.emission.map(|e| e.radiance),
+        lamp.emission.as_ref().map(|e| e.radiance),
         Some(Vec3::new(4.0, 3.0, 2.0))
     );
     match material(&d, "fog") {

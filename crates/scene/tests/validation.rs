@@ -356,7 +356,7 @@ fn emitter_power_becomes_radiance_over_its_area_in_square_metres() {
     let json = scene(shape, POINT).replace(r#""units": "m""#, r#""units": "cm""#);
     let (_dir, r) = try_load(&json, &[]);
     let d = r.expect("valid");
-    let l = d.meshes[0].emission.expect("emissive").radiance;
+    let l = d.meshes[0].emission.as_ref().expect("emissive").radiance;
     let expect = 1000.0 / (683.002 * std::f32::consts::PI * 4.0);
     assert!(
         (l.x - expect).abs() < 1e-4 * expect && l.x == l.y && l.y == l.z,

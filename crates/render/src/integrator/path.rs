@@ -163,7 +163,7 @@ impl PathIntegrator {
             let wo = -ray.d;
             if si.light != NO_LIGHT {
                 let light = scene.lights.get(si.light);
-                let le = light.le_surface(si.ng, wo);
+                let le = light.le_surface(si.ng, wo, si.p);
                 if !is_black(le) {
                     let w = if specular {
                         1.0

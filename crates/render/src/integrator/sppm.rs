@@ -280,7 +280,7 @@ fn visible_point(
         };
         let wo = -ray.d;
         if si.light != NO_LIGHT {
-            l += beta * scene.lights.get(si.light).le_surface(si.ng, wo);
+            l += beta * scene.lights.get(si.light).le_surface(si.ng, wo, si.p);
         }
         let material = scene.material(si.material);
         if material.is_black() {

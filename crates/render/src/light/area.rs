@@ -1,6 +1,7 @@
 //! Diffuse area emitters: triangles (every emissive mesh triangle is one light) and spheres.
-//! Radiance is constant over the surface and emitted on the front side (the side of the
-//! geometric normal), or on both.
+//! Radiance is constant over the surface, or over a triangle its radiance times an image
+//! texture's colour at the point (glTF's emissiveTexture); emitted on the front side (the
+//! side of the geometric normal), or on both.
 
 use glam::{Vec2, Vec3A};
 
@@ -11,6 +12,7 @@ use crate::sampling::{
     sphere_cone_one_minus_cos, square_to_triangle, square_to_uniform_sphere, uniform_cone_pdf,
 };
 use crate::spectrum::Spectrum;
+use crate::texture::MipMap;
 
 #[derive(Debug, Clone)]
 pub struct TriangleLight {
@@ -20,6 +22,8 @@ pub struct TriangleLight {
     area: f32,
     radiance: Spectrum,
     two_sided: bool,
+    /// An emission texture and the corners' texture coordinates.
+    texture: Option<Box<(MipMap, [Vec2; 3])>>,
 }
 
 /// Radiance toward `w` from a surface with front normal `n`.
@@ -65,21 +69,54 @@ impl TriangleLight {
             area,
             radiance,
             two_sided,
+            texture: None,
         }
+    }
+
+    /// The radiance multiplied by `map` at the texture coordinates interpolated from `uv`.
+    pub fn with_texture(mut self, map: MipMap, uv: [Vec2; 3]) -> Self {
+        self.texture = Some(Box::new((map, uv)));
+        self
+    }
+
+    /// Radiance at barycentrics `b` (finest texture level: a light sample is a point).
+    #[inline]
+    fn radiance_at(&self, b: [f32; 3]) -> Spectrum {
+        match &self.texture {
+            None => self.radiance,
+            Some(t) => {
+                let (map, [a, b1, c]) = &**t;
+                let uv = *a * b[0] + *b1 * b[1] + *c * b[2];
+                self.radiance * Vec3A::from(map.lookup(uv, 0.0).truncate())
+            }
+        }
+    }
+
+    /// Barycentrics of `p` (on the triangle's plane) with respect to its corners.
+    fn barycentrics(&self, p: Vec3A) -> [f32; 3] {
+        let [a, b, c] = self.v;
+        let total = (b - a).cross(c - a).dot(self.n);
+        if total == 0.0 {
+            return [1.0, 0.0, 0.0];
+        }
+        let u = (c - b).cross(p - b).dot(self.n) / total;
+        let v = (a - c).cross(p - c).dot(self.n) / total;
+        [u, v, 1.0 - u - v]
     }
 
     pub fn sample_li(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
         if self.area == 0.0 {
             return None;
         }
-        let (pl, p_error) = triangle::point_and_error(&self.v, square_to_triangle(u));
+        let b = square_to_triangle(u);
+        let (pl, p_error) = triangle::point_and_error(&self.v, b);
         let to = pl - p;
         let dist2 = to.length_squared();
         if dist2 == 0.0 {
             return None;
         }
         let wi = to / dist2.sqrt();
-        let li = emitted(self.radiance, self.two_sided, self.n, -wi);
+        let li = emitted(self.radiance_at(b), self.two_sided, self.n, -wi);
         let pdf = area_to_solid_angle(1.0 / self.area, p, pl, self.n);
         (pdf > 0.0 && pdf.is_finite() && li.max_element() > 0.0).then_some(LightSample {
             li,
@@ -101,26 +138,39 @@ impl TriangleLight {
         area_to_solid_angle(1.0 / self.area, p, p_light, n_light)
     }
 
-    pub fn le(&self, n: Vec3A, w: Vec3A) -> Spectrum {
-        emitted(self.radiance, self.two_sided, n, w)
+    /// Radiance leaving point `p` of the triangle (front normal `n`) toward `w`.
+    pub fn le(&self, n: Vec3A, w: Vec3A, p: Vec3A) -> Spectrum {
+        let radiance = if self.texture.is_some() {
+            self.radiance_at(self.barycentrics(p))
+        } else {
+            self.radiance
+        };
+        emitted(radiance, self.two_sided, n, w)
     }
 
+    /// Emitted power, for choosing among lights: with a texture, its mean over the whole
+    /// image stands for its mean over the triangle.
     pub fn power(&self) -> f32 {
-        PI * self.area * lum(self.radiance) * if self.two_sided { 2.0 } else { 1.0 }
+        let mean = self
+            .texture
+            .as_ref()
+            .map_or(Spectrum::ONE, |t| Vec3A::from(t.0.mean().truncate()));
+        PI * self.area * lum(self.radiance * mean) * if self.two_sided { 2.0 } else { 1.0 }
     }
 
     pub fn sample_le(&self, aim: &Aim, u_pos: Vec2, u_dir: Vec2, u_extra: f32) -> Option<Emission> {
         if self.area == 0.0 {
             return None;
         }
-        let (p, p_error) = triangle::point_and_error(&self.v, square_to_triangle(u_pos));
+        let b = square_to_triangle(u_pos);
+        let (p, p_error) = triangle::point_and_error(&self.v, b);
         emit_from_surface(
             aim,
             p,
             p_error,
             self.n,
             self.area,
-            self.radiance,
+            self.radiance_at(b),
             self.two_sided,
             u_dir,
             u_extra,

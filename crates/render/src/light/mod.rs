@@ -220,10 +220,11 @@ impl Light {
         }
     }
 
-    /// Radiance leaving an area light's surface with front normal `n` in direction `w`.
-    pub fn le_surface(&self, n: Vec3A, w: Vec3A) -> Spectrum {
+    /// Radiance leaving point `p` of an area light's surface (front normal `n`) in
+    /// direction `w`.
+    pub fn le_surface(&self, n: Vec3A, w: Vec3A, p: Vec3A) -> Spectrum {
         match self {
-            Light::Triangle(l) => l.le(n, w),
+            Light::Triangle(l) => l.le(n, w, p),
             Light::Sphere(l) => l.le(n, w),
             _ => Spectrum::ZERO,
         }

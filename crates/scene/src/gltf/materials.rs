@@ -1,10 +1,10 @@
 //! glTF materials as Tessera materials: the metallic-roughness BRDF with KHR_materials_ior
 //! and KHR_materials_specular; transmissive ones (KHR_materials_transmission) as a dielectric
-//! interface; emission from `emissiveFactor` × KHR_materials_emissive_strength; alphaMode as
-//! coverage (MASK cut out at the cutoff, BLEND stochastic). The base colour, metallic-roughness
-//! and normal textures are read (with their samplers and KHR_texture_transform); the emissive
-//! texture is not yet (named in a warning), the occlusion texture never (a rasteriser's
-//! stand-in for what we compute).
+//! interface; emission from `emissiveFactor` × KHR_materials_emissive_strength × the
+//! emissive texture; alphaMode as coverage (MASK cut out at the cutoff, BLEND stochastic).
+//! The base colour, metallic-roughness, normal and emissive textures are read (with their
+//! samplers and KHR_texture_transform); the occlusion texture never (a rasteriser's stand-in
+//! for what we compute).
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -237,16 +237,6 @@ fn material(
             ));
         }
     }
-    let mut textures = Vec::new();
-    if m.emissive_texture().is_some() {
-        textures.push("emissiveTexture");
-    }
-    if !textures.is_empty() {
-        warnings.push(format!(
-            "{at}: {} not applied yet: its factor alone is used",
-            textures.join(", ")
-        ));
-    }
     let [r, g, b, a] = pbr.base_color_factor();
     let factor = a.clamp(0.0, 1.0);
     maps.coverage = match m.alpha_mode() {
@@ -290,9 +280,28 @@ fn material(
     let strength = m.emissive_strength().unwrap_or(1.0).max(0.0);
     let e = Vec3::from(m.emissive_factor()).max(Vec3::ZERO) * strength;
     // A double-sided material emits from both faces, as Blender's and Cycles' emitters do.
+    let texture = match m.emissive_texture() {
+        Some(info) if e.max_element() > 0.0 => Some(images.texture(
+            info.texture(),
+            info.tex_coord(),
+            info.texture_transform().map(Transform::of),
+            TextureRole::Color,
+            &format!("{at} emissiveTexture"),
+        )?),
+        _ => None,
+    };
+    if let Some(t) = &texture
+        && t.texcoord != 0
+    {
+        warnings.push(format!(
+            "{at}: emissiveTexture reads TEXCOORD_{}; only TEXCOORD_0 is read, so it is used",
+            t.texcoord
+        ));
+    }
     let emits = (e.max_element() > 0.0 && e.is_finite()).then_some(EmissionDesc {
         radiance: e,
         two_sided: m.double_sided(),
+        texture,
     });
 
     let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());

@@ -101,10 +101,17 @@ impl Ctx<'_> {
                 surface,
                 out,
             );
-            if let Some(e) = g.emission[m.material as usize]
+            if let Some(e) = &g.emission[m.material as usize]
                 && let Some(last) = out.meshes.last_mut()
             {
-                last.emission = Some(e);
+                if e.texture.is_some() && m.uvs.is_none() {
+                    self.warnings.push(format!(
+                        "{path} ({}: {}): an emissiveTexture without TEXCOORD_0 cannot be \
+                         placed: its factor alone is used",
+                        s.file, m.origin
+                    ));
+                }
+                last.emission = Some(e.clone());
             }
         }
         // Intensities are per metre² of distance²; scene distances are in scene units.

@@ -40,6 +40,7 @@ impl Ctx<'_> {
         Some(EmissionDesc {
             radiance,
             two_sided: e.two_sided,
+            texture: None,
         })
     }
 

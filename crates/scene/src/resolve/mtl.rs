@@ -5,12 +5,12 @@
 //! Principled BSDF): base colour `Kd` (× `map_Kd`, sRGB), roughness 1 − √(`Ns`/1000) (or
 //! `Pr`), metalness `Pm` (else 0), the specular layer's strength 2 · max(`Ks`) (Blender's
 //! "Specular IOR level" 0.5 is glTF's specular 1, F0 = 0.04 at `Ni` 1.5) tinted by `Ks`,
-//! `Ni` as the IOR, emission `Ke` as radiance (W·sr⁻¹·m⁻², from both faces), `d` < 1 as
+//! `Ni` as the IOR, emission `Ke` as radiance (W·sr⁻¹·m⁻², from both faces), `map_Ke` multiplying it, `d` < 1 as
 //! blended coverage, `Kd` absent as 1 under a `map_Kd` (Blender omits it) and 0.8 otherwise,
 //! `map_Bump`/`bump`/`norm` as a tangent-space normal map (Blender writes its normal maps
 //! there; `-bm` is its scale), and `illum` 4, 6, 7 or 9 (refraction) as a dielectric of index
 //! `Ni`. Texture options `-s`/`-o` (scale and offset of the coordinates) and `-clamp on` are
-//! read; what is not (`map_Ks`, `map_Ns`, `map_d`, `map_Ke`, `Tf`, other options) is named in
+//! read; what is not (`map_Ks`, `map_Ns`, `map_d`, `Tf`, other options) is named in
 //! a warning.
 
 use super::*;
@@ -215,10 +215,10 @@ impl Ctx<'_> {
             let name = out.materials[local + g as usize].name.clone();
             self.push_mesh(path, format!("{path} ({name})"), geometry, surface, out);
             if s.emission.is_none()
-                && let Some(e) = emission[g as usize]
+                && let Some(e) = &emission[g as usize]
                 && let Some(last) = out.meshes.last_mut()
             {
-                last.emission = Some(e);
+                last.emission = Some(e.clone());
             }
         }
     }
@@ -249,19 +249,31 @@ impl Ctx<'_> {
             (0.0, Vec3::ONE)
         };
         let ior = m.ni.filter(|n| n.is_finite() && *n >= 1.0).unwrap_or(1.5);
-        let emits =
-            m.ke.filter(|e| e.is_finite() && e.max_element() > 0.0)
-                // From both faces, as Blender's and Cycles' emitters (an OBJ face has no back).
-                .map(|e| EmissionDesc {
-                    radiance: e.max(Vec3::ZERO),
-                    two_sided: true,
-                });
+        // Ke (1 under a map_Ke without it) times map_Ke; from both faces, as Blender's and
+        // Cycles' emitters (an OBJ face has no back).
+        let map_ke = m.get("map_Ke").map(str::to_string);
+        let default_ke = if map_ke.is_some() {
+            Vec3::ONE
+        } else {
+            Vec3::ZERO
+        };
+        let ke = m.ke.unwrap_or(default_ke);
+        let emits = if ke.is_finite() && ke.max_element() > 0.0 {
+            let texture = map_ke
+                .and_then(|text| self.mtl_texture(&at, "map_Ke", dir, &text, TextureRole::Color));
+            Some(EmissionDesc {
+                radiance: ke.max(Vec3::ZERO),
+                two_sided: true,
+                texture,
+            })
+        } else {
+            None
+        };
         let mut unread: Vec<&str> = Vec::new();
         for (key, present) in [
             ("map_Ks", m.map_ks.is_some()),
             ("map_Ns", m.map_ns.is_some()),
             ("map_d", m.map_d.is_some()),
-            ("map_Ke", m.get("map_Ke").is_some()),
             (
                 "Tf",
                 m.get("Tf")

@@ -200,7 +200,7 @@ impl Ctx<'_> {
                 .map(|(_, l)| l.le_direction(-w))
                 .sum();
         }
-        light.le_surface(v.ng, w)
+        light.le_surface(v.ng, w, v.p)
     }
 
     /// Whether a light vertex is a delta in position (a point light) or direction (a

@@ -46,7 +46,7 @@ impl Mlt {
         let le = if point {
             light.intensity(w01)
         } else {
-            light.le_surface(x[0].ng, w01)
+            light.le_surface(x[0].ng, w01, x[0].p)
         };
         let (pos, pdf_dir) = light.pdf_le(x[0].ng, w01, ctx.bounds);
         let pos = if point { 1.0 } else { pos };

@@ -44,7 +44,7 @@ fn path_contributions_and_weights_equal_bdpt_for_the_strategy_that_made_them() {
             });
             let l = pt.beta
                 * ctx.f_and_pdfs(pt, light, TransportMode::Radiance).0
-                * le.le_surface(light.ng, -wi)
+                * le.le_surface(light.ng, -wi, light.p)
                 * (wi.dot(pt.ns).abs() * wi.dot(light.ng).abs()
                     / (d.length_squared() * light.pdf_fwd));
             luminance(l) as f64
