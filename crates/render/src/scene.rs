@@ -81,18 +81,19 @@ pub struct TexturedPbr {
 }
 
 impl TexturedPbr {
-    /// The BSDF at texture coordinates `uv` for a footprint `width` wide (uv units).
+    /// The BSDF at texture coordinates `uv` (both sets) for a footprint `width` wide (uv
+    /// units of each).
     #[inline]
-    fn at(&self, uv: Vec2, width: f32) -> bsdf::MetallicRoughness {
+    fn at(&self, uv: Uv, width: UvWidth) -> bsdf::MetallicRoughness {
         let base = self
             .base_color_map
             .as_ref()
-            .map_or(Vec3A::ONE, |m| Vec3A::from(m.lookup(uv, width).truncate()));
+            .map_or(Vec3A::ONE, |m| Vec3A::from(m.at(uv, width).truncate()));
         let (metallic, roughness) = self
             .metallic_roughness_map
             .as_ref()
             .map_or((1.0, 1.0), |m| {
-                let t = m.lookup(uv, width);
+                let t = m.at(uv, width);
                 (t.z, t.y)
             });
         self.factors.scaled(base, metallic, roughness)
@@ -102,7 +103,7 @@ impl TexturedPbr {
     /// number is `u`: coverage α = factor × the base colour texture's alpha, kept where
     /// α ≥ the cutoff (mask) or with probability α (blend).
     #[inline]
-    fn covers(&self, uv: Vec2, width: f32, u: f32) -> bool {
+    fn covers(&self, uv: Uv, width: UvWidth, u: f32) -> bool {
         let Some(c) = self.coverage else {
             return true;
         };
@@ -110,7 +111,7 @@ impl TexturedPbr {
             * self
                 .base_color_map
                 .as_ref()
-                .map_or(1.0, |m| m.lookup(uv, width).w);
+                .map_or(1.0, |m| m.at(uv, width).w);
         match c.mode {
             CoverageMode::Mask { cutoff } => alpha >= cutoff,
             CoverageMode::Blend => u < alpha,
@@ -254,12 +255,17 @@ pub struct SurfaceInteraction {
     pub material: u32,
     /// Emitter index into the scene's lights, or [`NO_LIGHT`].
     pub light: u32,
-    /// Texture coordinates (zero where the surface has none).
-    pub uv: Vec2,
-    /// The width, in uv units, of a camera pixel's footprint at this distance along the ray
-    /// (the texture filter's width; an estimate without ray differentials).
-    pub uv_width: f32,
+    /// Texture coordinates, TEXCOORD_0 and _1 (zero where the surface has none).
+    pub uv: Uv,
+    /// The width, in uv units of each set, of a camera pixel's footprint at this distance
+    /// along the ray (the texture filter's width; an estimate without ray differentials).
+    pub uv_width: UvWidth,
 }
+
+/// Both sets of texture coordinates at a point.
+pub type Uv = [Vec2; 2];
+/// A footprint's width in each set's units.
+pub type UvWidth = [f32; 2];
 
 impl SurfaceInteraction {
     /// The shading normal turned to the side of `w`.
@@ -287,8 +293,9 @@ struct MeshRuntime {
     indices: Vec<[u32; 3]>,
     /// Per-vertex shading normals, for smooth meshes.
     normals: Option<Vec<Vec3A>>,
-    /// Per-vertex texture coordinates, and per triangle √(uv area / world area).
-    uvs: Option<(Vec<Vec2>, Vec<f32>)>,
+    /// Per-vertex texture coordinates, and per triangle √(uv area / world area), for
+    /// TEXCOORD_0 and _1.
+    uvs: [Option<(Vec<Vec2>, Vec<f32>)>; 2],
     /// Per triangle corner: tangent and bitangent sign, for normal maps.
     tangents: Option<Vec<[Vec4; 3]>>,
 }
@@ -297,16 +304,17 @@ impl MeshRuntime {
     /// Texture coordinates at barycentrics `b` of triangle `local`, and the width in uv of a
     /// footprint `width` wide in the scene.
     #[inline]
-    fn uv(&self, local: usize, b: [f32; 3], width: f32) -> (Vec2, f32) {
-        match &self.uvs {
-            Some((uvs, scale)) => {
+    fn uv(&self, local: usize, b: [f32; 3], width: f32) -> (Uv, UvWidth) {
+        let mut uv = [Vec2::ZERO; 2];
+        let mut w = [0.0; 2];
+        for (k, set) in self.uvs.iter().enumerate() {
+            if let Some((uvs, scale)) = set {
                 let [i0, i1, i2] = self.indices[local];
-                let uv =
-                    uvs[i0 as usize] * b[0] + uvs[i1 as usize] * b[1] + uvs[i2 as usize] * b[2];
-                (uv, scale[local] * width)
+                uv[k] = uvs[i0 as usize] * b[0] + uvs[i1 as usize] * b[1] + uvs[i2 as usize] * b[2];
+                w[k] = scale[local] * width;
             }
-            None => (Vec2::ZERO, 0.0),
         }
+        (uv, w)
     }
 }
 
@@ -382,7 +390,7 @@ impl Scene {
                 .as_ref()
                 .map(|n| n.iter().map(|&v| Vec3A::from(v)).collect());
             let mut indices = Vec::with_capacity(m.triangles.len());
-            let mut uv_scale = Vec::new();
+            let mut uv_scale = [Vec::new(), Vec::new()];
             let mut tangents = m.tangents.as_ref().map(|t| Vec::with_capacity(t.len()));
             for (ti, &[a, b, c]) in m.triangles.iter().enumerate() {
                 let v = [a, b, c].map(|i| Vec3A::from(m.positions[i as usize]));
@@ -401,22 +409,28 @@ impl Scene {
                     let [t0, t1, t2] = t[ti];
                     out.push(if flip { [t0, t2, t1] } else { [t0, t1, t2] });
                 }
-                if let Some(uv) = &m.uvs {
-                    let [ta, tb, tc] = [a, b, c].map(|i| uv[i as usize]);
-                    let uv_area = (tb - ta).perp_dot(tc - ta).abs();
-                    let area = winding.length();
-                    uv_scale.push(if area > 0.0 {
-                        (uv_area / area).sqrt()
-                    } else {
-                        0.0
-                    });
+                for (k, set) in [&m.uvs, &m.uvs1].into_iter().enumerate() {
+                    if let Some(uv) = set {
+                        let [ta, tb, tc] = [a, b, c].map(|i| uv[i as usize]);
+                        let uv_area = (tb - ta).perp_dot(tc - ta).abs();
+                        let area = winding.length();
+                        uv_scale[k].push(if area > 0.0 {
+                            (uv_area / area).sqrt()
+                        } else {
+                            0.0
+                        });
+                    }
                 }
                 triangles.push(v);
                 triangle_mesh.push(mi as u32);
                 let light = match &m.emission {
                     Some(e) if winding.length_squared() > 0.0 => {
                         let mut light = TriangleLight::new(v, Vec3A::from(e.radiance), e.two_sided);
-                        if let (Some(t), Some(uv)) = (&e.texture, &m.uvs) {
+                        let set = match e.texture.as_ref().map(|t| t.texcoord) {
+                            Some(1) => &m.uvs1,
+                            _ => &m.uvs,
+                        };
+                        if let (Some(t), Some(uv)) = (&e.texture, set) {
                             let corners = idx.map(|i| uv[i as usize]);
                             light = light.with_texture(textures.mipmap(t), corners);
                         }
@@ -428,11 +442,15 @@ impl Scene {
                 };
                 triangle_light.push(light);
             }
-            let uvs = m.uvs.as_ref().map(|uv| (uv.clone(), uv_scale));
+            let [scale0, scale1] = uv_scale;
+            let uvs = [
+                m.uvs.as_ref().map(|uv| (uv.clone(), scale0)),
+                m.uvs1.as_ref().map(|uv| (uv.clone(), scale1)),
+            ];
             meshes.push(MeshRuntime {
                 material: m.material,
                 first_triangle,
-                indices: if normals.is_some() || uvs.is_some() {
+                indices: if normals.is_some() || uvs.iter().any(Option::is_some) {
                     indices
                 } else {
                     Vec::new()
@@ -676,7 +694,7 @@ impl Scene {
                         Some(n) => {
                             let [c0, c1, c2] = t[local];
                             let t = c0 * b[0] + c1 * b[1] + c2 * b[2];
-                            let texel = n.map.lookup(uv, uv_width);
+                            let texel = n.map.at(uv, uv_width);
                             perturb(ns, hit.n, t, texel, n.scale, n.axes)
                         }
                         None => ns,
@@ -693,7 +711,7 @@ impl Scene {
             }
             Prim::Sphere { id } => {
                 let s = &self.spheres[id as usize];
-                (hit.n, s.material, s.light, Vec2::ZERO, 0.0)
+                (hit.n, s.material, s.light, [Vec2::ZERO; 2], [0.0; 2])
             }
         };
         SurfaceInteraction {

@@ -110,6 +110,8 @@ pub struct MipMap {
     transform: Affine2,
     /// How much the transform scales texture coordinates (√|det|), for footprints.
     scale: f32,
+    /// Which set of texture coordinates it reads (TEXCOORD_0 or _1; others read 0).
+    set: usize,
 }
 
 impl MipMap {
@@ -119,7 +121,15 @@ impl MipMap {
             wrap: desc.wrap,
             transform: desc.transform,
             scale: desc.transform.matrix2.determinant().abs().sqrt(),
+            set: if desc.texcoord == 1 { 1 } else { 0 },
         }
+    }
+
+    /// The texture at a point's coordinates of both sets (footprints `width` in each),
+    /// reading its own set.
+    #[inline]
+    pub fn at(&self, uv: [Vec2; 2], width: [f32; 2]) -> Vec4 {
+        self.lookup(uv[self.set], width[self.set])
     }
 
     /// Bilinear value of level `l` at texture coordinates `st` (texel centres at half

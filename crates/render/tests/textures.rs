@@ -323,3 +323,76 @@ fn a_normal_maps_texture_transform_turns_its_tilt_with_it() {
     );
     assert!(moved > 0.995, "moved and scaled, facing +u: {moved}");
 }
+
+/// The checker floor rendered from `doc`, 32×32 pixels at one sample each.
+fn render_doc(doc: &serde_json::Value) -> Vec<f32> {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("floor.gltf");
+    std::fs::write(&path, doc.to_string()).expect("write");
+    let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
+    (desc.film.width, desc.film.height) = (32, 32);
+    desc.integrator.method = "direct".into();
+    desc.integrator.spp = 1;
+    let scene = Scene::build(&desc);
+    let camera = Camera::new(&desc.camera, &desc.film);
+    let integ = integrator::for_scene(&desc, &scene);
+    let image = render_frame(
+        &scene,
+        &camera,
+        integ.as_ref(),
+        8,
+        SampleRange { start: 0, end: 1 },
+    )
+    .0;
+    image.pixels.iter().map(|p| p.rgb[1]).collect()
+}
+
+/// A texture reading TEXCOORD_1 finds its coordinates there: the floor's coordinates moved
+/// to the second set (the first made constant) give the same image when the texture names
+/// set 1, and a flat one when it does not.
+#[test]
+fn a_texture_reads_the_coordinate_set_it_names() {
+    let plain = floor_scene(400.0);
+    let constant: Vec<u8> = (0..4)
+        .flat_map(|_| [0.3f32, 0.3])
+        .flat_map(|c| c.to_le_bytes())
+        .collect();
+    let moved = |set: u32| {
+        let mut doc = plain.clone();
+        doc["buffers"]
+            .as_array_mut()
+            .expect("buffers")
+            .push(json!({"byteLength": constant.len(), "uri": data_uri(&constant)}));
+        let views = doc["bufferViews"].as_array_mut().expect("views");
+        views.push(json!({"buffer": 1, "byteOffset": 0, "byteLength": constant.len()}));
+        let view = views.len() - 1;
+        let accessors = doc["accessors"].as_array_mut().expect("accessors");
+        accessors
+            .push(json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC2"}));
+        let constant_accessor = accessors.len() - 1;
+        let attributes = &mut doc["meshes"][0]["primitives"][0]["attributes"];
+        attributes["TEXCOORD_1"] = attributes["TEXCOORD_0"].clone();
+        attributes["TEXCOORD_0"] = json!(constant_accessor);
+        doc["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["texCoord"] = json!(set);
+        doc
+    };
+    let reference = render_doc(&plain);
+    assert_eq!(render_doc(&moved(1)), reference);
+    let flat = render_doc(&moved(0));
+    let spread = |v: &[f32]| {
+        v.iter().cloned().fold(f32::MIN, f32::max) - v.iter().cloned().fold(f32::MAX, f32::min)
+    };
+    assert!(
+        spread(&reference) > 0.5,
+        "the checker shows: {}",
+        spread(&reference)
+    );
+    // One texel everywhere (lit alike): every floor pixel the same; the sky above is black.
+    let lit: Vec<f32> = flat.iter().cloned().filter(|&v| v > 0.0).collect();
+    assert!(
+        spread(&lit) < 1e-3,
+        "constant coordinates: {}",
+        spread(&lit)
+    );
+}

@@ -281,6 +281,8 @@ pub struct MeshDesc {
     pub normals: Option<Vec<Vec3>>,
     /// Per-vertex texture coordinates (TEXCOORD_0), if the mesh has them.
     pub uvs: Option<Vec<glam::Vec2>>,
+    /// A second set (TEXCOORD_1), read by textures that name it.
+    pub uvs1: Option<Vec<glam::Vec2>>,
     /// Tangent frames per triangle corner (xyz, w the bitangent's sign), for normal maps.
     pub tangents: Option<Vec<[glam::Vec4; 3]>>,
     pub triangles: Vec<[u32; 3]>,

@@ -327,8 +327,8 @@ fn emission_transmission_ior_and_specular_extensions_are_read() {
     }
 }
 
-/// The emissive texture multiplies the emission; a second set of texture coordinates is not
-/// read yet, which a warning says.
+/// The emissive texture multiplies the emission; a texture reading coordinates the mesh
+/// lacks, or a set past TEXCOORD_1, is named in a warning.
 #[test]
 fn emissive_textures_are_read_and_unread_coordinates_named_in_warnings() {
     let image = png([[255, 0, 0, 255], [255; 4], [0, 0, 0, 255], [255; 4]]);
@@ -344,7 +344,18 @@ fn emissive_textures_are_read_and_unread_coordinates_named_in_warnings() {
     assert_eq!(t.image.texel(0, 0).x, 1.0);
     let w = d.warnings.join("\n");
     assert!(
-        w.contains("materials[0] \"Lamp\": emissiveTexture reads TEXCOORD_1"),
+        w.contains("textures read TEXCOORD_1, which it lacks"),
+        "{w}"
+    );
+    // Sets past 1 are not read.
+    let d = load_doc(&textured(
+        json!({"name": "Lamp", "emissiveFactor": [1.0, 0.5, 0.25],
+               "emissiveTexture": {"index": 0, "texCoord": 2}}),
+        json!({"images": [{"uri": data_uri(&image)}], "textures": [{"source": 0}]}),
+    ));
+    let w = d.warnings.join("\n");
+    assert!(
+        w.contains("emissiveTexture reads TEXCOORD_2; only TEXCOORD_0 and 1"),
         "{w}"
     );
 }

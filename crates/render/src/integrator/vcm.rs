@@ -529,8 +529,8 @@ mod tests {
                 ns: ng,
                 material: 0,
                 light: NO_LIGHT,
-                uv: glam::Vec2::ZERO,
-                uv_width: 0.0,
+                uv: [glam::Vec2::ZERO; 2],
+                uv_width: [0.0; 2],
             };
             let mut v = Vertex::surface(si, (self.point() - 5.0).normalize());
             v.pdf_fwd = self.density();

@@ -454,8 +454,8 @@ mod tests {
                     ns: Vec3A::Z,
                     material: 0,
                     light: crate::scene::NO_LIGHT,
-                    uv: glam::Vec2::ZERO,
-                    uv_width: 0.0,
+                    uv: [glam::Vec2::ZERO; 2],
+                    uv_width: [0.0; 2],
                 };
                 sum += map.radiance(&si, &white, Vec3A::Z, 200, 1.0, filter).x;
             }

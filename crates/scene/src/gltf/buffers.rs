@@ -249,28 +249,31 @@ pub(super) fn triangles(
     Ok(Some(tris))
 }
 
-/// TEXCOORD_0 (float, or normalised unsigned bytes or shorts), if present: one per vertex.
+/// TEXCOORD_`set` (float, or normalised unsigned bytes or shorts), if present: one per
+/// vertex.
 pub(super) fn uvs(
     prim: &gltf::Primitive,
     data: &[Vec<u8>],
+    set: u32,
     vertices: usize,
     at: &str,
 ) -> Result<Option<Vec<glam::Vec2>>, GltfError> {
-    let Some(acc) = prim.get(&gltf::Semantic::TexCoords(0)) else {
+    let Some(acc) = prim.get(&gltf::Semantic::TexCoords(set)) else {
         return Ok(None);
     };
+    let name = format!("TEXCOORD_{set}");
     check(
         &acc,
         data,
-        "TEXCOORD_0",
+        &name,
         &[DataType::F32, DataType::U8, DataType::U16],
         Dimensions::Vec2,
         at,
     )?;
     let reader = prim.reader(|b| data.get(b.index()).map(Vec::as_slice));
     let uvs: Vec<glam::Vec2> = reader
-        .read_tex_coords(0)
-        .ok_or_else(|| GltfError::new(at, "cannot read TEXCOORD_0"))?
+        .read_tex_coords(set)
+        .ok_or_else(|| GltfError::new(at, format!("cannot read {name}")))?
         .into_f32()
         .map(glam::Vec2::from)
         .collect();
@@ -278,13 +281,13 @@ pub(super) fn uvs(
         return Err(GltfError::new(
             at,
             format!(
-                "{} TEXCOORD_0 values for {vertices} positions: expected one each",
+                "{} {name} values for {vertices} positions: expected one each",
                 uvs.len()
             ),
         ));
     }
     if let Some(i) = uvs.iter().position(|t| !t.is_finite()) {
-        return Err(GltfError::new(at, format!("TEXCOORD_0 {i} is not finite")));
+        return Err(GltfError::new(at, format!("{name} {i} is not finite")));
     }
     Ok(Some(uvs))
 }

@@ -230,9 +230,9 @@ fn material(
     .into_iter()
     .flatten()
     {
-        if t.texcoord != 0 {
+        if t.texcoord > 1 {
             warnings.push(format!(
-                "{at}: a texture reads TEXCOORD_{}; only TEXCOORD_0 is read, so it is used",
+                "{at}: a texture reads TEXCOORD_{}; only TEXCOORD_0 and 1 are read, so 0 is used",
                 t.texcoord
             ));
         }
@@ -291,10 +291,11 @@ fn material(
         _ => None,
     };
     if let Some(t) = &texture
-        && t.texcoord != 0
+        && t.texcoord > 1
     {
         warnings.push(format!(
-            "{at}: emissiveTexture reads TEXCOORD_{}; only TEXCOORD_0 is read, so it is used",
+            "{at}: emissiveTexture reads TEXCOORD_{}; only TEXCOORD_0 and 1 are read, so 0 is \
+             used",
             t.texcoord
         ));
     }

@@ -70,6 +70,8 @@ pub struct GltfMesh {
     pub normals: Option<Vec<Vec3>>,
     /// TEXCOORD_0, one per vertex.
     pub uvs: Option<Vec<glam::Vec2>>,
+    /// TEXCOORD_1, one per vertex.
+    pub uvs1: Option<Vec<glam::Vec2>>,
     /// Tangent frames per triangle corner (xyz, w the bitangent's sign), where the
     /// material has a normal map.
     pub tangents: Option<Vec<[glam::Vec4; 3]>>,
@@ -388,7 +390,8 @@ impl Walk<'_> {
             };
             let (positions, normals) = buffers::attributes(&prim, self.data, &at, self.warnings)?;
             let n = positions.len();
-            let uvs = buffers::uvs(&prim, self.data, n, &at)?;
+            let uvs = buffers::uvs(&prim, self.data, 0, n, &at)?;
+            let uvs1 = buffers::uvs(&prim, self.data, 1, n, &at)?;
             if let Some(i) = tri.iter().flatten().find(|&&i| i as usize >= n) {
                 return Err(GltfError::new(
                     at,
@@ -402,7 +405,32 @@ impl Walk<'_> {
                     self.default_material
                 }
             };
-            let tangents = match (&uvs, prim.material().normal_texture().is_some()) {
+            // Every texture must find the coordinates it reads.
+            let m = prim.material();
+            let pbr = m.pbr_metallic_roughness();
+            let sets = [
+                pbr.base_color_texture().map(|t| t.tex_coord()),
+                pbr.metallic_roughness_texture().map(|t| t.tex_coord()),
+                m.normal_texture().map(|t| t.tex_coord()),
+                m.emissive_texture().map(|t| t.tex_coord()),
+            ];
+            for k in [0u32, 1] {
+                let present = if k == 0 {
+                    uvs.is_some()
+                } else {
+                    uvs1.is_some()
+                };
+                if !present && sets.contains(&Some(k)) {
+                    self.warnings.push(format!(
+                        "{at}: its material's textures read TEXCOORD_{k}, which it lacks: they \
+                         show one texel"
+                    ));
+                }
+            }
+            // Tangents follow the coordinates the normal map reads.
+            let normal_set = prim.material().normal_texture().map(|t| t.tex_coord());
+            let normal_uvs = if normal_set == Some(1) { &uvs1 } else { &uvs };
+            let tangents = match (normal_uvs, normal_set.is_some()) {
                 (Some(uv), true) => {
                     let t = tangents::corners(
                         &prim,
@@ -422,7 +450,8 @@ impl Walk<'_> {
                 }
                 (None, true) => {
                     self.warnings.push(format!(
-                        "{at}: a normal map without TEXCOORD_0 cannot be placed: not applied"
+                        "{at}: a normal map without its TEXCOORD_{} cannot be placed: not applied",
+                        normal_set.unwrap_or(0)
                     ));
                     None
                 }
@@ -454,6 +483,7 @@ impl Walk<'_> {
                         .collect()
                 }),
                 uvs,
+                uvs1,
                 tangents,
                 triangles: tri
                     .into_iter()

@@ -86,6 +86,7 @@ impl Ctx<'_> {
                 positions: &m.positions,
                 normals: m.normals.as_deref(),
                 uvs: m.uvs.as_deref(),
+                uvs1: m.uvs1.as_deref(),
                 tangents: m.tangents.as_deref(),
                 triangles: &m.triangles,
             };

@@ -204,6 +204,7 @@ impl Ctx<'_> {
                 positions: &positions,
                 normals: normals.as_deref(),
                 uvs: uvs.as_deref(),
+                uvs1: None,
                 tangents: tangents.as_deref(),
                 triangles: &triangles,
             };

@@ -60,6 +60,7 @@ impl Ctx<'_> {
                             None
                         },
                         uvs: None,
+                        uvs1: None,
                         tangents: None,
                         triangles: &raw.triangles,
                     };
@@ -96,6 +97,7 @@ impl Ctx<'_> {
                     let geometry = Geometry {
                         positions: &positions,
                         normals: None,
+                        uvs1: None,
                         uvs: Some(&[
                             glam::Vec2::new(0.0, 0.0),
                             glam::Vec2::new(1.0, 0.0),
@@ -132,6 +134,7 @@ impl Ctx<'_> {
                         positions: &positions,
                         normals: None,
                         uvs: None,
+                        uvs1: None,
                         tangents: None,
                         triangles: &triangles,
                     };
@@ -319,6 +322,7 @@ impl Ctx<'_> {
                     .collect()
             }),
             uvs: g.uvs.map(<[glam::Vec2]>::to_vec),
+            uvs1: g.uvs1.map(<[glam::Vec2]>::to_vec),
             // Tangents turn with the shape (a mirroring transform flips the bitangent and,
             // below, the winding).
             tangents: g.tangents.map(|t| {
@@ -367,6 +371,7 @@ pub(super) struct Geometry<'g> {
     pub(super) positions: &'g [Vec3],
     pub(super) normals: Option<&'g [Vec3]>,
     pub(super) uvs: Option<&'g [glam::Vec2]>,
+    pub(super) uvs1: Option<&'g [glam::Vec2]>,
     pub(super) tangents: Option<&'g [[glam::Vec4; 3]]>,
     pub(super) triangles: &'g [[u32; 3]],
 }

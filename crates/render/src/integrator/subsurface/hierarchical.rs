@@ -165,8 +165,8 @@ impl Placement {
                             ns: pt.n,
                             material: *m,
                             light: NO_LIGHT,
-                            uv: glam::Vec2::ZERO,
-                            uv_width: 0.0,
+                            uv: [glam::Vec2::ZERO; 2],
+                            uv_width: [0.0; 2],
                         };
                         let mut stats = RayStats::default();
                         let mut e = Spectrum::ZERO;

@@ -46,11 +46,13 @@ pub(crate) fn hash_scene(h: &mut Sha256, desc: &SceneDesc) {
             None => h.update(b"flat"),
         }
         // Texture coordinates and tangents decide what textures and normal maps show.
-        if let Some(uv) = &m.uvs {
-            h.update(b"uv");
-            for t in uv {
-                h.update(t.x.to_le_bytes());
-                h.update(t.y.to_le_bytes());
+        for (tag, set) in [(b"uv0", &m.uvs), (b"uv1", &m.uvs1)] {
+            if let Some(uv) = set {
+                h.update(tag);
+                for t in uv {
+                    h.update(t.x.to_le_bytes());
+                    h.update(t.y.to_le_bytes());
+                }
             }
         }
         if let Some(t) = &m.tangents {
