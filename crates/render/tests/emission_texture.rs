@@ -5,18 +5,15 @@
 //! panel: sampled toward a point (next-event estimation, BDPT connections), emitted as
 //! photons and light paths, and met by paths that hit it.
 
-use base64::Engine;
+mod common;
+
+use common::{data_uri, render_by_method};
 use serde_json::{Value, json};
-use tessera_render::method::local::Local;
-use tessera_render::method::{self, Job};
-use tessera_render::{Image, Scene};
+use tessera_render::{Image, method};
 use tessera_scene::SceneDesc;
 
-fn data_uri(bytes: &[u8]) -> String {
-    format!(
-        "data:application/octet-stream;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(bytes)
-    )
+fn render(desc: &SceneDesc, name: &str, spp: u32) -> Image {
+    render_by_method(desc, name, spp, 5)
 }
 
 /// The floor and a panel over x ∈ [−1, `right`] at y = 2 facing down, emitting 4 W·sr⁻¹·m⁻²
@@ -118,30 +115,6 @@ fn load(doc: &Value) -> SceneDesc {
     d.film.width = 48;
     d.film.height = 48;
     d
-}
-
-/// `desc` by method `name`, through its own plan, tasks and fold.
-fn render(desc: &SceneDesc, name: &str, spp: u32) -> Image {
-    let mut d = desc.clone();
-    d.integrator.method = name.into();
-    d.integrator.spp = spp;
-    d.integrator.seed = 5;
-    let scene = Scene::build(&d);
-    let job = Job::new(d.clone(), 1);
-    let plan = method::plan(&job).unwrap_or_else(|e| panic!("{name}: {e}"));
-    let noop = |_| {};
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .expect("pool");
-    pool.install(|| {
-        let local = Local::new(plan.as_ref(), &scene, &d, 2, &noop);
-        local.passes().unwrap_or_else(|e| panic!("{name}: {e}"));
-        local
-            .frame(1)
-            .unwrap_or_else(|e| panic!("{name}: {e}"))
-            .image
-    })
 }
 
 fn mean(image: &Image) -> f64 {

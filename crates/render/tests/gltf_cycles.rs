@@ -11,9 +11,10 @@
 
 use std::path::Path;
 
-use tessera_render::method::local::Local;
-use tessera_render::method::{self, Job};
-use tessera_render::{Scene, read_exr};
+mod common;
+
+use common::render_by_method;
+use tessera_render::read_exr;
 
 const SPP: u32 = 256;
 
@@ -131,28 +132,7 @@ fn desc_agrees_with_cycles(
     desc.film.height = reference.height;
     desc.integrator.method = method.into();
     desc.integrator.seed = 7;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .expect("pool");
-    // Through the method's own plan, tasks and fold, as `tessera render` runs it.
-    let render = |seed: u64| {
-        let mut d = desc.clone();
-        d.integrator.seed = seed;
-        d.integrator.spp = SPP;
-        let scene = Scene::build(&d);
-        let job = Job::new(d.clone(), 1);
-        let plan = method::plan(&job).unwrap_or_else(|e| panic!("{method}: {e}"));
-        let noop = |_| {};
-        pool.install(|| {
-            let local = Local::new(plan.as_ref(), &scene, &d, 2, &noop);
-            local.passes().unwrap_or_else(|e| panic!("{method}: {e}"));
-            local
-                .frame(1)
-                .unwrap_or_else(|e| panic!("{method}: {e}"))
-                .image
-        })
-    };
+    let render = |seed: u64| render_by_method(&desc, method, SPP, seed);
     let image = render(7);
     let other = render(8);
 

@@ -5,28 +5,9 @@
 
 mod common;
 
-use common::{error_against, pool};
-use tessera_render::method::local::Local;
-use tessera_render::method::{self, Job};
-use tessera_render::{Image, Scene};
-use tessera_scene::{MaterialKind, SceneDesc};
-
-fn render(desc: &SceneDesc, name: &str, spp: u32, seed: u64) -> Image {
-    let mut d = desc.clone();
-    d.integrator.method = name.into();
-    d.integrator.spp = spp;
-    d.integrator.seed = seed;
-    let scene = Scene::build(&d);
-    let job = Job::new(d.clone(), 1);
-    let plan = method::plan(&job).unwrap_or_else(|e| panic!("{name}: {e}"));
-    let noop = |_| {};
-    let local = Local::new(plan.as_ref(), &scene, &d, 2, &noop);
-    local.passes().unwrap_or_else(|e| panic!("{name}: {e}"));
-    local
-        .frame(1)
-        .unwrap_or_else(|e| panic!("{name}: {e}"))
-        .image
-}
+use common::{error_against, render_by_method};
+use tessera_render::method;
+use tessera_scene::MaterialKind;
 
 #[test]
 fn every_method_renders_the_gltf_materials_and_delta_lights_as_the_path_tracer_does() {
@@ -51,7 +32,7 @@ fn every_method_renders_the_gltf_materials_and_delta_lights_as_the_path_tracer_d
             };
         }
     }
-    let reference = pool().install(|| render(&desc, "path", 4096, 1));
+    let reference = render_by_method(&desc, "path", 4096, 1);
     let reference = tessera_scene::image::RgbImage {
         width: 64,
         height: 36,
@@ -67,7 +48,7 @@ fn every_method_renders_the_gltf_materials_and_delta_lights_as_the_path_tracer_d
         let means: Vec<f64> = [2, 3]
             .iter()
             .map(|&seed| {
-                let image = pool().install(|| render(&desc, name, 256, seed));
+                let image = render_by_method(&desc, name, 256, seed);
                 error_against(&image, &reference).1
             })
             .collect();

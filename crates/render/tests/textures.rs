@@ -10,19 +10,14 @@
 //! MikkTSpace from the file's coordinates) makes the floor face a sun tilted the same way:
 //! exactly what the cosine law says.
 
-use base64::Engine;
+mod common;
+
+use common::data_uri;
 use serde_json::json;
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::render::render_frame;
 use tessera_render::{Scene, integrator};
-
-fn data_uri(bytes: &[u8]) -> String {
-    format!(
-        "data:application/octet-stream;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(bytes)
-    )
-}
 
 fn png_of(img: &image::RgbaImage) -> Vec<u8> {
     let mut png = Vec::new();

@@ -126,6 +126,18 @@ pub struct Roughness {
 }
 
 impl Roughness {
+    /// Isotropic GGX of perceptual roughness `r` (glTF's and Blender's: α = r²). Below
+    /// α 1e-3 the interface is a mirror in every respect but its float range: smooth.
+    pub fn ggx(r: f32) -> Self {
+        let alpha = r * r;
+        let alpha = if alpha < 1e-3 { 0.0 } else { alpha };
+        Roughness {
+            distribution: crate::file::Distribution::Ggx,
+            alpha_u: alpha,
+            alpha_v: alpha,
+        }
+    }
+
     /// α = 0: a perfectly smooth (specular, delta) interface.
     pub fn is_smooth(&self) -> bool {
         self.alpha_u == 0.0 && self.alpha_v == 0.0

@@ -228,3 +228,41 @@ pub fn vcm_image(
         .expect("renders");
     sums.image(camera.exposure)
 }
+
+/// `desc` by method `name` (`spp` samples, seed `seed`) through its own plan, tasks and fold,
+/// as `tessera render` runs it, on the two threads CI has.
+#[allow(dead_code, reason = "used by the tests that run every method")]
+pub fn render_by_method(
+    desc: &tessera_scene::SceneDesc,
+    name: &str,
+    spp: u32,
+    seed: u64,
+) -> tessera_render::Image {
+    use tessera_render::method::{self, Job, local::Local};
+    let mut d = desc.clone();
+    d.integrator.method = name.into();
+    d.integrator.spp = spp;
+    d.integrator.seed = seed;
+    let scene = tessera_render::Scene::build(&d);
+    let job = Job::new(d.clone(), 1);
+    let plan = method::plan(&job).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let noop = |_| {};
+    pool().install(|| {
+        let local = Local::new(plan.as_ref(), &scene, &d, 2, &noop);
+        local.passes().unwrap_or_else(|e| panic!("{name}: {e}"));
+        local
+            .frame(1)
+            .unwrap_or_else(|e| panic!("{name}: {e}"))
+            .image
+    })
+}
+
+/// A base64 data URI of `bytes`, for glTF buffers and images written by tests.
+#[allow(dead_code, reason = "used by the tests that write glTF files")]
+pub fn data_uri(bytes: &[u8]) -> String {
+    use base64::Engine;
+    format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(bytes)
+    )
+}

@@ -15,7 +15,6 @@ use super::{GltfError, buffers, named};
 use crate::desc::{
     Coverage, CoverageMode, EmissionDesc, MaterialDesc, MaterialKind, PbrTextures, Roughness,
 };
-use crate::file::Distribution;
 use crate::source::SceneSource;
 use crate::texture::{self, TextureDesc, TextureImage, TextureRole, Wrap};
 
@@ -320,14 +319,7 @@ fn material(
                     "{at}: KHR_materials_volume attenuation not modelled yet (clear glass)"
                 ));
             }
-            // Below GGX α 1e-3 the interface is a mirror in every respect but its float range.
-            let alpha = roughness * roughness;
-            let alpha = if alpha < 1e-3 { 0.0 } else { alpha };
-            let roughness = Roughness {
-                distribution: Distribution::Ggx,
-                alpha_u: alpha,
-                alpha_v: alpha,
-            };
+            let roughness = Roughness::ggx(roughness);
             if !maps.is_empty() {
                 warnings.push(format!(
                     "{at}: textures of a transmissive material not applied"

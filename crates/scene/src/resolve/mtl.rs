@@ -15,7 +15,6 @@
 
 use super::*;
 use crate::desc::{Coverage, CoverageMode, PbrTextures, Roughness};
-use crate::file::Distribution;
 use crate::mesh::MtlMaterial;
 use crate::texture::{TextureDesc, TextureRole, Wrap};
 use glam::{Affine2, Vec2};
@@ -291,15 +290,10 @@ impl Ctx<'_> {
         }
 
         if matches!(m.illum, Some(4 | 6 | 7 | 9)) {
-            let alpha = roughness * roughness;
             return (
                 MaterialKind::Dielectric {
                     eta: ior,
-                    roughness: Roughness {
-                        distribution: Distribution::Ggx,
-                        alpha_u: if alpha < 1e-3 { 0.0 } else { alpha },
-                        alpha_v: if alpha < 1e-3 { 0.0 } else { alpha },
-                    },
+                    roughness: Roughness::ggx(roughness),
                 },
                 emits,
             );
