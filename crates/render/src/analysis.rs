@@ -89,7 +89,7 @@ fn class(m: &MaterialKind) -> Class {
                 Class::Diffuse
             }
         }
-        MaterialKind::Dielectric { eta, roughness } => {
+        MaterialKind::Dielectric { eta, roughness, .. } => {
             if *eta == 1.0 {
                 Class::Invisible
             } else if roughness.alpha_u.max(roughness.alpha_v) < SPECULAR_ALPHA {

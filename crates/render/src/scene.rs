@@ -15,6 +15,7 @@ use crate::light::{
 };
 use crate::math::{Frame, offset_ray_origin};
 use crate::ray::Ray;
+use crate::spectrum::Spectrum;
 use crate::texture::{MipMap, Textures};
 
 /// Index meaning "not an emitter".
@@ -40,6 +41,8 @@ pub struct Material {
     /// A textured material builds its BSDF per hit ([`Material::bsdf_at`]); `bsdf` is then
     /// its untextured factors' (its flags hold for every hit).
     pub textured: Option<Box<TexturedPbr>>,
+    /// σa of an absorbing interior (per scene unit), for glass that tints what it passes.
+    pub absorption: Option<Spectrum>,
 }
 
 /// A tangent-space normal map: its texture, the scale on x and y, and `axes`, which turn a
@@ -119,10 +122,50 @@ impl TexturedPbr {
     }
 }
 
-/// The BSDF at one hit: the material's own, or one built there from its textures.
+/// The BSDF at one hit: the material's own, one built there from its textures, or the
+/// material's own behind the absorbing interior the path crossed to reach the hit.
 pub enum HitBsdf<'a> {
     Shared(&'a dyn Bsdf),
     Textured(bsdf::MetallicRoughness),
+    Attenuated(Attenuated<'a>),
+}
+
+/// A BSDF scaled by the transmittance of the segment by which its hit was reached inside an
+/// absorbing object (Beer–Lambert, exp(−σa d)). Every path through the hit contains that
+/// segment exactly once, and scatters or connects here through this BSDF: so the segment's
+/// transmittance multiplies every such path, in every method, without a medium of its own.
+/// (A connection between two points inside the same absorbing object, possible only with
+/// rough glass, crosses its interior without it.)
+#[derive(Debug)]
+pub struct Attenuated<'a> {
+    inner: &'a dyn Bsdf,
+    transmittance: Spectrum,
+}
+
+impl Bsdf for Attenuated<'_> {
+    fn flags(&self) -> BsdfFlags {
+        self.inner.flags()
+    }
+    fn eval(&self, wo: Vec3A, wi: Vec3A, mode: bsdf::TransportMode) -> Spectrum {
+        self.inner.eval(wo, wi, mode) * self.transmittance
+    }
+    fn sample(
+        &self,
+        wo: Vec3A,
+        u_lobe: f32,
+        u: Vec2,
+        mode: bsdf::TransportMode,
+    ) -> Option<bsdf::BsdfSample> {
+        let mut s = self.inner.sample(wo, u_lobe, u, mode)?;
+        s.f *= self.transmittance;
+        Some(s)
+    }
+    fn pdf(&self, wo: Vec3A, wi: Vec3A, mode: bsdf::TransportMode) -> f32 {
+        self.inner.pdf(wo, wi, mode)
+    }
+    fn albedo(&self) -> Spectrum {
+        self.inner.albedo()
+    }
 }
 
 impl<'a> std::ops::Deref for HitBsdf<'a> {
@@ -132,6 +175,7 @@ impl<'a> std::ops::Deref for HitBsdf<'a> {
         match self {
             HitBsdf::Shared(b) => *b,
             HitBsdf::Textured(b) => b,
+            HitBsdf::Attenuated(b) => b,
         }
     }
 }
@@ -172,6 +216,11 @@ impl Material {
     /// The material of `kind` without its textures (tests, tools).
     pub fn from_desc(kind: &tessera_scene::MaterialKind) -> Material {
         let mut m = Material::from_bsdf(bsdf::from_desc(kind));
+        if let tessera_scene::MaterialKind::Dielectric { absorption, .. } = *kind
+            && absorption.max_element() > 0.0
+        {
+            m.absorption = Some(Vec3A::from(absorption));
+        }
         if let tessera_scene::MaterialKind::Subsurface {
             sigma_s_prime,
             sigma_a,
@@ -193,15 +242,21 @@ impl Material {
             bsdf,
             subsurface: None,
             textured: None,
+            absorption: None,
         }
     }
 
-    /// The BSDF at hit `si` (built from the textures there, for a textured material).
+    /// The BSDF at hit `si` (built from the textures there, for a textured material; behind
+    /// the absorbing interior crossed to reach it, for tinted glass).
     #[inline]
     pub fn bsdf_at(&self, si: &SurfaceInteraction) -> HitBsdf<'_> {
-        match &self.textured {
-            None => HitBsdf::Shared(self.bsdf.as_ref()),
-            Some(t) => HitBsdf::Textured(t.at(si.uv, si.uv_width)),
+        match (&self.textured, self.absorption) {
+            (Some(t), _) => HitBsdf::Textured(t.at(si.uv, si.uv_width)),
+            (None, Some(sigma_a)) if si.interior > 0.0 => HitBsdf::Attenuated(Attenuated {
+                inner: self.bsdf.as_ref(),
+                transmittance: (-sigma_a * si.interior).exp(),
+            }),
+            (None, _) => HitBsdf::Shared(self.bsdf.as_ref()),
         }
     }
 
@@ -260,6 +315,10 @@ pub struct SurfaceInteraction {
     /// The width, in uv units of each set, of a camera pixel's footprint at this distance
     /// along the ray (the texture filter's width; an estimate without ray differentials).
     pub uv_width: UvWidth,
+    /// How far the ray that found this hit travelled inside the object whose surface it is:
+    /// its length if it arrived at the back of the front face (from inside a closed mesh,
+    /// wound outward), else 0.
+    pub interior: f32,
 }
 
 /// Both sets of texture coordinates at a point.
@@ -608,7 +667,7 @@ impl Scene {
         } else {
             self.accel.intersect(ray, f32::INFINITY)?
         };
-        Some(self.interaction(hit))
+        Some(self.interaction(hit, ray.d))
     }
 
     /// Whether something is there along `ray` before `t_max`.
@@ -669,8 +728,8 @@ impl Scene {
         textured.covers(uv, width, crate::sampler::hash::u32_to_unit(h as u32))
     }
 
-    /// The surface interaction at `hit`.
-    fn interaction(&self, hit: PrimHit) -> SurfaceInteraction {
+    /// The surface interaction at `hit`, found travelling along `d`.
+    fn interaction(&self, hit: PrimHit, d: Vec3A) -> SurfaceInteraction {
         let (ns, material, light, uv, uv_width) = match hit.prim {
             Prim::Triangle { id, b } => {
                 let mesh = &self.meshes[self.triangle_mesh[id as usize] as usize];
@@ -724,6 +783,7 @@ impl Scene {
             light,
             uv,
             uv_width,
+            interior: if d.dot(hit.n) > 0.0 { hit.t } else { 0.0 },
         }
     }
 

@@ -176,10 +176,13 @@ pub enum MaterialKind {
         specular: Vec3,
         roughness: Roughness,
     },
-    /// Dielectric interface: `eta` = interior IOR / exterior IOR.
+    /// Dielectric interface: `eta` = interior IOR / exterior IOR; the interior absorbs
+    /// `absorption` (σa per scene unit of length, per channel; zero: clear), so that light
+    /// crossing a length d of it keeps exp(−σa d) (Beer–Lambert).
     Dielectric {
         eta: f32,
         roughness: Roughness,
+        absorption: Vec3,
     },
     Mirror {
         reflectance: Vec3,

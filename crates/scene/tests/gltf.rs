@@ -311,7 +311,7 @@ fn emission_transmission_ior_and_specular_extensions_are_read() {
     assert!(close(e.radiance, Vec3::new(4.0, 2.0, 0.0)) && e.two_sided);
     assert!(d.meshes[1].emission.is_none());
     match d.materials[d.meshes[1].material as usize].kind {
-        MaterialKind::Dielectric { eta, roughness } => {
+        MaterialKind::Dielectric { eta, roughness, .. } => {
             assert!((eta - 1.45).abs() < 1e-6 && roughness.is_smooth());
         }
         ref k => panic!("expected glass, got {k:?}"),
@@ -839,6 +839,57 @@ fn a_scenes_extras_name_its_sky_relative_to_the_file() {
     let msg = error_of(&[("bad.gltf", bad.to_string().into_bytes())], "bad.gltf");
     assert!(
         msg.contains("scenes[0] extras.tessera_environment") && msg.contains("strenght"),
+        "{msg}"
+    );
+}
+
+/// KHR_materials_volume: σa = −ln(attenuationColor) / attenuationDistance per metre, per
+/// scene unit once placed in a scene.json; thickness 0 (a thin wall) absorbs nothing; a black
+/// attenuation colour is refused.
+#[test]
+fn volume_attenuation_becomes_absorption_per_scene_unit() {
+    let glass = |volume: Value| {
+        json!({"materials": [{"name": "Tinted",
+            "pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.0},
+            "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                           "KHR_materials_volume": volume}}],
+            "extensionsUsed": ["KHR_materials_transmission", "KHR_materials_volume"]})
+    };
+    let absorption = |d: &SceneDesc| match d.materials[0].kind {
+        MaterialKind::Dielectric { absorption, .. } => absorption,
+        ref k => panic!("expected glass, got {k:?}"),
+    };
+    let tinted = glass(json!({"thicknessFactor": 0.1, "attenuationDistance": 2.0,
+                              "attenuationColor": [0.5, 1.0, 0.25]}));
+    let d = load_doc(&document(tinted.clone()));
+    let expected = Vec3::new(0.5f32.ln(), 0.0, 0.25f32.ln()) / -2.0;
+    assert!(close(absorption(&d), expected), "{}", absorption(&d));
+    let thin = glass(json!({"thicknessFactor": 0.0, "attenuationDistance": 2.0,
+                            "attenuationColor": [0.5, 0.5, 0.5]}));
+    assert_eq!(absorption(&load_doc(&document(thin))), Vec3::ZERO);
+    // In a scene.json measured in centimetres: per centimetre.
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    std::fs::write(dir.path().join("g.gltf"), document(tinted).to_string()).expect("write");
+    let json = json!({"units": "cm",
+        "camera": {"type": "pinhole", "position": [0, 0, 500], "look_at": [0, 0, 0], "fov_deg": 40},
+        "film": {"width": 8, "height": 8}, "materials": {},
+        "shapes": [{"type": "gltf", "file": "g.gltf"}]});
+    std::fs::write(dir.path().join("scene.json"), json.to_string()).expect("write");
+    let placed =
+        tessera_scene::load(&dir.path().join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        close(absorption(&placed), expected * 0.01),
+        "{}",
+        absorption(&placed)
+    );
+    let black = glass(json!({"thicknessFactor": 1.0, "attenuationDistance": 1.0,
+                             "attenuationColor": [0.0, 0.5, 0.5]}));
+    let msg = error_of(
+        &[("b.gltf", document(black).to_string().into_bytes())],
+        "b.gltf",
+    );
+    assert!(
+        msg.contains("attenuationColor") && msg.contains("(0, 1]"),
         "{msg}"
     );
 }

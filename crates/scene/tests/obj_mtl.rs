@@ -86,7 +86,7 @@ fn usemtl_groups_become_meshes_with_the_mtl_materials() {
     }
     assert!(matches!(
         material(&d, "glass"),
-        MaterialKind::Dielectric { eta, roughness } if *eta == 1.5 && roughness.alpha_u == 0.0
+        MaterialKind::Dielectric { eta, roughness, .. } if *eta == 1.5 && roughness.alpha_u == 0.0
     ));
     let lamp = d
         .meshes

@@ -188,7 +188,7 @@ pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
             v(specular),
             microfacet_of(&roughness),
         )),
-        MaterialKind::Dielectric { eta, roughness } => {
+        MaterialKind::Dielectric { eta, roughness, .. } => {
             if roughness.is_smooth() || eta == 1.0 {
                 Box::new(SmoothDielectric::new(eta))
             } else {

@@ -531,6 +531,7 @@ mod tests {
                 light: NO_LIGHT,
                 uv: [glam::Vec2::ZERO; 2],
                 uv_width: [0.0; 2],
+                interior: 0.0,
             };
             let mut v = Vertex::surface(si, (self.point() - 5.0).normalize());
             v.pdf_fwd = self.density();

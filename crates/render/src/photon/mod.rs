@@ -456,6 +456,7 @@ mod tests {
                     light: crate::scene::NO_LIGHT,
                     uv: [glam::Vec2::ZERO; 2],
                     uv_width: [0.0; 2],
+                    interior: 0.0,
                 };
                 sum += map.radiance(&si, &white, Vec3A::Z, 200, 1.0, filter).x;
             }

@@ -312,13 +312,28 @@ fn material(
                     "{at}: transmission {transmission} rendered as fully transmissive glass"
                 ));
             }
-            if let Some(v) = m.volume()
-                && v.attenuation_distance().is_finite()
-            {
-                warnings.push(format!(
-                    "{at}: KHR_materials_volume attenuation not modelled yet (clear glass)"
-                ));
-            }
+            // KHR_materials_volume: a solid object (thickness > 0) whose interior keeps
+            // attenuationColor after attenuationDistance (metres): σa = −ln(c) / d per metre.
+            // Without the extension, or with thickness 0, glTF means a thin wall; we render
+            // the closed meshes exporters write as solid glass either way, clear.
+            let absorption = match m.volume() {
+                Some(v) if v.thickness_factor() > 0.0 => {
+                    let d = v.attenuation_distance();
+                    let c = Vec3::from(v.attenuation_color());
+                    if d.is_finite() && d > 0.0 && c.min_element() < 1.0 {
+                        if c.min_element() <= 0.0 {
+                            return Err(GltfError::new(
+                                format!("{at} KHR_materials_volume.attenuationColor"),
+                                format!("expected components in (0, 1], got {c}"),
+                            ));
+                        }
+                        -c.min(Vec3::ONE).map(f32::ln) / d
+                    } else {
+                        Vec3::ZERO
+                    }
+                }
+                _ => Vec3::ZERO,
+            };
             let roughness = Roughness::ggx(roughness);
             if !maps.is_empty() {
                 warnings.push(format!(
@@ -329,6 +344,7 @@ fn material(
                 MaterialKind::Dielectric {
                     eta: ior,
                     roughness,
+                    absorption,
                 },
                 emits,
             ));

@@ -76,11 +76,18 @@ impl Ctx<'_> {
         let metres = Affine3A::from_scale(Vec3::splat((1.0 / out.metres_per_unit) as f32));
         let to_world = parent * self.transform(path, &s.transform) * metres;
         let base = out.first_material + out.materials.len() as u32;
-        out.materials
-            .extend(g.materials.iter().map(|m| MaterialDesc {
+        let metres_per_unit = out.metres_per_unit as f32;
+        out.materials.extend(g.materials.iter().map(|m| {
+            let mut kind = m.kind.clone();
+            // Absorption is per metre in glTF, per scene unit here.
+            if let MaterialKind::Dielectric { absorption, .. } = &mut kind {
+                *absorption *= metres_per_unit;
+            }
+            MaterialDesc {
                 name: format!("{} / {}", s.file, m.name),
-                kind: m.kind.clone(),
-            }));
+                kind,
+            }
+        }));
         for m in &g.meshes {
             let geometry = Geometry {
                 positions: &m.positions,

@@ -195,6 +195,7 @@ impl Ctx<'_> {
                 MaterialKind::Dielectric {
                     eta: int / ext,
                     roughness,
+                    absorption: Vec3::ZERO,
                 }
             }
             "mirror" => {

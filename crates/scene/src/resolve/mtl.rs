@@ -294,6 +294,7 @@ impl Ctx<'_> {
                 MaterialKind::Dielectric {
                     eta: ior,
                     roughness: Roughness::ggx(roughness),
+                    absorption: Vec3::ZERO,
                 },
                 emits,
             );

@@ -167,6 +167,7 @@ impl Placement {
                             light: NO_LIGHT,
                             uv: [glam::Vec2::ZERO; 2],
                             uv_width: [0.0; 2],
+                            interior: 0.0,
                         };
                         let mut stats = RayStats::default();
                         let mut e = Spectrum::ZERO;
