@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{data_uri, render_by_method};
+use common::{data_uri, load_gltf, render_by_method};
 use serde_json::{Value, json};
 use tessera_render::method;
 use tessera_scene::SceneDesc;
@@ -99,14 +99,7 @@ fn slab(volume: Option<Value>) -> Value {
 }
 
 fn load(doc: &Value) -> SceneDesc {
-    let dir = tempfile::tempdir().expect("a temporary folder");
-    let path = dir.path().join("slab.gltf");
-    std::fs::write(&path, doc.to_string()).expect("write");
-    let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
-    d.film.width = 16;
-    d.film.height = 16;
-    d
+    load_gltf(doc, 16)
 }
 
 fn mean_rgb(desc: &SceneDesc, name: &str, spp: u32) -> [f64; 3] {

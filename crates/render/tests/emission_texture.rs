@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{data_uri, render_by_method};
+use common::{data_uri, load_gltf, render_by_method};
 use serde_json::{Value, json};
 use tessera_render::{Image, method};
 use tessera_scene::SceneDesc;
@@ -107,14 +107,7 @@ fn scene(right: f32, textured: bool) -> Value {
 }
 
 fn load(doc: &Value) -> SceneDesc {
-    let dir = tempfile::tempdir().expect("a temporary folder");
-    let path = dir.path().join("panel.gltf");
-    std::fs::write(&path, doc.to_string()).expect("write");
-    let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
-    d.film.width = 48;
-    d.film.height = 48;
-    d
+    load_gltf(doc, 48)
 }
 
 fn mean(image: &Image) -> f64 {

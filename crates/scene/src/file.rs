@@ -635,6 +635,9 @@ pub struct DielectricMaterial {
     pub alpha: Option<Alpha>,
     #[serde(default)]
     pub distribution: Distribution,
+    /// Absorption of the interior, σa per millimetre (tinted glass, coloured liquids).
+    #[serde(default)]
+    pub sigma_a_per_mm: Option<NumOrArray<3>>,
 }
 
 /// A translucent material: a measured medium by name (`preset`) or its coefficients.

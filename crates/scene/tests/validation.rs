@@ -425,7 +425,7 @@ fn named_metals_and_dielectric_ratio() {
     let json = scene(QUAD, POINT).replace(
         r#""materials": { "white": { "type": "diffuse", "albedo": 0.8 } }"#,
         r#""materials": { "white": { "type": "diffuse", "albedo": 0.8 }, "au": { "type": "conductor", "metal": "gold", "alpha": [0.1, 0.3] },
-                          "water": { "type": "dielectric", "ior": 1.33, "ext_ior": 1.5 } }"#,
+                          "water": { "type": "dielectric", "ior": 1.33, "ext_ior": 1.5, "sigma_a_per_mm": [0.001, 0, 0.002] } }"#,
     );
     let (_dir, r) = try_load(&json, &[]);
     let d = r.expect("valid");
@@ -442,7 +442,18 @@ fn named_metals_and_dielectric_ratio() {
         other => panic!("{other:?}"),
     }
     match find("water") {
-        Some(MaterialKind::Dielectric { eta, .. }) => assert!((eta - 1.33 / 1.5).abs() < 1e-6),
+        Some(MaterialKind::Dielectric {
+            eta, absorption, ..
+        }) => {
+            assert!((eta - 1.33 / 1.5).abs() < 1e-6);
+            // Per millimetre to per scene unit (this scene's units: metres).
+            assert!(
+                (absorption - glam::Vec3::new(1.0, 0.0, 2.0))
+                    .abs()
+                    .max_element()
+                    < 1e-5
+            );
+        }
         other => panic!("{other:?}"),
     }
 }

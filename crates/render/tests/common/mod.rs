@@ -266,3 +266,16 @@ pub fn data_uri(bytes: &[u8]) -> String {
         base64::engine::general_purpose::STANDARD.encode(bytes)
     )
 }
+
+/// The glTF document `doc` loaded as a scene (no warnings allowed) on a `side`² film.
+#[allow(dead_code, reason = "used by the tests that write glTF files")]
+pub fn load_gltf(doc: &serde_json::Value, side: u32) -> tessera_scene::SceneDesc {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let path = dir.path().join("scene.gltf");
+    std::fs::write(&path, doc.to_string()).expect("write");
+    let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert!(d.warnings.is_empty(), "{:?}", d.warnings);
+    d.film.width = side;
+    d.film.height = side;
+    d
+}

@@ -192,10 +192,15 @@ impl Ctx<'_> {
                     "an index of refraction in [0.01, 100]",
                 );
                 let roughness = self.roughness(path, m.alpha, m.distribution);
+                // Per mm → per scene unit.
+                let absorption = m.sigma_a_per_mm.map_or(Vec3::ZERO, |a| {
+                    self.non_negative3(&format!("{path}.sigma_a_per_mm"), a.expand())
+                        * (metres_per_unit * 1000.0) as f32
+                });
                 MaterialKind::Dielectric {
                     eta: int / ext,
                     roughness,
-                    absorption: Vec3::ZERO,
+                    absorption,
                 }
             }
             "mirror" => {
