@@ -106,7 +106,7 @@ impl TexturedPbr {
     /// number is `u`: coverage α = factor × the base colour texture's alpha, kept where
     /// α ≥ the cutoff (mask) or with probability α (blend).
     #[inline]
-    fn covers(&self, uv: Uv, width: UvWidth, u: f32) -> bool {
+    fn covers(&self, uv: Uv, width: UvWidth, u: impl FnOnce() -> f32) -> bool {
         let Some(c) = self.coverage else {
             return true;
         };
@@ -117,7 +117,7 @@ impl TexturedPbr {
                 .map_or(1.0, |m| m.at(uv, width).w);
         match c.mode {
             CoverageMode::Mask { cutoff } => alpha >= cutoff,
-            CoverageMode::Blend => u < alpha,
+            CoverageMode::Blend => u() < alpha,
         }
     }
 }
@@ -720,12 +720,16 @@ impl Scene {
         }
         let local = (id - mesh.first_triangle) as usize;
         let (uv, width) = mesh.uv(local, b, t * self.pixel_angle);
-        let bits = |v: Vec3A| {
-            let [x, y, z] = v.to_array().map(f32::to_bits);
-            ((x as u64) << 32 | y as u64) ^ ((z as u64) << 16)
+        // A blended surface's number, hashed only where one is needed.
+        let u = || {
+            let bits = |v: Vec3A| {
+                let [x, y, z] = v.to_array().map(f32::to_bits);
+                ((x as u64) << 32 | y as u64) ^ ((z as u64) << 16)
+            };
+            let h = crate::sampler::hash::hash(&[bits(ray.o), bits(ray.d), id as u64]);
+            crate::sampler::hash::u32_to_unit(h as u32)
         };
-        let h = crate::sampler::hash::hash(&[bits(ray.o), bits(ray.d), id as u64]);
-        textured.covers(uv, width, crate::sampler::hash::u32_to_unit(h as u32))
+        textured.covers(uv, width, u)
     }
 
     /// The surface interaction at `hit`, found travelling along `d`.

@@ -17,7 +17,7 @@ pub(crate) use tangents::mikktspace;
 
 use std::path::Path;
 
-use glam::{Mat3, Mat4, Vec3};
+use glam::{Mat4, Vec3};
 
 use crate::desc::{EmissionDesc, LightDesc, MaterialDesc};
 use crate::file::EnvironmentFile;
@@ -61,7 +61,9 @@ pub struct GltfScene {
 /// top-level `environment` of a scene.json.
 pub const ENVIRONMENT_EXTRA: &str = "tessera_environment";
 
-/// One primitive of one mesh instance, in world space.
+/// One primitive of one mesh instance, in its mesh's own coordinates, placed in the glTF
+/// scene's root frame by `to_root` (the scene placing the file applies it with its own
+/// transform, once).
 #[derive(Debug, Clone)]
 pub struct GltfMesh {
     /// `mesh 2 "Chair" primitive 0 (node 5 "Chair.001")`, for messages.
@@ -78,6 +80,8 @@ pub struct GltfMesh {
     pub triangles: Vec<[u32; 3]>,
     /// Index into [`GltfScene::materials`].
     pub material: u32,
+    /// The node's world matrix (an affine transform: glTF node transforms are).
+    pub to_root: Mat4,
 }
 
 /// A perspective camera placed by its node: looking down its local −z with +y up.
@@ -380,8 +384,6 @@ impl Walk<'_> {
     }
 
     fn mesh(&mut self, mesh: &gltf::Mesh, world: &Mat4, here: &str) -> Result<(), GltfError> {
-        let normal_matrix = Mat3::from_mat4(*world).inverse().transpose();
-        let mirrored = Mat3::from_mat4(*world).determinant() < 0.0;
         let mesh_at = named("meshes", mesh.index(), mesh.name());
         for prim in mesh.primitives() {
             let at = format!("{mesh_at} primitives[{}] (on {here})", prim.index());
@@ -457,39 +459,16 @@ impl Walk<'_> {
                 }
                 _ => None,
             };
-            // Tangents turn with the mesh; a mirroring transform flips the bitangent.
-            let linear = Mat3::from_mat4(*world);
-            let sign = if mirrored { -1.0 } else { 1.0 };
-            let tangents = tangents.map(|t| {
-                t.into_iter()
-                    .map(|c| {
-                        let c = c.map(|v| {
-                            let d = (linear * v.truncate()).normalize_or_zero();
-                            d.extend(v.w * sign)
-                        });
-                        if mirrored { [c[0], c[2], c[1]] } else { c }
-                    })
-                    .collect()
-            });
             self.meshes.push(GltfMesh {
                 origin: at,
-                positions: positions
-                    .iter()
-                    .map(|&p| world.transform_point3(p))
-                    .collect(),
-                normals: normals.map(|ns| {
-                    ns.iter()
-                        .map(|&n| (normal_matrix * n).normalize_or_zero())
-                        .collect()
-                }),
+                positions,
+                normals,
                 uvs,
                 uvs1,
                 tangents,
-                triangles: tri
-                    .into_iter()
-                    .map(|[a, b, c]| if mirrored { [a, c, b] } else { [a, b, c] })
-                    .collect(),
+                triangles: tri,
                 material,
+                to_root: *world,
             });
         }
         Ok(())

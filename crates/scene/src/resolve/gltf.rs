@@ -98,7 +98,7 @@ impl Ctx<'_> {
                 triangles: &m.triangles,
             };
             let surface = Surface {
-                to_world,
+                to_world: to_world * Affine3A::from_mat4(m.to_root),
                 material: base + m.material,
                 emission: None,
             };
@@ -179,8 +179,8 @@ impl Ctx<'_> {
                 let (lo, hi) = g
                     .meshes
                     .iter()
-                    .flat_map(|m| &m.positions)
-                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                    .flat_map(|m| m.positions.iter().map(|&p| m.to_root.transform_point3(p)))
+                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
                         (lo.min(p), hi.max(p))
                     });
                 if !lo.is_finite() {

@@ -57,6 +57,7 @@ pub fn load(source: &dyn SceneSource, name: &Path) -> Result<SceneDesc, SceneErr
         problems: Vec::new(),
         meshes: HashMap::new(),
         gltfs: HashMap::new(),
+        images: HashMap::new(),
         warnings: Vec::new(),
     };
     let parsed = if is_gltf(name) {
@@ -96,6 +97,8 @@ struct Ctx<'s> {
     meshes: HashMap<PathBuf, Option<Arc<RawMesh>>>,
     /// glTF files likewise.
     gltfs: HashMap<PathBuf, Option<Arc<crate::gltf::GltfScene>>>,
+    /// Image textures of MTL libraries, decoded by file and role.
+    images: HashMap<(PathBuf, crate::texture::TextureRole), Arc<crate::texture::TextureImage>>,
     /// What was read but not modelled.
     warnings: Vec<String>,
 }

@@ -353,25 +353,33 @@ impl Ctx<'_> {
                 return None;
             }
         };
-        let shown = self.source.display_path(&rel);
-        let bytes = match self.source.read(&rel) {
-            Ok(b) => b,
-            Err(e) => {
-                self.problem(
-                    "",
-                    format!("{at} {key}: cannot read {}: {e}", shown.display()),
-                );
-                return None;
+        // Each file is read and decoded once per role, however many materials name it.
+        let image = match self.images.get(&(rel.clone(), role)) {
+            Some(i) => i.clone(),
+            None => {
+                let shown = self.source.display_path(&rel);
+                let bytes = match self.source.read(&rel) {
+                    Ok(b) => b,
+                    Err(e) => {
+                        self.problem(
+                            "",
+                            format!("{at} {key}: cannot read {}: {e}", shown.display()),
+                        );
+                        return None;
+                    }
+                };
+                let image = match crate::texture::decode(&bytes, &t.file, role) {
+                    Ok(i) => Arc::new(i),
+                    Err(msg) => {
+                        self.problem("", format!("{at} {key} {}: {msg}", shown.display()));
+                        return None;
+                    }
+                };
+                self.images.insert((rel, role), image.clone());
+                image
             }
         };
-        let image = match crate::texture::decode(&bytes, &t.file, role) {
-            Ok(i) => i,
-            Err(msg) => {
-                self.problem("", format!("{at} {key} {}: {msg}", shown.display()));
-                return None;
-            }
-        };
-        let mut desc = TextureDesc::new(Arc::new(image));
+        let mut desc = TextureDesc::new(image);
         if t.clamp {
             desc.wrap = [Wrap::ClampToEdge; 2];
         }
