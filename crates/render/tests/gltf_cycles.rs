@@ -79,7 +79,15 @@ fn agrees_with_cycles(
     noise_factor: f64,
 ) {
     let desc = tessera_scene::load(glb).unwrap_or_else(|e| panic!("{e}"));
-    assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
+    // Blender's glass is closed and written without KHR_materials_volume: solid, as in
+    // Cycles, with a warning saying so; nothing else may be left unread.
+    assert!(
+        desc.warnings
+            .iter()
+            .all(|w| w.contains("rendered solid on them")),
+        "{:?}",
+        desc.warnings
+    );
     desc_agrees_with_cycles(
         desc,
         glb,
@@ -102,7 +110,7 @@ fn blenders_obj_and_mtl_export_renders_as_cycles_renders_the_blender_scene() {
     let mut desc = tessera_scene::load(&dir.join("obj.json")).unwrap_or_else(|e| panic!("{e}"));
     assert!(desc.warnings.is_empty(), "{:?}", desc.warnings);
     assert_eq!(desc.materials.len(), glb.materials.len());
-    desc.camera = glb.camera.clone();
+    desc.camera = glb.camera;
     desc.film = glb.film;
     desc.lights = glb.lights.clone();
     desc_agrees_with_cycles(

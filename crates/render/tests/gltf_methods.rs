@@ -16,9 +16,11 @@ fn every_method_renders_the_gltf_materials_and_delta_lights_as_the_path_tracer_d
     let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
     desc.film.width = 64;
     desc.film.height = 36;
-    // The glass sphere becomes rough plastic: light from a point or spot light through a
-    // smooth interface is out of the path tracer's reach (no sampled direction hits a point;
-    // no light sample passes a delta interface), so with it the path tracer is no reference.
+    // The glass sphere becomes rough, partly transmissive plastic (specular transmission
+    // into its interior, diffuse transmission, a diffuse base): light from a point or spot
+    // light through a smooth interface is out of the path tracer's reach (no sampled
+    // direction hits a point; no light sample passes a delta interface), so with it the path
+    // tracer is no reference.
     for m in &mut desc.materials {
         if matches!(m.kind, MaterialKind::Dielectric { .. }) {
             m.kind = MaterialKind::MetallicRoughness {
@@ -29,6 +31,12 @@ fn every_method_renders_the_gltf_materials_and_delta_lights_as_the_path_tracer_d
                 specular_color: glam::Vec3::ONE,
                 specular: 1.0,
                 textures: Default::default(),
+                transmission: tessera_scene::PbrTransmission {
+                    specular: 0.5,
+                    diffuse: 0.4,
+                    diffuse_color: glam::Vec3::new(0.9, 0.6, 0.3),
+                    thin: false,
+                },
             };
         }
     }

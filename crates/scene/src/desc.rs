@@ -178,11 +178,16 @@ pub enum MaterialKind {
     },
     /// Dielectric interface: `eta` = interior IOR / exterior IOR; the interior absorbs
     /// `absorption` (σa per scene unit of length, per channel; zero: clear), so that light
-    /// crossing a length d of it keeps exp(−σa d) (Beer–Lambert).
+    /// crossing a length d of it keeps exp(−σa d) (Beer–Lambert). Each crossing keeps `tint`
+    /// (glTF's base colour; white for clear glass). `thin`: a thin sheet (a window pane, a
+    /// thin-walled glTF material) that reflects and transmits without bending light and has
+    /// no interior.
     Dielectric {
         eta: f32,
         roughness: Roughness,
         absorption: Vec3,
+        tint: Vec3,
+        thin: bool,
     },
     Mirror {
         reflectance: Vec3,
@@ -200,6 +205,8 @@ pub enum MaterialKind {
         specular: f32,
         /// Image textures that multiply the factors, if any.
         textures: PbrTextures,
+        /// How much of the dielectric base lets light through (none for an opaque one).
+        transmission: PbrTransmission,
     },
     /// A translucent object: a smooth dielectric interface of relative index `eta` around a
     /// homogeneous scattering medium — reduced scattering σs′ = σs (1 − g) and absorption σa
@@ -227,6 +234,39 @@ pub enum MaterialKind {
         eta: f32,
         substrate: Vec3,
     },
+}
+
+/// Transmission of a metallic-roughness material's dielectric base, as glTF's
+/// KHR_materials_transmission and KHR_materials_diffuse_transmission define it: of the light
+/// the specular layer lets into the base, a share `specular` crosses a (rough) dielectric
+/// interface of the material's IOR and roughness, tinted by the base colour, instead of
+/// meeting the diffuse base; of the diffuse base, a share `diffuse` is transmitted diffusely
+/// to the other side with colour `diffuse_color`. `thin`: the surface is a thin wall (glTF
+/// without KHR_materials_volume), so specular transmission does not bend light.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PbrTransmission {
+    pub specular: f32,
+    pub diffuse: f32,
+    pub diffuse_color: Vec3,
+    pub thin: bool,
+}
+
+impl Default for PbrTransmission {
+    fn default() -> Self {
+        PbrTransmission {
+            specular: 0.0,
+            diffuse: 0.0,
+            diffuse_color: Vec3::ONE,
+            thin: false,
+        }
+    }
+}
+
+impl PbrTransmission {
+    /// Lets no light through.
+    pub fn is_opaque(&self) -> bool {
+        self.specular <= 0.0 && self.diffuse <= 0.0
+    }
 }
 
 /// What varies over a metallic-roughness material's surface: the base colour's texture

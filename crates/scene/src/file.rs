@@ -638,6 +638,12 @@ pub struct DielectricMaterial {
     /// Absorption of the interior, σa per millimetre (tinted glass, coloured liquids).
     #[serde(default)]
     pub sigma_a_per_mm: Option<NumOrArray<3>>,
+    /// What each crossing of the interface keeps (default 1).
+    #[serde(default)]
+    pub tint: Option<Color>,
+    /// A thin sheet (a window pane): transmits without bending light, no interior.
+    #[serde(default)]
+    pub thin: bool,
 }
 
 /// A translucent material: a measured medium by name (`preset`) or its coefficients.
@@ -732,6 +738,18 @@ pub struct MetallicRoughnessMaterial {
     pub specular_color: Option<Color>,
     #[serde(default)]
     pub specular: Option<f32>,
+    /// Share of the base that is specular transmission (KHR_materials_transmission).
+    #[serde(default)]
+    pub transmission: Option<f32>,
+    /// Share of the diffuse base transmitted diffusely (KHR_materials_diffuse_transmission),
+    /// and its colour.
+    #[serde(default)]
+    pub diffuse_transmission: Option<f32>,
+    #[serde(default)]
+    pub diffuse_transmission_color: Option<Color>,
+    /// Thin-walled: specular transmission does not bend light.
+    #[serde(default)]
+    pub thin: bool,
 }
 
 // The lights repeat their brightness fields (`power`, `color`, `temperature_k`, ...) rather

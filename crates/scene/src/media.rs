@@ -44,6 +44,56 @@ pub fn measured(name: &str) -> Option<&'static MeasuredMedium> {
     MEASURED.iter().find(|m| key(m.name) == key(name))
 }
 
+/// Diffuse Fresnel reflectance of the interface seen from inside a medium of relative index
+/// η > 1 (the polynomial fit Jensen et al. 2001 use, eq. 5 after Egan & Hilgeman):
+/// −1.440/η² + 0.710/η + 0.668 + 0.0636 η.
+pub fn fdr(eta: f64) -> f64 {
+    -1.440 / (eta * eta) + 0.710 / eta + 0.668 + 0.0636 * eta
+}
+
+/// The dipole's total diffuse reflectance of a medium of reduced albedo α′ behind an interface
+/// of relative index η (Jensen et al. 2001, §2.5):
+/// Rd = (α′/2) (1 + e^(−(4/3) A √(3(1 − α′)))) e^(−√(3(1 − α′))), A = (1 + Fdr)/(1 − Fdr).
+pub fn total_diffuse_reflectance(alpha_prime: f64, eta: f64) -> f64 {
+    let f = fdr(eta);
+    let a = (1.0 + f) / (1.0 - f);
+    let s = (3.0 * (1.0 - alpha_prime)).max(0.0).sqrt();
+    0.5 * alpha_prime * (1.0 + (-4.0 / 3.0 * a * s).exp()) * (-s).exp()
+}
+
+/// The coefficients (σs′, σa, per unit of `mean_free_path`) of a medium with total diffuse
+/// reflectance `rd` and diffuse mean free path ℓd = 1/σtr, per channel — the artist's
+/// parameters of Jensen & Buhler 2002 ("A Rapid Hierarchical Rendering Technique for
+/// Translucent Materials", §4): α′ from Rd by inverting [`total_diffuse_reflectance`]
+/// (monotonic in α′; bisection), then σt′ = 1 / (ℓd √(3(1 − α′))), σs′ = α′ σt′,
+/// σa = σt′ − σs′. Rd is clamped below what α′ = 1 reaches (a medium that absorbs nothing).
+pub fn from_diffuse_reflectance(
+    rd: [f32; 3],
+    mean_free_path: f32,
+    eta: f32,
+) -> ([f32; 3], [f32; 3]) {
+    let eta = eta as f64;
+    let (mut sigma_s_prime, mut sigma_a) = ([0.0f32; 3], [0.0f32; 3]);
+    for c in 0..3 {
+        let target = (rd[c] as f64).max(1e-4);
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if total_diffuse_reflectance(mid, eta) < target {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        // Keep a little absorption so that σtr, and so ℓd, stays finite.
+        let alpha_prime = (0.5 * (lo + hi)).min(1.0 - 1e-6);
+        let sigma_t_prime = 1.0 / (mean_free_path as f64 * (3.0 * (1.0 - alpha_prime)).sqrt());
+        sigma_s_prime[c] = (alpha_prime * sigma_t_prime) as f32;
+        sigma_a[c] = ((1.0 - alpha_prime) * sigma_t_prime) as f32;
+    }
+    (sigma_s_prime, sigma_a)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -54,5 +104,20 @@ mod tests {
         assert_eq!(measured("Whole milk").map(|m| m.name), Some("whole-milk"));
         assert_eq!(measured("SKIN_1").map(|m| m.name), Some("skin1"));
         assert!(measured("jade").is_none());
+    }
+
+    #[test]
+    fn coefficients_from_reflectance_give_back_that_reflectance_and_free_path() {
+        let rd = [0.8f32, 0.5, 0.1];
+        let (s, a) = from_diffuse_reflectance(rd, 2.0, 1.4);
+        for c in 0..3 {
+            let t = (s[c] + a[c]) as f64;
+            let alpha = s[c] as f64 / t;
+            let got = total_diffuse_reflectance(alpha, 1.4);
+            assert!((got - rd[c] as f64).abs() < 1e-4, "Rd {got} vs {}", rd[c]);
+            // σtr = √(3 σa σt′) = 1/ℓd.
+            let sigma_tr = (3.0 * a[c] as f64 * t).sqrt();
+            assert!((1.0 / sigma_tr - 2.0).abs() < 1e-3, "ℓd {}", 1.0 / sigma_tr);
+        }
     }
 }

@@ -710,3 +710,63 @@ fn a_top_level_environment_is_the_environment_light_it_stands_for() {
     assert_eq!(path, "environment.image");
     assert!(msg.contains("sky.exr"), "{msg}");
 }
+
+#[test]
+fn thin_glass_and_transmitting_metallic_roughness_from_json() {
+    let json = scene(QUAD, POINT).replace(
+        r#""materials": { "white": { "type": "diffuse", "albedo": 0.8 } }"#,
+        r#""materials": { "white": { "type": "diffuse", "albedo": 0.8 },
+                          "pane": { "type": "dielectric", "ior": 1.5, "thin": true, "tint": [1, 0.9, 0.8] },
+                          "leaf": { "type": "metallic_roughness", "base_color": [0.2, 0.5, 0.1], "metallic": 0, "roughness": 0.6,
+                                    "transmission": 0.25, "diffuse_transmission": 0.5, "diffuse_transmission_color": [0.5, 1, 0.2], "thin": true } }"#,
+    );
+    let (_dir, r) = try_load(&json, &[]);
+    let d = r.expect("valid");
+    let find = |n: &str| {
+        d.materials
+            .iter()
+            .find(|m| m.name == n)
+            .map(|m| m.kind.clone())
+    };
+    match find("pane") {
+        Some(MaterialKind::Dielectric {
+            thin: true, tint, ..
+        }) => assert_eq!(tint, glam::Vec3::new(1.0, 0.9, 0.8)),
+        other => panic!("{other:?}"),
+    }
+    match find("leaf") {
+        Some(MaterialKind::MetallicRoughness { transmission, .. }) => {
+            assert_eq!(
+                (
+                    transmission.specular,
+                    transmission.diffuse,
+                    transmission.thin
+                ),
+                (0.25, 0.5, true)
+            );
+            assert_eq!(transmission.diffuse_color, glam::Vec3::new(0.5, 1.0, 0.2));
+        }
+        other => panic!("{other:?}"),
+    }
+    // A thin sheet has no interior to absorb in; a share is in [0, 1].
+    let bad = scene(QUAD, POINT).replace(
+        r#""materials": { "white": { "type": "diffuse", "albedo": 0.8 } }"#,
+        r#""materials": { "white": { "type": "diffuse", "albedo": 0.8 },
+                          "pane": { "type": "dielectric", "ior": 1.5, "thin": true, "sigma_a_per_mm": 0.1 },
+                          "leaf": { "type": "metallic_roughness", "diffuse_transmission": 1.5 } }"#,
+    );
+    let found = problems(&bad, &[]);
+    assert!(
+        found
+            .iter()
+            .any(|(_, field, msg)| field.ends_with("pane.sigma_a_per_mm") && msg.contains("thin")),
+        "{found:?}"
+    );
+    assert!(
+        found.iter().any(
+            |(_, field, msg)| field.ends_with("leaf.diffuse_transmission")
+                && msg.contains("[0, 1]")
+        ),
+        "{found:?}"
+    );
+}

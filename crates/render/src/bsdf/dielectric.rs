@@ -1,6 +1,8 @@
 //! Smooth dielectric interface: delta reflection and refraction weighted by the exact Fresnel
 //! reflectance, with total internal reflection. `eta` is the IOR inside (opposite the normal)
-//! over outside; η = 1 makes the interface invisible.
+//! over outside; η = 1 makes the interface invisible. Transmission may be tinted (glTF's base
+//! colour on a transmissive material), the same way in both directions, so f stays
+//! reciprocal.
 
 use glam::{Vec2, Vec3A};
 
@@ -10,11 +12,21 @@ use crate::spectrum::Spectrum;
 #[derive(Debug, Clone)]
 pub struct SmoothDielectric {
     eta: f32,
+    /// What transmission keeps per channel.
+    tint: Spectrum,
 }
 
 impl SmoothDielectric {
     pub fn new(eta: f32) -> Self {
-        SmoothDielectric { eta }
+        SmoothDielectric {
+            eta,
+            tint: Spectrum::ONE,
+        }
+    }
+
+    /// The interface with transmission scaled by `tint`.
+    pub fn with_tint(self, tint: Spectrum) -> Self {
+        SmoothDielectric { tint, ..self }
     }
 }
 
@@ -56,7 +68,7 @@ impl Bsdf for SmoothDielectric {
         }
         Some(BsdfSample {
             wi,
-            f: Spectrum::splat(f),
+            f: self.tint * f,
             pdf: t,
             specular: true,
             transmission: true,
@@ -69,6 +81,6 @@ impl Bsdf for SmoothDielectric {
     }
 
     fn albedo(&self) -> Spectrum {
-        Spectrum::ONE
+        self.tint
     }
 }

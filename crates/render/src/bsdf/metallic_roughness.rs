@@ -19,13 +19,25 @@
 //! Szirmay-Kalos 2001's coupling, as in Kulla & Conty 2017). Every term is symmetric in wo and wi, so f is
 //! reciprocal. Sampled as a mixture of the visible-normal GGX lobe and a cosine lobe, chosen
 //! by their estimated weights at wo.
+//!
+//! Transmission (KHR_materials_transmission, KHR_materials_diffuse_transmission): the
+//! specification mixes the dielectric's base, fresnel_mix(base, layer), with base =
+//! mix(diffuse, specular BTDF, T). fresnel_mix is linear in its base, so this is
+//! (1 − T)·[the opaque dielectric above] + T·[the layer over a specular BTDF], and the second
+//! is a rough dielectric interface (Walter et al. 2007, exact Fresnel) with its transmission
+//! tinted by the base colour — or, thin-walled, a rough thin sheet that does not bend light.
+//! Diffuse transmission moves a share D of the coupled diffuse base to the other side with its
+//! own colour: f = c_t/π · D · (coupling at |cos θo|, |cos θi|) for wi across the surface. With
+//! transmission the BSDF is two-sided in its reflection lobes (the material keeps its frame
+//! outward, so wo may lie below) and the interface sees which side light comes from.
 
 use glam::{Vec2, Vec3A};
 use tessera_scene::Distribution;
 
 use super::microfacet::Microfacet;
 use super::{
-    Bsdf, BsdfFlags, BsdfSample, TransportMode, diffuse_pdf, reflected_pdf, sample_diffuse,
+    Bsdf, BsdfFlags, BsdfSample, RoughDielectric, ThinDielectric, TransportMode, diffuse_pdf,
+    reflected_pdf, sample_diffuse,
 };
 use crate::math::{INV_PI, reflect};
 use crate::spectrum::{Spectrum, luminance};
@@ -46,6 +58,45 @@ pub struct MetallicRoughness {
     /// Perceptual roughness, for the layer's albedo table.
     roughness: f32,
     microfacet: Microfacet,
+    /// Share T of the dielectric base that is specular transmission.
+    transmission: f32,
+    /// Share D of the diffuse base transmitted diffusely, and its colour.
+    diffuse_transmission: f32,
+    diffuse_transmission_color: Spectrum,
+    ior: f32,
+    /// A thin wall: specular transmission through a sheet, not into an interior.
+    thin: bool,
+}
+
+/// The interface of the transmitted share, built where it is evaluated.
+enum Interface {
+    Solid(RoughDielectric),
+    Thin(ThinDielectric),
+}
+
+impl Interface {
+    fn bsdf(&self) -> &dyn Bsdf {
+        match self {
+            Interface::Solid(b) => b,
+            Interface::Thin(b) => b,
+        }
+    }
+}
+
+/// Lobe selection probabilities at one wo: specular layer (with metal), diffuse reflection,
+/// diffuse transmission, transmitting interface.
+#[derive(Clone, Copy)]
+struct Lobes {
+    specular: f32,
+    diffuse: f32,
+    diffuse_transmission: f32,
+    interface: f32,
+}
+
+/// `w` mirrored through the surface plane.
+#[inline]
+fn mirror(w: Vec3A) -> Vec3A {
+    Vec3A::new(w.x, w.y, -w.z)
 }
 
 /// Cells of [`LayerTable`] along cos θ and along roughness.
@@ -169,6 +220,51 @@ impl MetallicRoughness {
             specular: specular.clamp(0.0, 1.0),
             roughness: roughness.clamp(0.0, 1.0),
             microfacet: Microfacet::new(Distribution::Ggx, alpha, alpha),
+            transmission: 0.0,
+            diffuse_transmission: 0.0,
+            diffuse_transmission_color: Spectrum::ONE,
+            ior,
+            thin: false,
+        }
+    }
+
+    /// This BSDF letting light through as `t` says (KHR_materials_transmission and
+    /// KHR_materials_diffuse_transmission).
+    pub fn with_transmission(self, t: &tessera_scene::PbrTransmission) -> Self {
+        MetallicRoughness {
+            transmission: t.specular.clamp(0.0, 1.0),
+            diffuse_transmission: t.diffuse.clamp(0.0, 1.0),
+            diffuse_transmission_color: Spectrum::from(t.diffuse_color)
+                .clamp(Spectrum::ZERO, Spectrum::ONE),
+            thin: t.thin,
+            ..self
+        }
+    }
+
+    /// Weight of the opaque dielectric (coupled diffuse base and its layer): (1 − m)(1 − T).
+    #[inline]
+    fn opaque(&self) -> f32 {
+        (1.0 - self.metallic) * (1.0 - self.transmission)
+    }
+
+    /// Weight of the transmitting interface: (1 − m) T.
+    #[inline]
+    fn interface_weight(&self) -> f32 {
+        (1.0 - self.metallic) * self.transmission
+    }
+
+    /// The transmitting interface (rough at this BRDF's α), its transmission tinted by the
+    /// base colour.
+    #[inline]
+    fn interface(&self) -> Interface {
+        if self.thin {
+            Interface::Thin(
+                ThinDielectric::new(self.ior, Some(self.microfacet)).with_tint(self.base_color),
+            )
+        } else {
+            Interface::Solid(
+                RoughDielectric::new(self.ior, self.microfacet).with_tint(self.base_color),
+            )
         }
     }
 
@@ -201,7 +297,7 @@ impl MetallicRoughness {
         let fd = self.f0 + (Spectrum::ONE - self.f0) * s;
         let fm = self.base_color + (Spectrum::ONE - self.base_color) * s;
         let m = self.metallic;
-        (1.0 - m) * self.specular * fd + m * fm
+        self.opaque() * self.specular * fd + m * fm
     }
 
     /// E(θ): the share of light the dielectric layer reflects at cosine `cos`.
@@ -212,23 +308,87 @@ impl MetallicRoughness {
         self.specular * (f0 * e1 + (1.0 - f0) * es)
     }
 
-    /// The diffuse base's weight for the cosines of wo and wi (multiplies c/π).
+    /// The diffuse base's weight for the cosines of wo and wi (multiplies c/π), reflected and
+    /// transmitted together.
     #[inline]
     fn diffuse_weight(&self, cos_o: f32, cos_i: f32) -> f32 {
         let f0 = self.f0.max_element();
         let (a1, a_s) = LayerTable::get().average(self.roughness);
         let avg = self.specular * (f0 * a1 + (1.0 - f0) * a_s);
-        (1.0 - self.metallic) * (1.0 - self.layer(cos_o)) * (1.0 - self.layer(cos_i))
+        self.opaque() * (1.0 - self.layer(cos_o)) * (1.0 - self.layer(cos_i))
             / (1.0 - avg).max(1e-4)
     }
 
-    /// Probability of sampling the specular lobe at wo: the layer's reflectance there against
-    /// the base's albedo under it.
+    /// Lobe probabilities at wo (above the surface): the layer's reflectance there against
+    /// the base's albedo under it, split between its parts.
     #[inline]
-    fn p_specular(&self, wo: Vec3A) -> f32 {
+    fn lobes(&self, wo: Vec3A) -> Lobes {
         let s = luminance(self.specular_weight(wo.z));
-        let d = (1.0 - self.metallic) * (1.0 - self.layer(wo.z)) * luminance(self.base_color);
-        if s + d > 0.0 { s / (s + d) } else { 1.0 }
+        let base = self.opaque() * (1.0 - self.layer(wo.z));
+        let d = base * luminance(self.base_color) * (1.0 - self.diffuse_transmission);
+        let dt = base * luminance(self.diffuse_transmission_color) * self.diffuse_transmission;
+        let g = self.interface_weight();
+        let total = s + d + dt + g;
+        if dt == 0.0 && g == 0.0 {
+            // Opaque: the layer or the diffuse base.
+            let specular = if s + d > 0.0 { s / (s + d) } else { 1.0 };
+            Lobes {
+                specular,
+                diffuse: 1.0 - specular,
+                diffuse_transmission: 0.0,
+                interface: 0.0,
+            }
+        } else if total > 0.0 {
+            Lobes {
+                specular: s / total,
+                diffuse: d / total,
+                diffuse_transmission: dt / total,
+                interface: g / total,
+            }
+        } else {
+            Lobes {
+                specular: 1.0,
+                diffuse: 0.0,
+                diffuse_transmission: 0.0,
+                interface: 0.0,
+            }
+        }
+    }
+
+    /// The reflection lobes (layer, metal, diffuse reflection) and diffuse transmission for
+    /// wo above the surface.
+    #[inline]
+    fn eval_upper(&self, wo: Vec3A, wi: Vec3A) -> Spectrum {
+        if wi.z > 0.0 {
+            let h = (wo + wi).normalize();
+            let mf = &self.microfacet;
+            let s = mf.d(h) * mf.g(wo, wi) / (4.0 * wo.z * wi.z);
+            let diffuse = if self.diffuse_transmission > 0.0 {
+                self.base_color * (1.0 - self.diffuse_transmission)
+            } else {
+                self.base_color
+            };
+            diffuse * (self.diffuse_weight(wo.z, wi.z) * INV_PI)
+                + self.specular_weight(wo.dot(h)) * s
+        } else if self.diffuse_transmission > 0.0 && wi.z < 0.0 {
+            self.diffuse_transmission_color
+                * (self.diffuse_transmission * self.diffuse_weight(wo.z, -wi.z) * INV_PI)
+        } else {
+            Spectrum::ZERO
+        }
+    }
+
+    /// Density of the reflection lobes and diffuse transmission for wo above the surface.
+    #[inline]
+    fn pdf_upper(&self, p: &Lobes, wo: Vec3A, wi: Vec3A) -> f32 {
+        if wi.z > 0.0 {
+            let spec = reflected_pdf(wo, wi, |h| self.microfacet.pdf_m(wo, h));
+            p.specular * spec + p.diffuse * diffuse_pdf(wo, wi)
+        } else if wi.z < 0.0 {
+            p.diffuse_transmission * diffuse_pdf(wo, mirror(wi))
+        } else {
+            0.0
+        }
     }
 }
 
@@ -236,49 +396,97 @@ impl Bsdf for MetallicRoughness {
     fn flags(&self) -> BsdfFlags {
         BsdfFlags {
             reflection: true,
+            transmission: self.transmission > 0.0 || self.diffuse_transmission > 0.0,
             smooth: true,
             diffuse: self.metallic < 1.0 && self.base_color.max_element() > 0.0,
             ..Default::default()
         }
     }
 
-    fn eval(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> Spectrum {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return Spectrum::ZERO;
+    fn eval(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> Spectrum {
+        if !self.flags().transmission {
+            if wo.z <= 0.0 || wi.z <= 0.0 {
+                return Spectrum::ZERO;
+            }
+            return self.eval_upper(wo, wi);
         }
-        let h = (wo + wi).normalize();
-        let mf = &self.microfacet;
-        let s = mf.d(h) * mf.g(wo, wi) / (4.0 * wo.z * wi.z);
-        self.base_color * (self.diffuse_weight(wo.z, wi.z) * INV_PI)
-            + self.specular_weight(wo.dot(h)) * s
+        let mut f = if wo.z < 0.0 {
+            self.eval_upper(mirror(wo), mirror(wi))
+        } else {
+            self.eval_upper(wo, wi)
+        };
+        if self.transmission > 0.0 {
+            f += self.interface().bsdf().eval(wo, wi, mode) * self.interface_weight();
+        }
+        f
     }
 
     fn sample(&self, wo: Vec3A, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
-        if wo.z <= 0.0 {
+        let transmits = self.flags().transmission;
+        if wo.z == 0.0 || (wo.z < 0.0 && !transmits) {
             return None;
         }
-        let wi = if u_lobe < self.p_specular(wo) {
-            let m = self.microfacet.sample_m(wo, u);
-            if wo.dot(m) <= 0.0 {
+        // The reflection lobes are sampled above the surface, then turned back.
+        let below = wo.z < 0.0;
+        let up = if below { mirror(wo) } else { wo };
+        let p = self.lobes(up);
+        let mut eta = 1.0;
+        let wi = if u_lobe < p.specular {
+            let m = self.microfacet.sample_m(up, u);
+            let wi = reflect(up, m);
+            if up.dot(m) <= 0.0 || wi.z <= 0.0 {
                 return None;
             }
-            reflect(wo, m)
-        } else {
+            wi
+        } else if !transmits || u_lobe < p.specular + p.diffuse {
             sample_diffuse(u)?
+        } else if u_lobe < p.specular + p.diffuse + p.diffuse_transmission {
+            mirror(sample_diffuse(u)?)
+        } else {
+            // The interface samples in the true frame, with its own lobe choice.
+            let start = p.specular + p.diffuse + p.diffuse_transmission;
+            let u_interface = ((u_lobe - start) / p.interface.max(f32::MIN_POSITIVE)).min(1.0);
+            let s = self.interface().bsdf().sample(wo, u_interface, u, mode)?;
+            eta = s.eta;
+            if below { mirror(s.wi) } else { s.wi }
         };
-        if wi.z <= 0.0 {
+        let wi = if below { mirror(wi) } else { wi };
+        if wi.z == 0.0 || (!transmits && wi.z < 0.0) {
             return None;
         }
-        BsdfSample::reflection(self, wo, wi, mode)
+        let pdf = self.pdf(wo, wi, mode);
+        (pdf > 0.0).then(|| BsdfSample {
+            wi,
+            f: self.eval(wo, wi, mode),
+            pdf,
+            specular: false,
+            transmission: wi.z * wo.z < 0.0,
+            eta: if wi.z * wo.z < 0.0 { eta } else { 1.0 },
+        })
     }
 
-    fn pdf(&self, wo: Vec3A, wi: Vec3A, _: TransportMode) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
+    fn pdf(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> f32 {
+        if !self.flags().transmission {
+            if wo.z <= 0.0 || wi.z <= 0.0 {
+                return 0.0;
+            }
+            let p = self.lobes(wo);
+            return self.pdf_upper(&p, wo, wi);
+        }
+        if wo.z == 0.0 {
             return 0.0;
         }
-        let p = self.p_specular(wo);
-        let spec = reflected_pdf(wo, wi, |h| self.microfacet.pdf_m(wo, h));
-        p * spec + (1.0 - p) * diffuse_pdf(wo, wi)
+        let (up, wi_up) = if wo.z < 0.0 {
+            (mirror(wo), mirror(wi))
+        } else {
+            (wo, wi)
+        };
+        let p = self.lobes(up);
+        let mut pdf = self.pdf_upper(&p, up, wi_up);
+        if p.interface > 0.0 {
+            pdf += p.interface * self.interface().bsdf().pdf(wo, wi, mode);
+        }
+        pdf
     }
 
     fn albedo(&self) -> Spectrum {

@@ -23,6 +23,7 @@ mod oren_nayar;
 mod phong;
 mod rough_dielectric;
 mod subsurface_exit;
+mod thin_dielectric;
 mod ward;
 
 #[cfg(test)]
@@ -46,6 +47,7 @@ pub use oren_nayar::OrenNayar;
 pub use phong::{Phong, PhongLobe};
 pub use rough_dielectric::RoughDielectric;
 pub use subsurface_exit::SubsurfaceExit;
+pub use thin_dielectric::ThinDielectric;
 pub use ward::{Ward, WardLobe};
 
 /// Whether the path carries radiance (from the camera) or importance (from a light): BTDFs
@@ -188,14 +190,19 @@ pub fn from_desc(kind: &MaterialKind) -> Box<dyn Bsdf> {
             v(specular),
             microfacet_of(&roughness),
         )),
-        MaterialKind::Dielectric { eta, roughness, .. } => {
-            if roughness.is_smooth() || eta == 1.0 {
-                Box::new(SmoothDielectric::new(eta))
-            } else {
-                Box::new(RoughDielectric::new(
-                    eta,
-                    microfacet_of(&roughness).expect("rough"),
-                ))
+        MaterialKind::Dielectric {
+            eta,
+            roughness,
+            tint,
+            thin,
+            ..
+        } => {
+            let tint = v(tint);
+            let mf = microfacet_of(&roughness);
+            match mf {
+                _ if thin => Box::new(ThinDielectric::new(eta, mf).with_tint(tint)),
+                Some(mf) if eta != 1.0 => Box::new(RoughDielectric::new(eta, mf).with_tint(tint)),
+                _ => Box::new(SmoothDielectric::new(eta).with_tint(tint)),
             }
         }
         MaterialKind::Mirror { reflectance } => Box::new(Mirror::new(v(reflectance))),
@@ -266,19 +273,23 @@ pub fn metallic_roughness_of(kind: &MaterialKind) -> Option<MetallicRoughness> {
         ior,
         specular_color,
         specular,
+        ref transmission,
         ..
     } = *kind
     else {
         return None;
     };
-    Some(MetallicRoughness::new(
-        base_color.into(),
-        metallic,
-        roughness,
-        ior,
-        specular_color.into(),
-        specular,
-    ))
+    Some(
+        MetallicRoughness::new(
+            base_color.into(),
+            metallic,
+            roughness,
+            ior,
+            specular_color.into(),
+            specular,
+        )
+        .with_transmission(transmission),
+    )
 }
 
 fn microfacet_of(r: &Roughness) -> Option<Microfacet> {

@@ -3,7 +3,8 @@
 //! reflection f_r = D G F / (4 |cos θi cos θo|); transmission
 //! f_t = D G (1 − F) |wi·m| |wo·m| / (|cos θi cos θo| (wi·m + wo·m/η′)²), divided by η′² when
 //! transporting radiance. Sampled by visible normals of wo, then reflection or refraction
-//! chosen by Fresnel.
+//! chosen by Fresnel. Transmission may be tinted (glTF's base colour), alike in both
+//! directions.
 
 use glam::{Vec2, Vec3A};
 
@@ -16,6 +17,8 @@ use crate::spectrum::Spectrum;
 pub struct RoughDielectric {
     eta: f32,
     mf: Microfacet,
+    /// What transmission keeps per channel.
+    tint: Spectrum,
 }
 
 /// The generalised half vector of a pair of directions and the relative IOR η′ seen from wo.
@@ -27,7 +30,16 @@ struct Half {
 
 impl RoughDielectric {
     pub fn new(eta: f32, mf: Microfacet) -> Self {
-        RoughDielectric { eta, mf }
+        RoughDielectric {
+            eta,
+            mf,
+            tint: Spectrum::ONE,
+        }
+    }
+
+    /// The interface with transmission scaled by `tint`.
+    pub fn with_tint(self, tint: Spectrum) -> Self {
+        RoughDielectric { tint, ..self }
     }
 
     fn half(&self, wo: Vec3A, wi: Vec3A) -> Option<Half> {
@@ -87,7 +99,8 @@ impl Bsdf for RoughDielectric {
             }
             ft
         };
-        Spectrum::splat(if value.is_finite() { value } else { 0.0 })
+        let value = Spectrum::splat(if value.is_finite() { value } else { 0.0 });
+        if reflect { value } else { value * self.tint }
     }
 
     fn sample(&self, wo: Vec3A, u_lobe: f32, u: Vec2, mode: TransportMode) -> Option<BsdfSample> {
@@ -147,6 +160,6 @@ impl Bsdf for RoughDielectric {
     }
 
     fn albedo(&self) -> Spectrum {
-        Spectrum::ONE
+        self.tint
     }
 }

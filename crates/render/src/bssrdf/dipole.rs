@@ -50,12 +50,7 @@ impl Medium {
     }
 }
 
-/// Diffuse Fresnel reflectance of the interface seen from inside a medium of relative index
-/// η > 1 (the polynomial fit Jensen et al. use, eq. 5 after Egan & Hilgeman):
-/// −1.440/η² + 0.710/η + 0.668 + 0.0636 η.
-pub fn fdr(eta: f64) -> f64 {
-    -1.440 / (eta * eta) + 0.710 / eta + 0.668 + 0.0636 * eta
-}
+pub use tessera_scene::media::fdr;
 
 /// The dipole of one channel.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -71,9 +71,9 @@ pub(crate) fn scatter(
 }
 
 /// Next-event estimation at `si`: one light chosen by power (`u.x`), one point on it
-/// (`u.y`, `u.z`), f·Li·|cos θi| / p toward `wo`; weighted by the power heuristic against BSDF
-/// sampling when `mis` (the caller then also counts emitters its BSDF samples hit).
-#[allow(clippy::too_many_arguments)]
+/// (`u.y`, `u.z`), f·Li·|cos θi| / p toward `wo`, weighted by the power heuristic against BSDF
+/// sampling (the caller also counts the emitters its BSDF samples hit, as [`direct_light`]
+/// does).
 #[inline]
 pub(crate) fn sample_direct(
     scene: &Scene,
@@ -82,7 +82,6 @@ pub(crate) fn sample_direct(
     frame: &Frame,
     wo: Vec3A,
     u: Vec3A,
-    mis: bool,
     stats: &mut RayStats,
 ) -> Spectrum {
     let mode = TransportMode::Radiance;
@@ -104,12 +103,74 @@ pub(crate) fn sample_direct(
         return Spectrum::ZERO;
     }
     let p_light = pmf * ls.pdf;
-    let w = if ls.delta || !mis {
+    let w = if ls.delta {
         1.0
     } else {
         power_heuristic(p_light, bsdf.pdf(wo_local, wi_local, mode))
     };
     f * ls.li * (w / p_light)
+}
+
+/// Direct light toward `wo` at `si`, for estimators that end the camera path there (photon
+/// mapping's gather point, SPPM's visible point): a light sample and a BSDF sample, combined
+/// by the power heuristic (Veach 1997, ch. 9). The BSDF sample counts only an emitter it
+/// meets first. Light sampling alone cannot see an emitter through a narrow glossy lobe (a
+/// polished or nearly smooth transmitting surface), which the BSDF sample finds.
+pub(crate) fn direct_light(
+    scene: &Scene,
+    si: &SurfaceInteraction,
+    material: &Material,
+    frame: &Frame,
+    wo: Vec3A,
+    sampler: &mut PixelSampler,
+    stats: &mut RayStats,
+) -> Spectrum {
+    use crate::sampler::Sampler;
+    let mut l = sample_direct(scene, si, material, frame, wo, sampler.get_3d(), stats);
+    let u = sampler.get_3d();
+    let wo_local = frame.to_local(wo);
+    let Some(bs) =
+        material
+            .bsdf_at(si)
+            .sample(wo_local, u.x, Vec2::new(u.y, u.z), TransportMode::Radiance)
+    else {
+        return l;
+    };
+    let wi = frame.to_world(bs.wi);
+    if !consistent(si, wo, wi, wo_local, bs.wi) {
+        return l;
+    }
+    stats.rays += 1;
+    // Weighted against light sampling's density of the same direction (a delta lobe only
+    // this sample can follow).
+    let weight = |p_light: f32| {
+        if bs.specular {
+            1.0
+        } else {
+            power_heuristic(bs.pdf, p_light)
+        }
+    };
+    let ray = si.spawn(wi);
+    let le = match scene.intersect(&ray) {
+        None => scene
+            .lights
+            .environment()
+            .map(|(i, light)| {
+                light.le_direction(ray.d)
+                    * weight(scene.lights.pmf(i) * light.pdf_li_direction(ray.d))
+            })
+            .fold(Spectrum::ZERO, |a, b| a + b),
+        Some(hit) if hit.light != crate::scene::NO_LIGHT => {
+            let light = scene.lights.get(hit.light);
+            light.le_surface(hit.ng, -wi, hit.p)
+                * weight(scene.lights.pmf(hit.light) * light.pdf_li_surface(si.p, hit.p, hit.ng))
+        }
+        Some(_) => Spectrum::ZERO,
+    };
+    if !is_black(le) {
+        l += bs.weight() * le;
+    }
+    l
 }
 
 /// The first surface a camera ray hit, for the AOVs.

@@ -193,7 +193,7 @@ impl PathIntegrator {
             // Next-event estimation: one light chosen by power, one point on it.
             if material.flags.smooth {
                 let u = sampler.get_3d();
-                l += beta * sample_direct(scene, &si, material, &frame, wo, u, true, stats);
+                l += beta * sample_direct(scene, &si, material, &frame, wo, u, stats);
             }
 
             // Continue the path by sampling the BSDF; the fourth value decides Russian roulette.
@@ -358,7 +358,7 @@ fn leave(
 ) -> (Spectrum, Option<Exit>) {
     let frame = Frame::from_normal(pi.ns);
     let u = sampler.get_3d();
-    let direct = sample_direct(scene, pi, exit_lobe, &frame, pi.ns, u, true, stats);
+    let direct = sample_direct(scene, pi, exit_lobe, &frame, pi.ns, u, stats);
     let u = sampler.get_4d();
     let exit = exit_lobe
         .bsdf

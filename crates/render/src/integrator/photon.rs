@@ -5,7 +5,7 @@
 //! sampling with MIS where a lobe has a density). At the first surface with a diffuse
 //! component, radiance is split (Jensen 2001 eq. 9.4):
 //!
-//! - direct light: next-event estimation, exact;
+//! - direct light: a light sample and a BSDF sample combined by MIS, exact;
 //! - caustics: the caustic map's radiance estimate (cone or Gaussian filter);
 //! - indirect diffuse: from the irradiance cache (Lambertian surfaces, where a record serves)
 //!   or by final gathering: rays sampled from the BSDF, followed through specular bounces, that
@@ -21,7 +21,7 @@ use tessera_scene::SceneDesc;
 use crate::analysis::Analysis;
 
 use super::{
-    Integrator, PathIntegrator, RadianceSample, RayStats, consistent, sample_direct, scatter,
+    Integrator, PathIntegrator, RadianceSample, RayStats, consistent, direct_light, scatter,
 };
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
@@ -392,8 +392,8 @@ impl PhotonIntegrator {
 
 impl Integrator for PhotonIntegrator {
     /// Path tracing through specular and glossy surfaces, ended at the first diffuse one by
-    /// direct light (light sampling alone: the path stops, so nothing else finds emitters),
-    /// caustics and indirect light.
+    /// direct light (a light and a BSDF sample: the path stops there, so only that BSDF sample
+    /// finds emitters), caustics and indirect light.
     fn li(
         &self,
         scene: &Scene,
@@ -408,8 +408,7 @@ impl Integrator for PhotonIntegrator {
                       wo: Vec3A,
                       sampler: &mut PixelSampler,
                       stats: &mut RayStats| {
-            let u = sampler.get_3d();
-            let direct = sample_direct(scene, si, material, frame, wo, u, false, stats);
+            let direct = direct_light(scene, si, material, frame, wo, sampler, stats);
             let caustic = self.maps.caustic.radiance(
                 si,
                 material,

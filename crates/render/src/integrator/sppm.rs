@@ -24,7 +24,7 @@ use std::ops::Range;
 use glam::{DVec3, UVec2, Vec3A};
 use rayon::prelude::*;
 
-use super::{RayStats, sample_direct, scatter};
+use super::{RayStats, direct_light, scatter};
 use crate::analysis::Analysis;
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
@@ -288,8 +288,7 @@ fn visible_point(
         }
         if material.flags.smooth {
             let frame = material.frame(&si, wo);
-            let u = sampler.get_3d();
-            l += beta * sample_direct(scene, &si, material, &frame, wo, u, false, stats);
+            l += beta * direct_light(scene, &si, material, &frame, wo, sampler, stats);
             return (l, w, Some(VisiblePoint { si, wo, beta }));
         }
         let Some((weight, next)) = scatter(&si, material, wo, sampler) else {

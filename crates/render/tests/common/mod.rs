@@ -279,3 +279,130 @@ pub fn load_gltf(doc: &serde_json::Value, side: u32) -> tessera_scene::SceneDesc
     d.film.height = side;
     d
 }
+
+/// A rectangle of [`quads_gltf`]: its centre and two half-extent vectors, u × v pointing
+/// where it faces (its normal), and its material's index. Texture coordinates run 0..1.
+#[allow(dead_code, reason = "used by the tests that write glTF files")]
+pub struct Quad {
+    pub centre: [f32; 3],
+    pub u: [f32; 3],
+    pub v: [f32; 3],
+    pub material: usize,
+}
+
+/// A glTF document of `quads` (one mesh each, POSITION and TEXCOORD_0) with `materials`,
+/// a perspective camera of vertical field `yfov` placed by `camera` (a node's translation
+/// and rotation), and KHR_lights_punctual `lights` each with its node's placement.
+#[allow(dead_code, reason = "used by the tests that write glTF files")]
+pub fn quads_gltf(
+    quads: &[Quad],
+    materials: Vec<serde_json::Value>,
+    camera: serde_json::Value,
+    yfov: f32,
+    lights: Vec<(serde_json::Value, serde_json::Value)>,
+) -> serde_json::Value {
+    use serde_json::json;
+    let mut b: Vec<u8> = Vec::new();
+    let (mut accessors, mut views, mut meshes, mut nodes) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut view = |b: &mut Vec<u8>, bytes: Vec<u8>| {
+        let offset = b.len();
+        b.extend(&bytes);
+        views.push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len()}));
+        views.len() - 1
+    };
+    for (k, q) in quads.iter().enumerate() {
+        let corner = |su: f32, sv: f32| -> [f32; 3] {
+            std::array::from_fn(|i| q.centre[i] + su * q.u[i] + sv * q.v[i])
+        };
+        let corners = [
+            corner(-1.0, -1.0),
+            corner(1.0, -1.0),
+            corner(1.0, 1.0),
+            corner(-1.0, 1.0),
+        ];
+        let positions: Vec<u8> = corners
+            .iter()
+            .flatten()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        let uvs: Vec<u8> = [0f32, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]
+            .iter()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        let indices: Vec<u8> = [0u16, 1, 2, 0, 2, 3, 0, 0]
+            .iter()
+            .flat_map(|i| i.to_le_bytes())
+            .collect();
+        let (lo, hi) = corners
+            .iter()
+            .fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), c| {
+                (
+                    std::array::from_fn(|i| lo[i].min(c[i])),
+                    std::array::from_fn(|i| hi[i].max(c[i])),
+                )
+            });
+        let p = view(&mut b, positions);
+        let t = view(&mut b, uvs);
+        let i = view(&mut b, indices);
+        let a = accessors.len();
+        accessors.push(json!({"bufferView": p, "componentType": 5126, "count": 4,
+                              "type": "VEC3", "min": lo, "max": hi}));
+        accessors.push(json!({"bufferView": t, "componentType": 5126, "count": 4,
+                              "type": "VEC2"}));
+        accessors.push(json!({"bufferView": i, "componentType": 5123, "count": 6,
+                              "type": "SCALAR"}));
+        meshes.push(json!({"primitives": [{
+            "attributes": {"POSITION": a, "TEXCOORD_0": a + 1}, "indices": a + 2,
+            "material": q.material}]}));
+        nodes.push(json!({"mesh": k}));
+    }
+    let mut camera_node = camera;
+    camera_node["camera"] = json!(0);
+    nodes.push(camera_node);
+    let mut punctual = Vec::new();
+    for (k, (mut node, light)) in lights.into_iter().enumerate() {
+        node["extensions"] = json!({"KHR_lights_punctual": {"light": k}});
+        nodes.push(node);
+        punctual.push(light);
+    }
+    let node_ids: Vec<usize> = (0..nodes.len()).collect();
+    let mut used = std::collections::BTreeSet::new();
+    for m in &materials {
+        if let Some(e) = m.get("extensions").and_then(|e| e.as_object()) {
+            used.extend(e.keys().cloned());
+        }
+    }
+    if !punctual.is_empty() {
+        used.insert("KHR_lights_punctual".to_string());
+    }
+    let mut doc = json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": used,
+        "scene": 0,
+        "scenes": [{"nodes": node_ids}],
+        "nodes": nodes,
+        "cameras": [{"type": "perspective",
+                     "perspective": {"yfov": yfov, "aspectRatio": 1.0, "znear": 0.01}}],
+        "meshes": meshes,
+        "materials": materials,
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": b.len(), "uri": data_uri(&b)}]
+    });
+    if !punctual.is_empty() {
+        doc["extensions"] = json!({"KHR_lights_punctual": {"lights": punctual}});
+    }
+    doc
+}
+
+/// The mean RGB of `desc` rendered by method `name` (`spp`, `seed`), as
+/// [`render_by_method`] renders it.
+#[allow(dead_code, reason = "used by the tests that run every method")]
+pub fn mean_rgb(desc: &tessera_scene::SceneDesc, name: &str, spp: u32, seed: u64) -> [f64; 3] {
+    let image = render_by_method(desc, name, spp, seed);
+    let n = image.pixels.len() as f64;
+    image.pixels.iter().fold([0.0f64; 3], |m, p| {
+        std::array::from_fn(|c| m[c] + p.rgb[c] as f64 / n)
+    })
+}

@@ -1,6 +1,9 @@
 //! glTF materials as Tessera materials: the metallic-roughness BRDF with KHR_materials_ior
-//! and KHR_materials_specular; transmissive ones (KHR_materials_transmission) as a dielectric
-//! interface; emission from `emissiveFactor` × KHR_materials_emissive_strength × the
+//! and KHR_materials_specular; fully transmissive ones (KHR_materials_transmission) as a
+//! dielectric interface, thin-walled without KHR_materials_volume, tinted by the base colour
+//! and absorbing inside by the volume's attenuation; partly transmissive ones (and
+//! KHR_materials_diffuse_transmission) as the BRDF with transmitting shares; a dense
+//! translucent solid (diffuse transmission through a volume) as a subsurface medium; emission from `emissiveFactor` × KHR_materials_emissive_strength × the
 //! emissive texture; alphaMode as coverage (MASK cut out at the cutoff, BLEND stochastic).
 //! The base colour, metallic-roughness, normal and emissive textures are read (with their
 //! samplers and KHR_texture_transform); the occlusion texture never (a rasteriser's stand-in
@@ -13,7 +16,8 @@ use glam::{Affine2, Vec2, Vec3};
 
 use super::{GltfError, buffers, named};
 use crate::desc::{
-    Coverage, CoverageMode, EmissionDesc, MaterialDesc, MaterialKind, PbrTextures, Roughness,
+    Coverage, CoverageMode, EmissionDesc, MaterialDesc, MaterialKind, PbrTextures, PbrTransmission,
+    Roughness,
 };
 use crate::source::SceneSource;
 use crate::texture::{self, TextureDesc, TextureImage, TextureRole, Wrap};
@@ -129,30 +133,65 @@ impl Transform {
     }
 }
 
-/// Transmission at or above this makes a material a dielectric interface.
+/// Diffuse transmission at or above this, through a volume, makes a material translucent.
 const TRANSMISSIVE: f32 = 0.5;
 
-/// The materials of `doc` by index, and what each emits.
+/// The materials of a glTF file by index, what each emits, and which are thin-walled only
+/// because the file does not say otherwise (transmission without KHR_materials_volume).
+pub(super) struct Materials {
+    pub(super) materials: Vec<MaterialDesc>,
+    pub(super) emission: Vec<Option<EmissionDesc>>,
+    pub(super) thin_by_default: Vec<bool>,
+}
+
+/// The materials of `doc`.
 pub(super) fn read(
     doc: &gltf::Document,
     images: &mut Images,
     warnings: &mut Vec<String>,
-) -> Result<(Vec<MaterialDesc>, Vec<Option<EmissionDesc>>), GltfError> {
-    let mut materials = Vec::new();
-    let mut emission = Vec::new();
+) -> Result<Materials, GltfError> {
+    let mut out = Materials {
+        materials: Vec::new(),
+        emission: Vec::new(),
+        thin_by_default: Vec::new(),
+    };
     for m in doc.materials() {
-        let index = m.index().unwrap_or(materials.len());
+        let index = m.index().unwrap_or(out.materials.len());
         let at = named("materials", index, m.name());
         let (kind, emits) = material(&m, &at, images, warnings)?;
-        materials.push(MaterialDesc {
+        out.thin_by_default
+            .push(m.volume().is_none() && thin_walled(&kind));
+        out.materials.push(MaterialDesc {
             name: m
                 .name()
                 .map_or_else(|| format!("material {index}"), str::to_string),
             kind,
         });
-        emission.push(emits);
+        out.emission.push(emits);
     }
-    Ok((materials, emission))
+    Ok(out)
+}
+
+/// Whether `kind` transmits specularly through a thin wall.
+fn thin_walled(kind: &MaterialKind) -> bool {
+    match kind {
+        MaterialKind::Dielectric { thin, .. } => *thin,
+        MaterialKind::MetallicRoughness { transmission, .. } => {
+            transmission.thin && transmission.specular > 0.0
+        }
+        _ => false,
+    }
+}
+
+/// `kind` as a solid with an interior instead of a thin wall.
+pub(super) fn solid(kind: &MaterialKind) -> MaterialKind {
+    let mut kind = kind.clone();
+    match &mut kind {
+        MaterialKind::Dielectric { thin, .. } => *thin = false,
+        MaterialKind::MetallicRoughness { transmission, .. } => transmission.thin = false,
+        _ => {}
+    }
+    kind
 }
 
 /// glTF's default material: white, fully metallic, fully rough (the specification's defaults).
@@ -167,6 +206,7 @@ pub(super) fn default_material() -> MaterialDesc {
             specular_color: Vec3::ONE,
             specular: 1.0,
             textures: Default::default(),
+            transmission: Default::default(),
         },
     }
 }
@@ -304,55 +344,89 @@ fn material(
         texture,
     });
 
-    let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
-    if transmission > 0.0 {
-        if transmission >= TRANSMISSIVE && metallic < 0.5 {
-            if transmission < 1.0 {
-                warnings.push(format!(
-                    "{at}: transmission {transmission} rendered as fully transmissive glass"
-                ));
-            }
-            // KHR_materials_volume: a solid object (thickness > 0) whose interior keeps
-            // attenuationColor after attenuationDistance (metres): σa = −ln(c) / d per metre.
-            // Without the extension, or with thickness 0, glTF means a thin wall; we render
-            // the closed meshes exporters write as solid glass either way, clear.
-            let absorption = match m.volume() {
-                Some(v) if v.thickness_factor() > 0.0 => {
-                    let d = v.attenuation_distance();
-                    let c = Vec3::from(v.attenuation_color());
-                    if d.is_finite() && d > 0.0 && c.min_element() < 1.0 {
-                        if c.min_element() <= 0.0 {
-                            return Err(GltfError::new(
-                                format!("{at} KHR_materials_volume.attenuationColor"),
-                                format!("expected components in (0, 1], got {c}"),
-                            ));
-                        }
-                        -c.min(Vec3::ONE).map(f32::ln) / d
-                    } else {
-                        Vec3::ZERO
-                    }
-                }
-                _ => Vec3::ZERO,
-            };
-            let roughness = Roughness::ggx(roughness);
-            if !maps.is_empty() {
-                warnings.push(format!(
-                    "{at}: textures of a transmissive material not applied"
-                ));
-            }
-            return Ok((
-                MaterialKind::Dielectric {
-                    eta: ior,
-                    roughness,
-                    absorption,
-                },
-                emits,
-            ));
-        }
+    let transmission = m
+        .transmission()
+        .map_or(0.0, |t| t.transmission_factor())
+        .clamp(0.0, 1.0);
+    if m.transmission()
+        .is_some_and(|t| t.transmission_texture().is_some())
+    {
         warnings.push(format!(
-            "{at}: transmission {transmission} below {TRANSMISSIVE} (or on a metal) ignored: opaque"
+            "{at}: transmissionTexture not read: the factor {transmission} applies everywhere"
         ));
     }
+    let diffuse = diffuse_transmission(m, at, warnings)?;
+    // KHR_materials_volume with a thickness: a solid object with an interior; without it
+    // glTF means a thin wall.
+    let volume = m.volume().filter(|v| v.thickness_factor() > 0.0);
+    let absorption = match &volume {
+        Some(v) => absorption(v, at)?,
+        None => Vec3::ZERO,
+    };
+    // A dense translucent solid (wax, skin, marble): the extension invites a diffusion
+    // approximation, which our subsurface material is.
+    if let (Some((d, _)), Some(v)) = (diffuse, &volume)
+        && d >= TRANSMISSIVE
+        && transmission < TRANSMISSIVE
+        && metallic < 0.5
+    {
+        let distance = v.attenuation_distance();
+        let mfp = if distance.is_finite() && distance > 0.0 {
+            distance
+        } else {
+            v.thickness_factor()
+        };
+        let (sigma_s_prime, sigma_a) =
+            crate::media::from_diffuse_reflectance(base_color.to_array(), mfp, ior);
+        warnings.push(format!(
+            "{at}: diffuse transmission {d} through a volume rendered as a subsurface medium \
+             (diffusion; Jensen & Buhler 2002's parameters): diffuse reflectance {base_color} \
+             (the base colour), diffuse mean free path {mfp} m ({}), σs′ {:?} and σa {:?} per \
+             metre",
+            if distance.is_finite() {
+                "attenuationDistance"
+            } else {
+                "thicknessFactor, as no attenuationDistance is given"
+            },
+            sigma_s_prime,
+            sigma_a
+        ));
+        return Ok((
+            MaterialKind::Subsurface {
+                sigma_s_prime: Vec3::from(sigma_s_prime),
+                sigma_a: Vec3::from(sigma_a),
+                eta: ior.min(3.0),
+                g: 0.0,
+            },
+            emits,
+        ));
+    }
+    // Clear or tinted glass: the exact (delta, if smooth) interface.
+    if transmission >= 1.0 && metallic == 0.0 && diffuse.is_none() && maps.is_empty() {
+        return Ok((
+            MaterialKind::Dielectric {
+                eta: ior,
+                roughness: Roughness::ggx(roughness),
+                absorption,
+                tint: base_color,
+                thin: volume.is_none(),
+            },
+            emits,
+        ));
+    }
+    if absorption.max_element() > 0.0 && transmission > 0.0 {
+        warnings.push(format!(
+            "{at}: KHR_materials_volume attenuation not applied: the material transmits only \
+             in part ({transmission}), or is textured or metallic, so it is rendered as the \
+             glTF BRDF with a clear transmitting share"
+        ));
+    }
+    let transmission = PbrTransmission {
+        specular: transmission,
+        diffuse: diffuse.map_or(0.0, |d| d.0),
+        diffuse_color: diffuse.map_or(Vec3::ONE, |d| d.1),
+        thin: volume.is_none(),
+    };
     Ok((
         MaterialKind::MetallicRoughness {
             base_color,
@@ -362,7 +436,80 @@ fn material(
             specular_color,
             specular,
             textures: maps,
+            transmission,
         },
         emits,
     ))
 }
+
+/// σa of a KHR_materials_volume interior that keeps attenuationColor c after
+/// attenuationDistance d (metres): −ln(c) / d per metre; zero without attenuation.
+fn absorption(v: &gltf::material::Volume, at: &str) -> Result<Vec3, GltfError> {
+    let d = v.attenuation_distance();
+    let c = Vec3::from(v.attenuation_color());
+    if !(d.is_finite() && d > 0.0 && c.min_element() < 1.0) {
+        return Ok(Vec3::ZERO);
+    }
+    if c.min_element() <= 0.0 {
+        return Err(GltfError::new(
+            format!("{at} KHR_materials_volume.attenuationColor"),
+            format!("expected components in (0, 1], got {c}"),
+        ));
+    }
+    Ok(-c.min(Vec3::ONE).map(f32::ln) / d)
+}
+
+/// KHR_materials_diffuse_transmission's factor and colour, if the material has it (the
+/// `gltf` crate leaves it unparsed).
+fn diffuse_transmission(
+    m: &gltf::Material,
+    at: &str,
+    warnings: &mut Vec<String>,
+) -> Result<Option<(f32, Vec3)>, GltfError> {
+    let Some(v) = m.extension_value(DIFFUSE_TRANSMISSION) else {
+        return Ok(None);
+    };
+    #[derive(serde::Deserialize)]
+    #[serde(rename_all = "camelCase")]
+    struct Ext {
+        #[serde(default)]
+        diffuse_transmission_factor: f32,
+        #[serde(default = "white")]
+        diffuse_transmission_color_factor: [f32; 3],
+        #[serde(default)]
+        diffuse_transmission_texture: Option<serde_json::Value>,
+        #[serde(default)]
+        diffuse_transmission_color_texture: Option<serde_json::Value>,
+    }
+    fn white() -> [f32; 3] {
+        [1.0; 3]
+    }
+    let here = format!("{at} {DIFFUSE_TRANSMISSION}");
+    let e: Ext = serde_json::from_value(v.clone()).map_err(|e| {
+        GltfError::new(
+            &here,
+            format!(
+                "expected diffuseTransmissionFactor (a number in [0, 1]) and \
+                 diffuseTransmissionColorFactor (three numbers in [0, 1]): {e}"
+            ),
+        )
+    })?;
+    let factor = e.diffuse_transmission_factor;
+    let color = Vec3::from(e.diffuse_transmission_color_factor);
+    if !((0.0..=1.0).contains(&factor) && color.min_element() >= 0.0 && color.max_element() <= 1.0)
+    {
+        return Err(GltfError::new(
+            here,
+            format!("expected a factor and colour in [0, 1], got {factor} and {color}"),
+        ));
+    }
+    if e.diffuse_transmission_texture.is_some() || e.diffuse_transmission_color_texture.is_some() {
+        warnings.push(format!(
+            "{here}: its textures are not read: the factors apply everywhere"
+        ));
+    }
+    Ok((factor > 0.0).then_some((factor, color)))
+}
+
+/// The glTF name of the diffuse transmission extension.
+pub(super) const DIFFUSE_TRANSMISSION: &str = "KHR_materials_diffuse_transmission";

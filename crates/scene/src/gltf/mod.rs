@@ -27,6 +27,7 @@ use crate::source::SceneSource;
 /// Extensions whose content we read (or whose absence of effect we state in a warning).
 pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
+    "KHR_materials_diffuse_transmission",
     "KHR_materials_emissive_strength",
     "KHR_materials_ior",
     "KHR_materials_specular",
@@ -149,7 +150,11 @@ pub fn load(source: &dyn SceneSource, name: &Path) -> Result<GltfScene, GltfErro
     let dir = name.parent().unwrap_or(Path::new(""));
     let data = buffers::load(doc, gltf.blob.as_deref(), source, dir)?;
     let mut images = materials::Images::new(&data, source, dir);
-    let (mut materials, emission) = materials::read(doc, &mut images, &mut warnings)?;
+    let materials::Materials {
+        mut materials,
+        mut emission,
+        thin_by_default,
+    } = materials::read(doc, &mut images, &mut warnings)?;
     let default_material = materials.len() as u32;
 
     let scene = match doc.default_scene() {
@@ -179,17 +184,23 @@ pub fn load(source: &dyn SceneSource, name: &Path) -> Result<GltfScene, GltfErro
         walk.node(&node, Mat4::IDENTITY, 0)?;
     }
     let Walk {
-        meshes,
+        mut meshes,
         cameras,
         lights,
         uses_default_material,
         ..
     } = walk;
-    let mut emission = emission;
     if uses_default_material {
         materials.push(materials::default_material());
         emission.push(None);
     }
+    solid_where_closed(
+        &mut meshes,
+        &mut materials,
+        &mut emission,
+        &thin_by_default,
+        &mut warnings,
+    );
     let camera = cameras.first().map(|(c, _)| *c);
     if cameras.len() > 1 {
         warnings.push(format!(
@@ -207,6 +218,73 @@ pub fn load(source: &dyn SceneSource, name: &Path) -> Result<GltfScene, GltfErro
         environment,
         warnings,
     })
+}
+
+/// Transmissive materials without KHR_materials_volume are thin walls by the glTF
+/// specification; exporters write them so for closed glass objects too (Blender's exporter
+/// does for every glass it exports, and Cycles renders it solid). A primitive whose mesh is
+/// closed takes its material as a solid (refracting into an interior); an open one (a window
+/// pane, a leaf) stays a thin wall. Each such choice is a warning, so it is never silent;
+/// KHR_materials_volume with a thickness states solid, and with thickness 0 states thin.
+fn solid_where_closed(
+    meshes: &mut [GltfMesh],
+    materials: &mut Vec<MaterialDesc>,
+    emission: &mut Vec<Option<EmissionDesc>>,
+    thin_by_default: &[bool],
+    warnings: &mut Vec<String>,
+) {
+    let mut twins: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+    for mesh in meshes.iter_mut() {
+        let m = mesh.material as usize;
+        if !thin_by_default.get(m).copied().unwrap_or(false) || !is_closed(mesh) {
+            continue;
+        }
+        let twin = *twins.entry(mesh.material).or_insert_with(|| {
+            let desc = &materials[m];
+            warnings.push(format!(
+                "material \"{}\" transmits without KHR_materials_volume, which makes it a thin \
+                 wall, but closed meshes use it: rendered solid on them (refracting into an \
+                 interior, as Cycles renders it); state KHR_materials_volume to choose",
+                desc.name
+            ));
+            let solid = MaterialDesc {
+                name: format!("{} (solid)", desc.name),
+                kind: materials::solid(&desc.kind),
+            };
+            materials.push(solid);
+            emission.push(emission[m].clone());
+            (materials.len() - 1) as u32
+        });
+        mesh.material = twin;
+    }
+}
+
+/// Whether a primitive's triangles close a volume: with corners welded by position, every
+/// edge is shared by exactly two triangles.
+fn is_closed(mesh: &GltfMesh) -> bool {
+    if mesh.triangles.is_empty() {
+        return false;
+    }
+    let mut ids: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+    let welded: Vec<u32> = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            let n = ids.len() as u32;
+            *ids.entry(p.to_array().map(f32::to_bits)).or_insert(n)
+        })
+        .collect();
+    let mut edges: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+    for t in &mesh.triangles {
+        let c = t.map(|i| welded[i as usize]);
+        for (a, b) in [(c[0], c[1]), (c[1], c[2]), (c[2], c[0])] {
+            if a == b {
+                continue;
+            }
+            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    !edges.is_empty() && edges.values().all(|&n| n == 2)
 }
 
 /// The scene's `extras.tessera_environment`, if it has one; other extras are the user's.

@@ -191,7 +191,7 @@ fn first_bad_line(text: &str, record: &str) -> Option<usize> {
                 corners.len() < 3
                     || corners.iter().any(|c| {
                         c.split('/').enumerate().any(|(k, s)| {
-                            !(s.is_empty() && k > 0) && !index_ok(s, defined[k.min(2)])
+                            !(index_ok(s, defined[k.min(2)]) || s.is_empty() && k > 0)
                         })
                     })
             }

@@ -79,9 +79,18 @@ impl Ctx<'_> {
         let metres_per_unit = out.metres_per_unit as f32;
         out.materials.extend(g.materials.iter().map(|m| {
             let mut kind = m.kind.clone();
-            // Absorption is per metre in glTF, per scene unit here.
-            if let MaterialKind::Dielectric { absorption, .. } = &mut kind {
-                *absorption *= metres_per_unit;
+            // Coefficients are per metre in glTF, per scene unit here.
+            match &mut kind {
+                MaterialKind::Dielectric { absorption, .. } => *absorption *= metres_per_unit,
+                MaterialKind::Subsurface {
+                    sigma_s_prime,
+                    sigma_a,
+                    ..
+                } => {
+                    *sigma_s_prime *= metres_per_unit;
+                    *sigma_a *= metres_per_unit;
+                }
+                _ => {}
             }
             MaterialDesc {
                 name: format!("{} / {}", s.file, m.name),

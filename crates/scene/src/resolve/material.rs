@@ -197,10 +197,23 @@ impl Ctx<'_> {
                     self.non_negative3(&format!("{path}.sigma_a_per_mm"), a.expand())
                         * (metres_per_unit * 1000.0) as f32
                 });
+                if m.thin && absorption.max_element() > 0.0 {
+                    self.problem(
+                        format!("{path}.sigma_a_per_mm"),
+                        "a thin sheet has no interior to absorb in; expected no sigma_a_per_mm \
+                         with `thin` (use `tint`)",
+                    );
+                }
+                let tint = match m.tint {
+                    Some(t) => self.albedo(&format!("{path}.tint"), t),
+                    None => Vec3::ONE,
+                };
                 MaterialKind::Dielectric {
                     eta: int / ext,
                     roughness,
                     absorption,
+                    tint,
+                    thin: m.thin,
                 }
             }
             "mirror" => {
@@ -243,6 +256,15 @@ impl Ctx<'_> {
                     ),
                     specular: unit(self, "specular", m.specular, 1.0),
                     textures: Default::default(),
+                    transmission: crate::PbrTransmission {
+                        specular: unit(self, "transmission", m.transmission, 0.0),
+                        diffuse: unit(self, "diffuse_transmission", m.diffuse_transmission, 0.0),
+                        diffuse_color: self.albedo(
+                            &format!("{path}.diffuse_transmission_color"),
+                            m.diffuse_transmission_color.unwrap_or(NumOrArray::One(1.0)),
+                        ),
+                        thin: m.thin,
+                    },
                 }
             }
             "subsurface" => {

@@ -295,6 +295,8 @@ impl Ctx<'_> {
                     eta: ior,
                     roughness: Roughness::ggx(roughness),
                     absorption: Vec3::ZERO,
+                    tint: Vec3::ONE,
+                    thin: false,
                 },
                 emits,
             );
@@ -324,6 +326,7 @@ impl Ctx<'_> {
                 specular_color,
                 specular,
                 textures,
+                transmission: Default::default(),
             },
             emits,
         )
