@@ -794,14 +794,22 @@ impl Scene {
     /// Whether nothing blocks the light sample `ls` as seen from `si`.
     pub fn unoccluded(&self, si: &SurfaceInteraction, ls: &LightSample) -> bool {
         match ls.target {
-            ShadowTarget::Infinite => {
-                let o = offset_ray_origin(si.p, si.p_error, si.ng, ls.wi);
-                !self.occluded(&Ray::new(o, ls.wi), f32::INFINITY)
-            }
+            ShadowTarget::Infinite => self.unoccluded_to_infinity((si.p, si.p_error, si.ng), ls.wi),
             ShadowTarget::Point { p, p_error, n } => {
                 self.unoccluded_between((si.p, si.p_error, si.ng), (p, p_error, n))
             }
         }
+    }
+
+    /// Whether nothing blocks the ray from a point (position, error bound, normal) along `w`
+    /// to infinity: the way to a light at infinity.
+    pub fn unoccluded_to_infinity(&self, (p, p_error, n): (Vec3A, Vec3A, Vec3A), w: Vec3A) -> bool {
+        let o = if n == Vec3A::ZERO {
+            p
+        } else {
+            offset_ray_origin(p, p_error, n, w)
+        };
+        !self.occluded(&Ray::new(o, w), f32::INFINITY)
     }
 
     /// Whether nothing blocks the segment between two points, each (position, error bound,

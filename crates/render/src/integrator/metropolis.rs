@@ -29,8 +29,6 @@ pub const GROUPS: u32 = 8;
 /// What [`render_groups`] needs of a Metropolis renderer's settings.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct ChainSettings {
-    /// For errors.
-    pub name: &'static str,
     pub max_depth: u32,
     /// The fewest brightness samples (more with the budget: a sixteenth of the mutations).
     pub bootstrap: u32,
@@ -51,7 +49,7 @@ pub(super) trait Chains: Sync {
     /// The context the chains run in (no roulette: chains fix the path length); refuses what
     /// the renderer does not support.
     fn ctx<'a>(&self, scene: &'a Scene, camera: &'a Camera) -> Result<Ctx<'a>, String> {
-        Ctx::new(self.settings().name, scene, camera, u32::MAX, true)
+        Ok(Ctx::new(scene, camera, u32::MAX))
     }
 
     /// Bootstrap path `i`'s weight (and what tracing it cost).
@@ -365,7 +363,7 @@ impl Metropolis {
     }
 
     /// Renders with `mutations` per pixel (every group) on the rayon pool; `progress` counts
-    /// mutations. Path-space MLT refuses lights at infinity.
+    /// mutations.
     pub fn render(
         &self,
         scene: &Scene,

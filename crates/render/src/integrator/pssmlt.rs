@@ -226,7 +226,6 @@ impl Chains for Pssmlt {
     fn settings(&self) -> ChainSettings {
         let depths = self.depths();
         ChainSettings {
-            name: "pssmlt",
             max_depth: self.max_depth,
             bootstrap: self.bootstrap,
             bootstrap_paths: (self.bootstrap as u64).div_ceil(depths) * depths,

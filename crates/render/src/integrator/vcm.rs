@@ -94,7 +94,7 @@ impl Vcm {
         range: SampleRange,
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<(BdptSums, RayStats), String> {
-        let ctx = Ctx::new("vcm", scene, camera, self.rr_depth, true)?;
+        let ctx = Ctx::new(scene, camera, self.rr_depth);
         let (w, h) = (scene.film.width, scene.film.height);
         let mut splats = Splats::new(w, h);
         // Each pixel's samples are added by one thread in iteration order: f64 sums are as
@@ -551,7 +551,7 @@ mod tests {
         let desc = tessera_scene::load(&root.join("cornell-box/scene.json")).expect("scene");
         let scene = Scene::build(&desc);
         let camera = Camera::new(&desc.camera, &desc.film);
-        let ctx = Ctx::new("vcm", &scene, &camera, 5, true).expect("a context");
+        let ctx = Ctx::new(&scene, &camera, 5);
         assert!(scene.material(0).flags.smooth, "material 0 is diffuse");
         let mut rng = Rng(0x2545_f491_4f6c_dd1d);
         let mut specular = 0;

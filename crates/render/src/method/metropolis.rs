@@ -92,15 +92,7 @@ impl MetropolisMethod {
 
 /// What path-space MLT does not support, refused before anything is queued.
 fn refuse_for_mlt(d: &tessera_scene::SceneDesc) -> Result<(), String> {
-    use tessera_scene::{Lens, LightDesc};
-    if d.lights.iter().any(|l| {
-        matches!(
-            l,
-            LightDesc::Directional { .. } | LightDesc::Environment { .. }
-        )
-    }) {
-        return Err("integrator.type: mlt does not support lights at infinity (environment, directional); use pssmlt or bdpt".into());
-    }
+    use tessera_scene::Lens;
     if matches!(d.camera.lens, Lens::Thin { aperture_radius, .. } if aperture_radius > 0.0) {
         return Err(
             "integrator.type: mlt supports pinhole cameras only; use pssmlt or bdpt".into(),

@@ -140,7 +140,7 @@ impl Ctx<'_> {
     /// For a light at infinity: of choosing it and the direction (per solid angle; an
     /// environment as every environment light together, as a path escaping sees them), and
     /// of the point on its disk, per unit area at `to`.
-    pub(super) fn pdf_le(&self, v: &Vertex, to: &Vertex) -> (f32, f32) {
+    pub(in crate::integrator) fn pdf_le(&self, v: &Vertex, to: &Vertex) -> (f32, f32) {
         let Some((i, light)) = self.light_of(v) else {
             return (0.0, 0.0);
         };
@@ -187,7 +187,7 @@ impl Ctx<'_> {
 
     /// Radiance an emitter vertex sends toward `to` (from a light at infinity: every
     /// environment light's along that direction).
-    pub(super) fn le(&self, v: &Vertex, to: &Vertex) -> Spectrum {
+    pub(in crate::integrator) fn le(&self, v: &Vertex, to: &Vertex) -> Spectrum {
         let Some((_, light)) = self.light_of(v) else {
             return Spectrum::ZERO;
         };

@@ -163,7 +163,7 @@ impl Bdpt {
         range: SampleRange,
         progress: &(dyn Fn(u64) + Sync),
     ) -> Result<(BdptSums, RayStats), String> {
-        let ctx = Ctx::new("bdpt", scene, camera, self.rr_depth, true)?;
+        let ctx = Ctx::new(scene, camera, self.rr_depth);
         let (w, h) = (scene.film.width, scene.film.height);
         let splats = Splats::new(w, h);
         // Each tile's fixed-point sums become compact as soon as it is done.

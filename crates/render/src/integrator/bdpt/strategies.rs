@@ -66,7 +66,7 @@ impl Bdpt {
         range: SampleRange,
         depth: u32,
     ) -> Result<Vec<StrategyImage>, String> {
-        let ctx = Ctx::new("bdpt", scene, camera, self.rr_depth, true)?;
+        let ctx = Ctx::new(scene, camera, self.rr_depth);
         let (w, h) = (scene.film.width, scene.film.height);
         let depth = depth.min(self.max_depth) as usize;
         let strategies: Vec<(usize, usize)> = (0..=depth)

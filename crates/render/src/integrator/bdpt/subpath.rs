@@ -24,24 +24,9 @@ pub(in crate::integrator) struct Ctx<'a> {
 }
 
 impl<'a> Ctx<'a> {
-    /// The context of `integrator` (named in the error) over `scene` seen by `camera`;
-    /// without `at_infinity`, refuses lights at infinity (path-space MLT's mutations do not
-    /// handle them).
-    pub(in crate::integrator) fn new(
-        integrator: &str,
-        scene: &'a Scene,
-        camera: &'a Camera,
-        rr_depth: u32,
-        at_infinity: bool,
-    ) -> Result<Self, String> {
-        if !at_infinity
-            && (0..scene.lights.len() as u32).any(|i| scene.lights.get(i).bounds().is_none())
-        {
-            return Err(format!(
-                "{integrator}: lights at infinity (environment, directional) are not supported yet; use the path integrator"
-            ));
-        }
-        Ok(Ctx {
+    /// The context over `scene` seen by `camera`, Russian roulette from `rr_depth` vertices.
+    pub(in crate::integrator) fn new(scene: &'a Scene, camera: &'a Camera, rr_depth: u32) -> Self {
+        Ctx {
             scene,
             camera,
             rr_depth,
@@ -49,7 +34,7 @@ impl<'a> Ctx<'a> {
                 center: scene.center,
                 radius: scene.radius,
             },
-        })
+        }
     }
 
     pub(in crate::integrator) fn light_of(&self, v: &Vertex) -> Option<(u32, &Light)> {

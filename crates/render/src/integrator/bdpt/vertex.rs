@@ -26,6 +26,7 @@ pub(in crate::integrator) struct Vertex {
     /// Shading normal (the geometric one where there is no surface to shade).
     pub(in crate::integrator) ns: Vec3A,
     /// For surfaces: the hit, and the direction toward the previous vertex of the subpath.
+    /// For a light at infinity: the unit direction toward it.
     pub(in crate::integrator) si: Option<SurfaceInteraction>,
     pub(in crate::integrator) wo: Vec3A,
     pub(in crate::integrator) beta: Spectrum,
@@ -73,7 +74,12 @@ impl Vertex {
     }
 
     /// A light at infinity seen from `from` in direction `wi`.
-    pub(super) fn at_infinity(light: u32, from: Vec3A, wi: Vec3A, beta: Spectrum) -> Self {
+    pub(in crate::integrator) fn at_infinity(
+        light: u32,
+        from: Vec3A,
+        wi: Vec3A,
+        beta: Spectrum,
+    ) -> Self {
         let mut v = Vertex::point(
             Kind::Light(light),
             from + wi,
@@ -83,6 +89,7 @@ impl Vertex {
             0.0,
         );
         v.infinite = true;
+        v.wo = wi;
         v
     }
 

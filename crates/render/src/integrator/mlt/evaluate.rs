@@ -41,17 +41,36 @@ impl Mlt {
         };
         let w01 = dir(&x[0], &x[1]);
         // A point or spot light: a delta in position (its density 1 in the discrete
-        // measure), intensity instead of radiance, no cosine, never hit from the eye side.
+        // measure), intensity instead of radiance, no cosine, never hit from the eye side. A
+        // directional light alike, in direction, with irradiance.
         let point = ctx.is_delta_light(&x[0]);
-        let le = if point {
-            light.intensity(w01)
-        } else {
-            light.le_surface(x[0].ng, w01, x[0].p)
+        // A light at infinity: a direction (density per solid angle), the next vertex's
+        // density per unit area of its disk; no distance and no cosine at the light.
+        let infinite = x[0].infinite;
+        let pmf = ctx.scene.lights.pmf(li);
+        let le = match (infinite, point) {
+            (true, true) => match light.sample_li(x[1].p, Vec2::ZERO) {
+                Some(ls) if ls.wi.dot(x[0].wo) > 1.0 - 1e-4 => ls.li,
+                _ => return false,
+            },
+            (true, false) => ctx.le(&x[0], &x[1]),
+            (false, true) => light.intensity(w01),
+            (false, false) => light.le_surface(x[0].ng, w01, x[0].p),
         };
-        let (pos, pdf_dir) = light.pdf_le(x[0].ng, w01, ctx.bounds);
-        let pos = if point { 1.0 } else { pos };
-        e.pa_fwd[0] = (ctx.scene.lights.pmf(li) * pos) as f64;
-        e.sel_fwd[0] = pdf_dir as f64;
+        let (pa0, sel0) = if infinite {
+            let disk = light.pdf_le(w01, w01, ctx.bounds).0;
+            let direction = if point {
+                pmf
+            } else {
+                ctx.pdf_le(&x[0], &x[1]).0
+            };
+            (direction, disk)
+        } else {
+            let (pos, pdf_dir) = light.pdf_le(x[0].ng, w01, ctx.bounds);
+            (pmf * if point { 1.0 } else { pos }, pdf_dir)
+        };
+        e.pa_fwd[0] = pa0 as f64;
+        e.sel_fwd[0] = sel0 as f64;
         // Edges: G and the per-area conversions toward each end.
         for i in 0..k {
             let d = x[i + 1].p - x[i].p;
@@ -60,7 +79,8 @@ impl Mlt {
                 return false;
             }
             let wn = d / d2.sqrt();
-            let ca = if i == 0 && point {
+            let d2 = if i == 0 && infinite { 1.0 } else { d2 };
+            let ca = if i == 0 && (point || infinite) {
                 1.0
             } else {
                 x[i].ng.dot(wn).abs() as f64

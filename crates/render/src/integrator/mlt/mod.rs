@@ -36,9 +36,16 @@
 //! for the farm). The chains (1000, seeded (seed, chain)) start from paths resampled from a
 //! bootstrap of independent BDPT paths (one strategy and depth each, weight f / Σ_s p_s) in
 //! proportion to their weight, which removes start-up bias as the bootstrap grows (Veach
-//! §11.3.3). Pinhole cameras only; area, point and spot lights (a point light's vertex is a
-//! delta in position: density 1 in the discrete measure, intensity for radiance, no cosine,
-//! never hit from the eye side), not lights at infinity.
+//! §11.3.3). Pinhole cameras only; every light: area, point and spot lights (a point light's
+//! vertex is a delta in position: density 1 in the discrete measure, intensity for radiance,
+//! no cosine, never hit from the eye side), and lights at infinity, whose vertex is a
+//! direction: the environment's density per solid angle, the next vertex's per unit area of
+//! the disk it emits from (projected), no distance and no cosine at the light in G; a
+//! directional light is a delta in direction as a point light is in position (irradiance for
+//! radiance). Its stand-in point moves with its neighbour ([`anchor`]); a join to it is a ray
+//! to infinity; an eye path that leaves the scene ends on the environment. The caustic
+//! perturbation does not turn a light at infinity's direction (the bidirectional mutation
+//! changes it).
 
 use glam::{Vec2, Vec3A};
 use rayon::prelude::*;
@@ -115,13 +122,14 @@ fn lens_perturbation_start(x: &[Vertex]) -> Option<usize> {
 }
 
 /// The vertex whose outgoing direction a caustic perturbation turns: x_c of a path ending
-/// x_c S⁺ D E (x_c a light or non-specular).
+/// x_c S⁺ D E (x_c a light not at infinity, or non-specular).
 fn caustic_start(x: &[Vertex]) -> Option<usize> {
     let k = x.len() - 1;
     if k < 3 || x[k - 1].delta || !x[k - 2].delta {
         return None;
     }
-    Some((0..k - 2).rev().find(|&i| !x[i].delta).unwrap_or(0))
+    let c = (0..k - 2).rev().find(|&i| !x[i].delta).unwrap_or(0);
+    (c > 0 || !x[0].infinite).then_some(c)
 }
 
 /// The probability of each mutation at path `x`: [`MUTATIONS`] over those that apply. (A
@@ -207,6 +215,36 @@ fn spawn(v: &Vertex, d: Vec3A) -> Ray {
     }
 }
 
+/// Places a light at infinity that starts `path` one unit from its neighbour along the
+/// direction it stands for (the vertex is a direction: its stand-in point moves with the
+/// neighbour, as mutations move that).
+fn anchor(path: &mut [Vertex]) {
+    if let [x0, x1, ..] = path
+        && x0.infinite
+    {
+        x0.p = x1.p + x0.wo;
+    }
+}
+
+/// Whether the join between light-side vertex `a` and eye-side vertex `b` is clear: the
+/// segment, or toward a light at infinity the ray from `b` to infinity.
+fn visible(ctx: &Ctx, a: &Vertex, b: &Vertex) -> bool {
+    if a.infinite {
+        ctx.scene.unoccluded_to_infinity(b.end(), a.wo)
+    } else {
+        ctx.scene.unoccluded_between(a.end(), b.end())
+    }
+}
+
+/// What a ray leaving the scene ends on: the environment, as a path's light vertex.
+fn escape(ctx: &Ctx, ray: &Ray) -> Option<Vertex> {
+    ctx.scene
+        .lights
+        .environment()
+        .next()
+        .map(|(env, _)| Vertex::at_infinity(env, ray.o, ray.d, Spectrum::ONE))
+}
+
 /// Whether a path vertex scatters through a specular lobe (its two directions are reflected
 /// or refracted images of each other).
 fn transmits(x: &[Vertex], i: usize) -> bool {
@@ -218,7 +256,6 @@ impl Chains for Mlt {
 
     fn settings(&self) -> ChainSettings {
         ChainSettings {
-            name: "mlt",
             max_depth: self.max_depth,
             bootstrap: self.bootstrap,
             bootstrap_paths: self.bootstrap as u64,
@@ -227,9 +264,9 @@ impl Chains for Mlt {
         }
     }
 
-    /// Only pinhole cameras, and no lights at infinity.
+    /// Only pinhole cameras.
     fn ctx<'a>(&self, scene: &'a Scene, camera: &'a Camera) -> Result<Ctx<'a>, String> {
-        let ctx = Ctx::new("mlt", scene, camera, u32::MAX, false)?;
+        let ctx = Ctx::new(scene, camera, u32::MAX);
         if camera.has_aperture() {
             return Err("mlt: only pinhole cameras are supported (its lens mutations assume one); use pssmlt or bdpt".into());
         }
@@ -334,6 +371,7 @@ impl Mlt {
         x.clear();
         x.extend_from_slice(y);
         x.extend(eye.iter().rev());
+        anchor(x);
         // The join's ends scatter nowhere yet.
         if s >= 2 {
             x[s - 1].delta = false;
@@ -343,7 +381,7 @@ impl Mlt {
         }
         if s > 0 {
             stats.rays += 1;
-            if !ctx.scene.unoccluded_between(x[s - 1].end(), x[s].end()) {
+            if !visible(ctx, &x[s - 1], &x[s]) {
                 return (0.0, 0);
             }
         }

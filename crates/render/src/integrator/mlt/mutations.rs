@@ -140,8 +140,14 @@ impl Mlt {
             eye.pop();
         }
         while let Some(r) = ray.take() {
-            let Some(v) = trace(ctx, &r, stats) else {
-                return 0.0;
+            let v = match trace(ctx, &r, stats) {
+                Some(v) => v,
+                // The new light end (l = −1, j = 0) may be the environment.
+                None if l < 0 && j == 0 && eye.len() == e => match escape(ctx, &r) {
+                    Some(v) => v,
+                    None => return 0.0,
+                },
+                None => return 0.0,
             };
             eye.push(v);
             if eye.len() == e + 1 {
@@ -161,11 +167,12 @@ impl Mlt {
         y.extend(eye.iter().rev());
         y.extend_from_slice(&x[m + 1..]);
         debug_assert_eq!(y.len(), ky + 1);
+        anchor(y);
         // The join (none when the eye side ran into a light, l = −1 and j = 0).
         let s = first + j;
         if s > 0 {
             stats.rays += 1;
-            if !ctx.scene.unoccluded_between(y[s - 1].end(), y[s].end()) {
+            if !visible(ctx, &y[s - 1], &y[s]) {
                 return 0.0;
             }
         }
@@ -224,8 +231,9 @@ impl Mlt {
         y.clear();
         y.extend_from_slice(&x[..q]);
         y.extend(eye.iter().rev());
+        anchor(y);
         stats.rays += 1;
-        if !scene.unoccluded_between(y[q - 1].end(), y[q].end()) {
+        if !visible(ctx, &y[q - 1], &y[q]) {
             return 0.0;
         }
         if !self.evaluate(ctx, y, ey) || ex.c[q] <= 0.0 {
@@ -266,8 +274,9 @@ impl Mlt {
         y.clear();
         y.extend_from_slice(&x[..q]);
         y.extend(eye.iter().rev());
+        anchor(y);
         stats.rays += 1;
-        if !ctx.scene.unoccluded_between(y[q - 1].end(), y[q].end()) {
+        if !visible(ctx, &y[q - 1], &y[q]) {
             return 0.0;
         }
         if !self.evaluate(ctx, y, ey) {
