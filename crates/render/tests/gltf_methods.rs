@@ -5,8 +5,7 @@
 
 mod common;
 
-use common::{error_against, render_by_method};
-use tessera_render::method;
+use common::render_by_method;
 use tessera_scene::MaterialKind;
 
 #[test]
@@ -46,43 +45,5 @@ fn every_method_renders_the_gltf_materials_and_delta_lights_as_the_path_tracer_d
         height: 36,
         pixels: reference.pixels.iter().map(|p| p.rgb.into()).collect(),
     };
-    let mut report = Vec::new();
-    let mut failures = Vec::new();
-    for name in method::names() {
-        // `direct` is direct light only, by definition; `auto` plans one of the others.
-        if name == "direct" || name == "auto" {
-            continue;
-        }
-        let means: Vec<f64> = [2, 3]
-            .iter()
-            .map(|&seed| {
-                let image = render_by_method(&desc, name, 256, seed);
-                error_against(&image, &reference).1
-            })
-            .collect();
-        let mean = (means[0] + means[1]) / 2.0;
-        // The noise of the two renders' mean, from their difference (σ of one render's mean
-        // ratio ≈ |m₂ − m₃|/√2, of the average of two σ/√2), with a floor for a pair that
-        // happened to agree; plus, for the density-estimation methods, their kernel bias.
-        let sigma = ((means[0] - means[1]).abs() / 2.0).max(0.003);
-        let bias = if matches!(name, "photon" | "sppm") {
-            0.015
-        } else {
-            0.0
-        };
-        let tolerance = 4.0 * sigma + bias;
-        report.push(format!(
-            "{name}: mean ratio {:.4} and {:.4}, tolerance {tolerance:.4}",
-            means[0], means[1]
-        ));
-        if (mean - 1.0).abs() > tolerance {
-            failures.push(name);
-        }
-    }
-    println!("{}", report.join("\n"));
-    assert!(
-        failures.is_empty(),
-        "{failures:?} disagree with the path tracer:\n{}",
-        report.join("\n")
-    );
+    common::assert_every_method_agrees(&desc, &reference);
 }

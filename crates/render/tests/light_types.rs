@@ -27,7 +27,6 @@ use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::integrator::bdpt::Bdpt;
 use tessera_render::integrator::metropolis::Metropolis;
-use tessera_render::integrator::mlt::Mlt;
 use tessera_render::metrics::compare;
 use tessera_render::{Image, Scene};
 use tessera_scene::SceneDesc;
@@ -150,15 +149,7 @@ fn vcm_and_the_metropolis_renderers_agree_with_the_path_tracer_under_sky_and_sun
     // Path-space MLT: its bootstrap (paths weighted by its own f and densities, a light at
     // infinity's vertex a direction) estimates the brightness BDPT does, and its chains
     // converge to the path tracer's image.
-    let ((m, m_se), (b, b_se)) = pool()
-        .install(|| Mlt::new(&desc).brightness_check(&scene, &camera, 1_000_000))
-        .expect("runs under lights at infinity");
-    let z = (m - b) / (m_se * m_se + b_se * b_se).sqrt();
-    eprintln!("sky and sun: bootstrap {m:.5e} ± {m_se:.1e}, bdpt {b:.5e} ± {b_se:.1e}, z {z:.2}");
-    assert!(
-        z.abs() < 4.0,
-        "the estimates differ by {z:.1} standard errors"
-    );
+    common::assert_bootstrap_agrees_with_bdpt("sky and sun", &desc, 1_000_000);
     let mlt = Metropolis::new("mlt", &desc).expect("mlt");
     let (image, _) = pool()
         .install(|| mlt.render(&scene, &camera, 256, &|_| {}))
@@ -233,8 +224,7 @@ fn bidirectional_renderers_converge_under_point_and_spot_lights() {
 
 /// Every method of the registry, each by its own plan, tasks and fold, on the ball and
 /// floor lit only by a sky map and the three delta lights (a sun, a point and a spot light),
-/// agrees with the path tracer: the mean of two seeds within four times their spread (a
-/// floor of 0.3 %), plus the kernel bias of the density-estimation methods.
+/// agrees with the path tracer.
 #[test]
 fn every_method_agrees_under_a_sky_map_and_delta_lights() {
     let lights = r#"{ "type": "environment", "file": "sky.exr", "radiance": 0.3 },
@@ -244,43 +234,10 @@ fn every_method_agrees_under_a_sky_map_and_delta_lights() {
       "falloff_start_deg": 15, "intensity": 8 }"#;
     let desc = sky("sky-map-and-delta-lights", "ball", lights);
     let reference = path_traced(&desc, 4096);
-    let mut report = Vec::new();
-    let mut failures = Vec::new();
-    for name in tessera_render::method::names() {
-        // `direct` is direct light only, by definition; `auto` plans one of the others.
-        if name == "direct" || name == "auto" {
-            continue;
-        }
-        let means: Vec<f64> = [2, 3]
-            .iter()
-            .map(|&seed| {
-                error(
-                    &common::render_by_method(&desc, name, 256, seed),
-                    &reference,
-                )
-                .1
-            })
-            .collect();
-        let mean = (means[0] + means[1]) / 2.0;
-        let sigma = ((means[0] - means[1]).abs() / 2.0).max(0.003);
-        let bias = if matches!(name, "photon" | "sppm") {
-            0.015
-        } else {
-            0.0
-        };
-        let tolerance = 4.0 * sigma + bias;
-        report.push(format!(
-            "{name}: mean ratio {:.4} and {:.4}, tolerance {tolerance:.4}",
-            means[0], means[1]
-        ));
-        if (mean - 1.0).abs() > tolerance {
-            failures.push(name);
-        }
-    }
-    println!("{}", report.join("\n"));
-    assert!(
-        failures.is_empty(),
-        "{failures:?} disagree with the path tracer:\n{}",
-        report.join("\n")
-    );
+    let reference = tessera_scene::image::RgbImage {
+        width: reference.width,
+        height: reference.height,
+        pixels: reference.pixels.iter().map(|p| p.rgb.into()).collect(),
+    };
+    common::assert_every_method_agrees(&desc, &reference);
 }

@@ -7,10 +7,7 @@
 
 mod common;
 
-use common::{pool, scene_and_reference};
-use tessera_render::Scene;
-use tessera_render::camera::Camera;
-use tessera_render::integrator::mlt::Mlt;
+use common::scene_and_reference;
 
 /// On cornell-glass the bootstrap's weights are too heavy-tailed for this check (the largest
 /// of 4 M weighs 2·10⁴ times the mean, the top 0.25 % carry half the total), so its standard
@@ -19,20 +16,10 @@ use tessera_render::integrator::mlt::Mlt;
 #[test]
 fn bootstrap_weights_estimate_the_same_brightness_as_bdpt() {
     let (desc, _) = scene_and_reference("cornell-box");
-    let scene = Scene::build(&desc);
-    let camera = Camera::new(&desc.camera, &desc.film);
-    let ((m, m_se), (b, b_se)) = pool()
-        .install(|| Mlt::new(&desc).brightness_check(&scene, &camera, 2_000_000))
-        .expect("runs");
-    let z = (m - b) / (m_se * m_se + b_se * b_se).sqrt();
-    eprintln!("cornell-box: bootstrap {m:.5e} ± {m_se:.1e}, bdpt {b:.5e} ± {b_se:.1e}, z {z:.2}");
+    let relative_error = common::assert_bootstrap_agrees_with_bdpt("cornell-box", &desc, 2_000_000);
     assert!(
-        z.abs() < 4.0,
-        "the estimates differ by {z:.1} standard errors"
-    );
-    assert!(
-        m_se < 0.01 * m,
-        "the check is too coarse: ± {m_se:e} of {m:e}"
+        relative_error < 0.01,
+        "the check is too coarse: ± {relative_error:e} of the estimate"
     );
 }
 

@@ -406,3 +406,74 @@ pub fn mean_rgb(desc: &tessera_scene::SceneDesc, name: &str, spp: u32, seed: u64
         std::array::from_fn(|c| m[c] + p.rgb[c] as f64 / n)
     })
 }
+
+/// Asserts that every method of the registry but `direct` (direct light only, by definition)
+/// and `auto` (which plans one of the others), each by its own plan, tasks and fold at 256
+/// samples, agrees with `reference` (the path tracer's, much longer): the mean ratio of two
+/// seeds within four times their spread (a floor of 0.3 %), plus the kernel bias of the
+/// density-estimation methods. Prints each method's figures.
+#[allow(dead_code, reason = "used by the tests that run every method")]
+pub fn assert_every_method_agrees(
+    desc: &tessera_scene::SceneDesc,
+    reference: &tessera_scene::image::RgbImage,
+) {
+    let mut report = Vec::new();
+    let mut failures = Vec::new();
+    for name in tessera_render::method::names() {
+        if name == "direct" || name == "auto" {
+            continue;
+        }
+        let means: Vec<f64> = [2, 3]
+            .iter()
+            .map(|&seed| error_against(&render_by_method(desc, name, 256, seed), reference).1)
+            .collect();
+        let mean = (means[0] + means[1]) / 2.0;
+        // The noise of the two renders' mean, from their difference (σ of one render's mean
+        // ratio ≈ |m₂ − m₃|/√2, of the average of two σ/√2), with a floor for a pair that
+        // happened to agree.
+        let sigma = ((means[0] - means[1]).abs() / 2.0).max(0.003);
+        let bias = if matches!(name, "photon" | "sppm") {
+            0.015
+        } else {
+            0.0
+        };
+        let tolerance = 4.0 * sigma + bias;
+        report.push(format!(
+            "{name}: mean ratio {:.4} and {:.4}, tolerance {tolerance:.4}",
+            means[0], means[1]
+        ));
+        if (mean - 1.0).abs() > tolerance {
+            failures.push(name);
+        }
+    }
+    println!("{}", report.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{failures:?} disagree with the path tracer:\n{}",
+        report.join("\n")
+    );
+}
+
+/// Asserts that path-space MLT's bootstrap (`n` paths weighted by its own f and densities)
+/// estimates the brightness BDPT does, within four standard errors, and prints both.
+#[allow(dead_code, reason = "used by the Metropolis tests")]
+pub fn assert_bootstrap_agrees_with_bdpt(
+    what: &str,
+    desc: &tessera_scene::SceneDesc,
+    n: u64,
+) -> f64 {
+    let scene = tessera_render::Scene::build(desc);
+    let camera = tessera_render::camera::Camera::new(&desc.camera, &desc.film);
+    let ((m, m_se), (b, b_se)) = pool()
+        .install(|| {
+            tessera_render::integrator::mlt::Mlt::new(desc).brightness_check(&scene, &camera, n)
+        })
+        .expect("runs");
+    let z = (m - b) / (m_se * m_se + b_se * b_se).sqrt();
+    eprintln!("{what}: bootstrap {m:.5e} ± {m_se:.1e}, bdpt {b:.5e} ± {b_se:.1e}, z {z:.2}");
+    assert!(
+        z.abs() < 4.0,
+        "the estimates differ by {z:.1} standard errors"
+    );
+    m_se / m
+}
