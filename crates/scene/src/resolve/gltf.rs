@@ -27,8 +27,10 @@ impl Ctx<'_> {
                 let shown = ctx.source.display_path(rel);
                 match crate::gltf::load(ctx.source, rel) {
                     Ok(g) => {
+                        // Named as the scene names the file: warnings become the job's
+                        // decisions and the EXR header, alike wherever the scene is read.
                         for w in &g.warnings {
-                            ctx.warnings.push(format!("{}: {w}", shown.display()));
+                            ctx.warnings.push(format!("{}: {w}", rel.display()));
                         }
                         Some(g)
                     }
