@@ -4,96 +4,18 @@
 //! bit-identical to `tessera render` of the same frame, and no finished tile may be rendered
 //! twice.
 
-use std::io::{BufRead, BufReader};
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
+use common::*;
 use tessera_farm::client::Client;
 use tessera_farm::protocol::{JobState, JobStatus};
 
-const CLIENT_TOKEN: &str = "client-secret";
-const WORKER_TOKEN: &str = "worker-secret";
-
-fn exe() -> &'static str {
-    env!("CARGO_BIN_EXE_tessera")
-}
-
 fn flythrough() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-flythrough/scene.json")
-}
-
-/// A child process that is killed when dropped (a failing test leaves nothing behind).
-struct Proc(Child);
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-/// Starts `tessera serve` on `listen` and returns it with its URL (read from its first line).
-fn serve(data: &Path, listen: &str, lease_seconds: &str) -> (Proc, String) {
-    serve_with(data, listen, lease_seconds, &[])
-}
-
-/// `serve` with extra arguments.
-fn serve_with(data: &Path, listen: &str, lease_seconds: &str, extra: &[&str]) -> (Proc, String) {
-    let mut child = Command::new(exe())
-        .args([
-            "serve",
-            "--listen",
-            listen,
-            "--lease-seconds",
-            lease_seconds,
-        ])
-        .args(extra)
-        .arg("--data")
-        .arg(data)
-        .args([
-            "--client-token",
-            CLIENT_TOKEN,
-            "--worker-token",
-            WORKER_TOKEN,
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start tessera serve");
-    let stdout = child.stdout.take().expect("stdout");
-    let mut line = String::new();
-    BufReader::new(stdout).read_line(&mut line).expect("read");
-    let url = line
-        .trim()
-        .rsplit(' ')
-        .next()
-        .filter(|u| u.starts_with("http://"))
-        .unwrap_or_else(|| panic!("no URL in {line:?}"))
-        .to_string();
-    (Proc(child), url)
-}
-
-/// Starts `tessera worker` with one slot, logging to `log`.
-fn worker(url: &str, name: &str, log: &Path) -> Proc {
-    let log = std::fs::File::create(log).expect("log file");
-    Proc(
-        Command::new(exe())
-            .args(["worker", "--coordinator", url, "--token", WORKER_TOKEN])
-            .args(["--name", name, "--slots", "1"])
-            .env("RUST_LOG", "info")
-            .stdout(Stdio::null())
-            .stderr(log)
-            .spawn()
-            .expect("start tessera worker"),
-    )
-}
-
-fn runtime() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .expect("runtime")
 }
 
 /// Submits frames 1-3 of the fly-through with `tile` and `spp`; returns the job id.
@@ -114,106 +36,6 @@ fn submit(url: &str, tile: u32, spp: u32) -> i64 {
 /// Submits the fly-through with `args`; returns the job id.
 fn submit_with(url: &str, args: &[&str]) -> i64 {
     submit_scene(url, &flythrough(), args)
-}
-
-/// Submits `scene` with `args`; returns the job id.
-fn submit_scene(url: &str, scene: &Path, args: &[&str]) -> i64 {
-    let o = Command::new(exe())
-        .arg("submit")
-        .arg(scene)
-        .args(["--coordinator", url, "--token", CLIENT_TOKEN])
-        .args(args)
-        .output()
-        .expect("run tessera submit");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let out = String::from_utf8_lossy(&o.stdout);
-    out.split_whitespace()
-        .nth(1)
-        .and_then(|id| id.parse().ok())
-        .unwrap_or_else(|| panic!("no job id in {out}"))
-}
-
-/// `tessera render SCENE -q ARGS -o OUT`; returns the EXR's bytes.
-fn render_locally(scene: &Path, args: &[&str], out: &Path) -> Vec<u8> {
-    let o = Command::new(exe())
-        .arg("render")
-        .arg(scene)
-        .arg("-o")
-        .arg(out)
-        .arg("-q")
-        .args(args)
-        .output()
-        .expect("run tessera render");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    std::fs::read(out).expect("rendered frame")
-}
-
-/// `tessera submit SCENE --wait ARGS` through `url`, downloaded into `dir/LABEL`, and
-/// `tessera render SCENE ARGS`: the frames must be the same bytes. Returns the job id and the
-/// farm's frame.
-fn submit_and_compare(
-    url: &str,
-    scene: &Path,
-    label: &str,
-    args: &[&str],
-    dir: &Path,
-) -> (i64, Vec<u8>) {
-    let out = dir.join(label);
-    let o = Command::new(exe())
-        .arg("submit")
-        .arg(scene)
-        .args([
-            "--coordinator",
-            url,
-            "--token",
-            CLIENT_TOKEN,
-            "--wait",
-            "-q",
-            "-o",
-        ])
-        .arg(&out)
-        .args(args)
-        .output()
-        .expect("run tessera submit");
-    assert!(
-        o.status.success(),
-        "{label}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let id: i64 = String::from_utf8_lossy(&o.stdout)
-        .split_whitespace()
-        .nth(1)
-        .and_then(|id| id.parse().ok())
-        .expect("job id");
-    let farm = std::fs::read(out.join("frame_0001.exr")).expect("downloaded frame");
-    let local = render_locally(scene, args, &dir.join(format!("{label}.exr")));
-    assert!(
-        farm == local,
-        "{label}: the farm's frame differs from tessera render's"
-    );
-    (id, farm)
-}
-
-/// Polls the job until it ends (or `timeout`), tolerating a coordinator that is down.
-fn wait_for(
-    rt: &tokio::runtime::Runtime,
-    client: &Client,
-    id: i64,
-    timeout: Duration,
-) -> JobStatus {
-    let start = Instant::now();
-    loop {
-        if let Ok(job) = rt.block_on(client.job(id))
-            && job.state.is_final()
-        {
-            return job;
-        }
-        assert!(
-            start.elapsed() < timeout,
-            "job {id} did not finish in {timeout:?}"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
 }
 
 /// Each frame of the job equals `tessera render --frame N` byte for byte; frames differ.

@@ -25,11 +25,36 @@ pub struct ApiError {
 
 impl Client {
     pub fn new(base: &str, token: &str) -> anyhow::Result<Client> {
-        let http = reqwest::Client::builder()
+        Self::with_ca(base, token, None)
+    }
+
+    /// A client of the coordinator at `base` (`http://` or `https://`); `ca` a PEM file of
+    /// a private certificate authority to trust besides the system's (a self-signed
+    /// coordinator's certificate, say).
+    pub fn with_ca(
+        base: &str,
+        token: &str,
+        ca: Option<&std::path::Path>,
+    ) -> anyhow::Result<Client> {
+        crate::coordinator::use_ring_for_tls();
+        let mut builder = reqwest::Client::builder()
             .connect_timeout(Duration::from_secs(5))
-            .timeout(Duration::from_secs(300))
-            .build()
-            .context("cannot create the HTTP client")?;
+            .timeout(Duration::from_secs(300));
+        if let Some(path) = ca {
+            let pem = std::fs::read(path)
+                .with_context(|| format!("reading the CA certificate {}", path.display()))?;
+            let certs = reqwest::Certificate::from_pem_bundle(&pem)
+                .with_context(|| format!("{}: expected PEM certificates", path.display()))?;
+            anyhow::ensure!(
+                !certs.is_empty(),
+                "{}: expected PEM certificates, found none",
+                path.display()
+            );
+            for c in certs {
+                builder = builder.add_root_certificate(c);
+            }
+        }
+        let http = builder.build().context("cannot create the HTTP client")?;
         Ok(Client {
             base: base.trim_end_matches('/').to_string(),
             token: token.to_string(),
@@ -92,6 +117,58 @@ impl Client {
 
     pub async fn job(&self, id: i64) -> anyhow::Result<JobStatus> {
         Self::json(self.request(reqwest::Method::GET, &format!("/v1/jobs/{id}"))).await
+    }
+
+    /// A page of jobs; `query` as `GET /v1/jobs` takes it (`state=running&limit=20`).
+    pub async fn jobs(&self, query: &str) -> anyhow::Result<JobList> {
+        Self::json(self.request(reqwest::Method::GET, &format!("/v1/jobs?{query}"))).await
+    }
+
+    /// A job's attempts, newest first (failures first if asked), at most `limit`.
+    pub async fn attempts(
+        &self,
+        id: i64,
+        failures_first: bool,
+        limit: u64,
+    ) -> anyhow::Result<Vec<AttemptStatus>> {
+        Self::json(self.request(
+            reqwest::Method::GET,
+            &format!("/v1/jobs/{id}/attempts?failures_first={failures_first}&limit={limit}"),
+        ))
+        .await
+    }
+
+    /// `POST /v1/jobs/{id}/{action}`: pause, resume, requeue.
+    pub async fn job_action(&self, id: i64, action: &str) -> anyhow::Result<JobStatus> {
+        Self::json(self.request(reqwest::Method::POST, &format!("/v1/jobs/{id}/{action}"))).await
+    }
+
+    pub async fn patch_job(&self, id: i64, patch: &JobPatch) -> anyhow::Result<JobStatus> {
+        Self::json(
+            self.request(reqwest::Method::PATCH, &format!("/v1/jobs/{id}"))
+                .json(patch),
+        )
+        .await
+    }
+
+    /// Drains a worker, or lets it take work again.
+    pub async fn drain(&self, worker: &str, drain: bool) -> anyhow::Result<WorkerStatus> {
+        let action = if drain { "drain" } else { "undrain" };
+        Self::json(self.request(
+            reqwest::Method::POST,
+            &format!("/v1/workers/{}/{action}", urlencoding::encode(worker)),
+        ))
+        .await
+    }
+
+    /// Lifts a worker's blocklisting for `job`, or for every job.
+    pub async fn unblock(&self, worker: &str, job: Option<i64>) -> anyhow::Result<WorkerStatus> {
+        let query = job.map_or(String::new(), |j| format!("?job={j}"));
+        Self::json(self.request(
+            reqwest::Method::POST,
+            &format!("/v1/workers/{}/unblock{query}", urlencoding::encode(worker)),
+        ))
+        .await
     }
 
     pub async fn tasks(&self, id: i64) -> anyhow::Result<Vec<TaskStatus>> {

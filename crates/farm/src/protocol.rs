@@ -43,6 +43,9 @@ pub struct JobRequest {
     /// Higher runs first; equal priorities run oldest first.
     #[serde(default)]
     pub priority: i32,
+    /// Tags a worker must have to run the job's tasks (`tessera worker --tags`).
+    #[serde(default)]
+    pub require_tags: Vec<String>,
 }
 
 fn default_scene() -> String {
@@ -54,16 +57,27 @@ fn default_scene() -> String {
 pub enum JobState {
     Queued,
     Running,
+    /// Held by a user: no new leases; leased tasks finish.
+    Paused,
     Done,
     Failed,
     Cancelled,
 }
 
 impl JobState {
+    pub const ALL: [JobState; 6] = [
+        JobState::Queued,
+        JobState::Running,
+        JobState::Paused,
+        JobState::Done,
+        JobState::Failed,
+        JobState::Cancelled,
+    ];
     pub fn as_str(self) -> &'static str {
         match self {
             JobState::Queued => "queued",
             JobState::Running => "running",
+            JobState::Paused => "paused",
             JobState::Done => "done",
             JobState::Failed => "failed",
             JobState::Cancelled => "cancelled",
@@ -72,6 +86,7 @@ impl JobState {
     pub fn parse(s: &str) -> JobState {
         match s {
             "running" => JobState::Running,
+            "paused" => JobState::Paused,
             "done" => JobState::Done,
             "failed" => JobState::Failed,
             "cancelled" => JobState::Cancelled,
@@ -152,6 +167,76 @@ pub struct JobStatus {
     /// Precomputation passes (photon maps, irradiance cache): built here or reused.
     #[serde(default)]
     pub passes: Vec<PassStatus>,
+    /// Tags a worker must have to run its tasks.
+    #[serde(default)]
+    pub require_tags: Vec<String>,
+    /// When its first task was leased (ms since the epoch).
+    #[serde(default)]
+    pub started_ms: Option<i64>,
+    /// Workers that may not run its tasks any more, having failed them too often.
+    #[serde(default)]
+    pub blocklist: Vec<Blocklisted>,
+}
+
+/// A worker blocklisted for a job.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct Blocklisted {
+    pub worker: String,
+    /// Failures of the job's tasks on it.
+    pub failures: u32,
+    pub since_ms: i64,
+    /// Its last failure's message.
+    pub last_error: Option<String>,
+}
+
+/// A page of jobs, newest first.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct JobList {
+    /// Jobs matching the filter, in all pages.
+    pub total: u64,
+    /// Jobs matching the filter by state, in all pages.
+    pub by_state: std::collections::BTreeMap<String, u64>,
+    /// This page (without per-frame detail, passes or decisions).
+    pub jobs: Vec<JobStatus>,
+}
+
+/// Changes to a job (`PATCH /v1/jobs/{id}`).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct JobPatch {
+    /// A new priority: higher runs first (its queued tasks move with it).
+    #[serde(default)]
+    pub priority: Option<i32>,
+}
+
+/// One lease of a task and how it ended.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct AttemptStatus {
+    /// The lease token.
+    pub id: i64,
+    pub task_id: i64,
+    pub frame: u32,
+    pub step: u32,
+    pub kind: String,
+    pub index: u32,
+    pub worker: String,
+    pub started_ms: i64,
+    pub ended_ms: Option<i64>,
+    /// done, failed, expired, stale, unreadable; none while it runs.
+    pub outcome: Option<String>,
+    pub error: Option<String>,
+}
+
+/// Something changed (`GET /v1/events`, server-sent events): what to look at again.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum Event {
+    /// A job was submitted, changed state or made progress.
+    Job { id: i64 },
+    /// A job was deleted.
+    JobDeleted { id: i64 },
+    /// A worker was seen, changed or was blocklisted.
+    Worker { id: String },
 }
 
 /// A pass of a job and the artifact it makes or reuses.
@@ -216,6 +301,12 @@ pub struct WorkerInfo {
     /// Scenes it has loaded and built (its cache misses).
     pub scene_builds: u64,
     pub version: String,
+    /// What it offers (`tessera worker --tags`); jobs may require some.
+    #[serde(default)]
+    pub tags: Vec<String>,
+    /// Its process's CPU use since its last report, in cores.
+    #[serde(default)]
+    pub cpu: Option<f32>,
 }
 
 /// A request for work.
@@ -280,6 +371,9 @@ pub fn result_over_limit(task: i64, bytes: Option<u64>, limit: u64) -> String {
 pub struct Heartbeat {
     pub lease: i64,
     pub worker: String,
+    /// The worker process's CPU use since its last report, in cores.
+    #[serde(default)]
+    pub cpu: Option<f32>,
 }
 
 /// A worker giving up a task.
@@ -308,6 +402,17 @@ pub struct WorkerStatus {
     pub tasks_done: u64,
     /// Tasks it holds a lease on now.
     pub leased_tasks: Vec<i64>,
+    pub tags: Vec<String>,
+    /// Finishing what it holds and taking nothing more.
+    pub draining: bool,
+    /// CPU use of its process at its last report, in cores.
+    pub cpu: Option<f32>,
+    /// Pixel samples (pixels × samples of its tile tasks) per second of task time.
+    pub samples_per_second: Option<f64>,
+    /// Task failures it reported.
+    pub failures: u64,
+    /// Jobs it is blocklisted for.
+    pub blocklisted_for: Vec<i64>,
 }
 
 /// A rendering method, as the registry lists it.

@@ -34,6 +34,43 @@ pub struct WorkerConfig {
     pub slots: u32,
     /// Exit when this process is no longer our parent (started by `serve --local-workers`).
     pub parent_pid: Option<u32>,
+    /// What it offers (`--tags`); jobs may require some.
+    pub tags: Vec<String>,
+    /// Fault injection for tests of the farm: report every task as failed with this message
+    /// instead of rendering it (a broken machine).
+    pub fail_tasks_with: Option<String>,
+    /// A private certificate authority (PEM) to trust for an `https://` coordinator.
+    pub ca: Option<PathBuf>,
+}
+
+/// CPU use of this process between samples, from the kernel's accounting (Linux).
+#[derive(Default)]
+struct CpuMeter {
+    last: Mutex<Option<(Instant, f64)>>,
+}
+
+impl CpuMeter {
+    /// Seconds of CPU this process has used (user + system), where the platform tells it.
+    fn used() -> Option<f64> {
+        let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+        // Fields after the command name (which may hold spaces) in its parentheses.
+        let rest = stat.rsplit_once(')')?.1;
+        let fields: Vec<&str> = rest.split_whitespace().collect();
+        let (utime, stime): (f64, f64) =
+            (fields.get(11)?.parse().ok()?, fields.get(12)?.parse().ok()?);
+        // The kernel counts in clock ticks of USER_HZ, 100 per second on Linux.
+        Some((utime + stime) / 100.0)
+    }
+
+    /// Cores in use since the previous sample (none at the first).
+    fn sample(&self) -> Option<f32> {
+        let now = (Instant::now(), Self::used()?);
+        let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
+        let previous = last.replace(now);
+        let (t0, c0) = previous?;
+        let wall = now.0.duration_since(t0).as_secs_f64();
+        (wall > 0.5).then(|| ((now.1 - c0) / wall) as f32)
+    }
 }
 
 /// Jobs (scenes built) and downloads kept: the most recent few.
@@ -95,6 +132,7 @@ struct Prepared {
 
 struct Worker {
     config: WorkerConfig,
+    cpu: CpuMeter,
     client: Client,
     id: String,
     host: String,
@@ -158,7 +196,7 @@ impl Resources for TaskResources<'_> {
 }
 
 pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
-    let client = Client::new(&config.coordinator, &config.token)?;
+    let client = Client::with_ca(&config.coordinator, &config.token, config.ca.as_deref())?;
     let host = hostname().unwrap_or_else(|| "unknown".into());
     let id = format!(
         "{}-{}",
@@ -177,6 +215,7 @@ pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
         downloads: Mutex::new(Vec::new()),
         loaded: Mutex::new(Vec::new()),
         memos: Mutex::new(Vec::new()),
+        cpu: CpuMeter::default(),
         config,
     });
     tracing::info!(worker = %worker.id, coordinator = %worker.config.coordinator, slots = worker.config.slots, "worker started");
@@ -253,6 +292,8 @@ impl Worker {
             slots: self.config.slots,
             scene_builds: self.scene_builds.load(Relaxed),
             version: env!("CARGO_PKG_VERSION").into(),
+            tags: self.config.tags.clone(),
+            cpu: self.cpu.sample(),
         }
     }
 
@@ -328,6 +369,9 @@ impl Worker {
 
     /// Runs a task and writes its result to a file; returns the file.
     async fn execute(self: &Arc<Self>, grant: &LeaseGrant) -> anyhow::Result<PathBuf> {
+        if let Some(message) = &self.config.fail_tasks_with {
+            anyhow::bail!("{message}");
+        }
         let prepared = self.prepared(grant).await.context("loading the scene")?;
         let mut artifacts = HashMap::new();
         for a in &grant.artifacts {
@@ -468,14 +512,16 @@ impl Worker {
 
     /// Renews the lease every third of its period until aborted; sets `lost` on a 409.
     fn spawn_heartbeat(
-        &self,
+        self: &Arc<Self>,
         grant: &LeaseGrant,
         lost: Arc<AtomicBool>,
     ) -> tokio::task::JoinHandle<()> {
         let client = self.client.clone();
-        let hb = Heartbeat {
+        let worker = self.clone();
+        let mut hb = Heartbeat {
             lease: grant.lease,
             worker: self.id.clone(),
+            cpu: None,
         };
         let (task, period) = (
             grant.task_id,
@@ -484,6 +530,7 @@ impl Worker {
         tokio::spawn(async move {
             loop {
                 tokio::time::sleep(period).await;
+                hb.cpu = worker.cpu.sample();
                 match client.heartbeat(task, &hb).await {
                     Ok(()) => {}
                     Err(e) if status_of(&e) == Some(reqwest::StatusCode::CONFLICT) => {

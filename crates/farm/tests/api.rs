@@ -112,6 +112,7 @@ impl Api {
                 frames: None,
                 settings,
                 priority: 0,
+                require_tags: vec![],
             })
     }
 }

@@ -60,6 +60,8 @@ fn worker_info() -> WorkerInfo {
         slots: 1,
         scene_builds: 0,
         version: "test".into(),
+        tags: vec![],
+        cpu: None,
     }
 }
 
@@ -160,6 +162,7 @@ async fn results_arriving_in_any_order_fold_to_the_frame_one_process_renders() {
                 frames: None,
                 settings: settings.clone(),
                 priority: 0,
+                require_tags: vec![],
             })
             .await
             .expect("submit");
@@ -260,6 +263,7 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
                 frames: None,
                 settings: settings.clone(),
                 priority: 0,
+                require_tags: vec![],
             })
             .await
             .expect("submit");
@@ -386,6 +390,7 @@ async fn a_worker_refuses_a_result_over_the_limit_and_the_job_says_which_limit()
                 ..Default::default()
             },
             priority: 0,
+            require_tags: vec![],
         })
         .await
         .expect("submit");
@@ -396,6 +401,9 @@ async fn a_worker_refuses_a_result_over_the_limit_and_the_job_says_which_limit()
             name: "limited".into(),
             slots: 1,
             parent_pid: None,
+            tags: vec![],
+            fail_tasks_with: None,
+            ca: None,
         },
     ));
     let deadline = Instant::now() + Duration::from_secs(120);

@@ -7,7 +7,6 @@ use std::time::Duration;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use tessera_farm::bundle::Bundle;
-use tessera_farm::client::Client;
 use tessera_farm::coordinator::{self, Config};
 use tessera_farm::job::{self, FrameRange, RenderSettings};
 use tessera_farm::protocol::{JobRequest, JobState};
@@ -33,9 +32,20 @@ pub struct ServeArgs {
     /// Seconds a lease lasts without a heartbeat.
     #[arg(long, default_value_t = 15.0)]
     pub lease_seconds: f64,
-    /// Leases a task may have before its job fails.
+    /// Failures a task may have (on workers not blocklisted for its job) before its job
+    /// fails.
     #[arg(long, default_value_t = 3)]
     pub max_attempts: u32,
+    /// Failures of a job's tasks on one worker after which that worker is blocklisted for
+    /// the job (its tasks go to other workers).
+    #[arg(long, default_value_t = 3)]
+    pub blocklist_after: u32,
+    /// Serve HTTPS: the certificate chain (PEM). With --tls-key.
+    #[arg(long, requires = "tls_key")]
+    pub tls_cert: Option<PathBuf>,
+    /// Serve HTTPS: the private key (PEM). With --tls-cert.
+    #[arg(long, requires = "tls_cert")]
+    pub tls_key: Option<PathBuf>,
     /// Largest film side a job may ask for, pixels.
     #[arg(long, default_value_t = 16384)]
     pub max_resolution: u32,
@@ -80,6 +90,12 @@ pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
     );
     config.lease_ms = (args.lease_seconds * 1000.0) as u64;
     config.max_attempts = args.max_attempts;
+    anyhow::ensure!(
+        args.blocklist_after >= 1,
+        "--blocklist-after: expected at least 1"
+    );
+    config.blocklist_after = args.blocklist_after;
+    config.tls = args.tls_cert.clone().zip(args.tls_key.clone());
     config.limits.max_resolution = args.max_resolution;
     config.limits.max_spp = args.max_spp;
     config.limits.max_frames = args.max_frames;
@@ -100,9 +116,15 @@ pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
     }
     config.local_workers = args.local_workers;
     let running = coordinator::start(config).await?;
-    let url = format!("http://{}", running.addr);
+    let scheme = if args.tls_cert.is_some() {
+        "https"
+    } else {
+        "http"
+    };
+    let url = format!("{scheme}://{}", running.addr);
     let mut text = format!("tessera coordinator listening on {url}\n");
     text += &format!("data: {}\n", args.data.display());
+    text += &format!("dashboard: {url}/ (log in with the client token); API docs: {url}/docs\n");
     if generated {
         text += &format!(
             "tokens (kept in {}):\n  clients: export TESSERA_COORDINATOR={url} TESSERA_CLIENT_TOKEN={client_token}\n  workers: tessera worker --coordinator {url} --token {worker_token}\n",
@@ -133,6 +155,16 @@ pub struct WorkerArgs {
     /// Exit when this process stops being the parent (set by `serve --local-workers`).
     #[arg(long, hide = true)]
     pub parent_pid: Option<u32>,
+    /// What this worker offers, comma-separated (`big-memory,fast`): jobs submitted with
+    /// --require-tags run only on workers with all of theirs.
+    #[arg(long, value_delimiter = ',')]
+    pub tags: Vec<String>,
+    /// A private certificate authority to trust (PEM), for an https:// coordinator.
+    #[arg(long, env = "TESSERA_CA")]
+    pub ca: Option<PathBuf>,
+    /// Fault injection, for testing a farm: fail every task with this message.
+    #[arg(long, hide = true)]
+    pub fail_tasks_with: Option<String>,
 }
 
 pub async fn worker(args: WorkerArgs) -> anyhow::Result<()> {
@@ -150,6 +182,9 @@ pub async fn worker(args: WorkerArgs) -> anyhow::Result<()> {
         name,
         slots,
         parent_pid: args.parent_pid,
+        tags: args.tags,
+        fail_tasks_with: args.fail_tasks_with,
+        ca: args.ca,
     })
     .await
 }
@@ -158,12 +193,11 @@ pub async fn worker(args: WorkerArgs) -> anyhow::Result<()> {
 pub struct SubmitArgs {
     /// The scene file (scene.json); it and every file it references are uploaded.
     pub scene: PathBuf,
-    /// The coordinator's URL.
-    #[arg(long, env = "TESSERA_COORDINATOR")]
-    pub coordinator: String,
-    /// The client token.
-    #[arg(long, env = "TESSERA_CLIENT_TOKEN", hide_env_values = true)]
-    pub token: String,
+    #[command(flatten)]
+    pub remote: crate::remote::Remote,
+    /// Tags a worker must have to run the job's tasks, comma-separated.
+    #[arg(long, value_delimiter = ',')]
+    pub require_tags: Vec<String>,
     /// Samples per pixel (overrides the scene's integrator.spp).
     #[arg(long)]
     pub spp: Option<u32>,
@@ -234,7 +268,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
     job::plan(&mut check, &settings, frames, &job::Limits::default())
         .map_err(|e| crate::render::setting_error(&args.scene, e))?;
 
-    let client = Client::new(&args.coordinator, &args.token)?;
+    let client = args.remote.client()?;
     let tar = bundle.to_tar().map_err(anyhow::Error::msg)?;
     let size = tar.len();
     let info = client
@@ -249,6 +283,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
             frames: Some(frames),
             settings,
             priority: args.priority,
+            require_tags: args.require_tags.clone(),
         })
         .await
         .context("submitting the job")?;
@@ -317,28 +352,6 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         crate::print(&format!("wrote {}\n", path.display()))?;
     }
     Ok(())
-}
-
-#[derive(clap::Args)]
-pub struct DeleteArgs {
-    /// The job's id.
-    pub id: i64,
-    /// The coordinator's URL.
-    #[arg(long, env = "TESSERA_COORDINATOR")]
-    pub coordinator: String,
-    /// The client token.
-    #[arg(long, env = "TESSERA_CLIENT_TOKEN", hide_env_values = true)]
-    pub token: String,
-}
-
-/// `tessera delete ID`: a job that has ended, with its files.
-pub async fn delete(args: DeleteArgs) -> anyhow::Result<()> {
-    let client = Client::new(&args.coordinator, &args.token)?;
-    client
-        .delete(args.id)
-        .await
-        .with_context(|| format!("deleting job {}", args.id))?;
-    crate::print(&format!("job {} deleted\n", args.id))
 }
 
 /// `tessera methods`: the registry.

@@ -4,6 +4,7 @@ mod bench;
 mod compare;
 mod farm;
 mod reference;
+mod remote;
 mod render;
 
 use std::process::ExitCode;
@@ -35,8 +36,32 @@ enum Command {
     Worker(farm::WorkerArgs),
     /// Submit a scene to a coordinator (and wait for its frames).
     Submit(farm::SubmitArgs),
-    /// Delete a job that has ended, with its frames and results, from a coordinator.
-    Delete(farm::DeleteArgs),
+    /// Keep a coordinator's URL and client token (and CA) for the commands below.
+    Login(remote::LoginArgs),
+    /// List a coordinator's jobs.
+    Jobs(remote::JobsArgs),
+    /// A job's status, frames, failures and decisions.
+    Job(remote::JobArgs),
+    /// Cancel a job.
+    Cancel(remote::ActionArgs),
+    /// Pause a job (leased tasks finish; nothing more is leased).
+    Pause(remote::ActionArgs),
+    /// Resume a paused job.
+    Resume(remote::ActionArgs),
+    /// Requeue a failed or cancelled job's unfinished tasks.
+    Requeue(remote::ActionArgs),
+    /// Change a job's priority.
+    Priority(remote::PriorityArgs),
+    /// Delete a job that has ended, with its frames and results.
+    Delete(remote::ActionArgs),
+    /// Download a job's finished frames.
+    Download(remote::DownloadArgs),
+    /// List a coordinator's workers.
+    Workers(remote::WorkersArgs),
+    /// Drain a worker: it finishes what it holds and takes nothing more.
+    Drain(remote::DrainArgs),
+    /// Let a drained worker take work again.
+    Undrain(remote::DrainArgs),
     /// List the rendering methods (`--integrator`, `integrator.type`).
     Methods,
     /// Measure: speed against error for a scene (or `bench farm`, `bench leases`).
@@ -82,7 +107,19 @@ fn main() -> ExitCode {
         Command::Serve(args) => block_on(farm::serve(args)),
         Command::Worker(args) => block_on(farm::worker(args)),
         Command::Submit(args) => block_on(farm::submit(args)),
-        Command::Delete(args) => block_on(farm::delete(args)),
+        Command::Login(args) => block_on(remote::login(args)),
+        Command::Jobs(args) => block_on(remote::jobs(args)),
+        Command::Job(args) => block_on(remote::job(args)),
+        Command::Cancel(args) => block_on(remote::act(remote::Action::Cancel, args)),
+        Command::Pause(args) => block_on(remote::act(remote::Action::Pause, args)),
+        Command::Resume(args) => block_on(remote::act(remote::Action::Resume, args)),
+        Command::Requeue(args) => block_on(remote::act(remote::Action::Requeue, args)),
+        Command::Priority(args) => block_on(remote::priority(args)),
+        Command::Delete(args) => block_on(remote::act(remote::Action::Delete, args)),
+        Command::Download(args) => block_on(remote::download(args)),
+        Command::Workers(args) => block_on(remote::workers(args)),
+        Command::Drain(args) => block_on(remote::drain(args, true)),
+        Command::Undrain(args) => block_on(remote::drain(args, false)),
         Command::Methods => farm::methods(),
         Command::Bench(args) => bench::run(args),
     };

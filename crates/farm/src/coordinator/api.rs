@@ -6,17 +6,19 @@ use std::sync::Arc;
 use axum::Json;
 use axum::body::Bytes;
 use axum::extract::rejection::{BytesRejection, JsonRejection};
-use axum::extract::{DefaultBodyLimit, Path, Request, State};
+use axum::extract::{DefaultBodyLimit, Path, Query, State};
 use axum::http::{StatusCode, header};
-use axum::middleware::{self, Next};
+use axum::middleware;
 use axum::response::{IntoResponse, Response};
 use utoipa::OpenApi;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
+use super::auth::{Who, require_token};
 use super::error::json_errors;
 use super::tasks::*;
 use super::{App, AppError, AppResult, now_ms};
+use super::{events, ops, web};
 use crate::bundle::{self, Bundle};
 use crate::job::{self, FrameRange};
 use crate::protocol::*;
@@ -77,25 +79,26 @@ impl utoipa::Modify for MethodNames {
 /// JSON bodies (jobs, leases, heartbeats) are small.
 pub(super) const JSON_LIMIT: usize = 1 << 20;
 
-/// Which token a route wants.
-#[derive(Clone, Copy)]
-enum Who {
-    Client,
-    Worker,
-    Either,
-}
-
 pub fn router(app: Arc<App>) -> axum::Router {
     let auth = |who: Who| middleware::from_fn_with_state((app.clone(), who), require_token);
     let clients = OpenApiRouter::new()
-        .routes(routes!(submit_job, list_jobs))
-        .routes(routes!(job_status, delete_job))
+        .routes(routes!(submit_job, ops::list_jobs))
+        .routes(routes!(job_status, delete_job, ops::patch_job))
         .routes(routes!(job_tasks))
+        .routes(routes!(ops::job_attempts))
         .routes(routes!(cancel_job))
+        .routes(routes!(ops::pause_job))
+        .routes(routes!(ops::resume_job))
+        .routes(routes!(ops::requeue_job))
         .routes(routes!(frame_exr))
         .routes(routes!(frame_preview))
         .routes(routes!(list_workers))
+        .routes(routes!(ops::drain_worker))
+        .routes(routes!(ops::undrain_worker))
+        .routes(routes!(ops::unblock_worker))
         .routes(routes!(list_methods))
+        .routes(routes!(events::events))
+        .routes(routes!(web::session))
         .layer(DefaultBodyLimit::max(JSON_LIMIT))
         .route_layer(auth(Who::Client));
     let upload = OpenApiRouter::new()
@@ -131,61 +134,11 @@ pub fn router(app: Arc<App>) -> axum::Router {
         .split_for_parts();
     let mut api = api;
     utoipa::Modify::modify(&MethodNames, &mut api);
-    let api = Arc::new(api);
     router
-        .route(
-            "/v1/openapi.json",
-            axum::routing::get(move || {
-                let api = api.clone();
-                async move { Json(api.as_ref().clone()) }
-            }),
-        )
+        .merge(web::routes(app.clone(), api))
         .fallback(|| async { AppError::not_found("no such endpoint; see /v1/openapi.json") })
         .layer(middleware::map_response(json_errors))
         .with_state(app)
-}
-
-/// Compares in time independent of where the strings differ.
-fn same(a: &str, b: &str) -> bool {
-    a.len() == b.len()
-        && a.bytes()
-            .zip(b.bytes())
-            .fold(0u8, |acc, (x, y)| acc | (x ^ y))
-            == 0
-}
-
-async fn require_token(
-    State((app, who)): State<(Arc<App>, Who)>,
-    request: Request,
-    next: Next,
-) -> Response {
-    let given = request
-        .headers()
-        .get(header::AUTHORIZATION)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.strip_prefix("Bearer "));
-    let c = &app.config;
-    let ok = given.is_some_and(|t| match who {
-        Who::Client => same(t, &c.client_token),
-        Who::Worker => same(t, &c.worker_token),
-        Who::Either => same(t, &c.client_token) || same(t, &c.worker_token),
-    });
-    match (given, ok) {
-        (_, true) => next.run(request).await,
-        (None, _) => AppError::new(
-            StatusCode::UNAUTHORIZED,
-            "missing token: send \"Authorization: Bearer TOKEN\"",
-        )
-        .into_response(),
-        (Some(_), _) => AppError::new(
-            StatusCode::UNAUTHORIZED,
-            match who {
-                Who::Worker => "wrong token: this endpoint wants the worker token",
-                _ => "wrong token: this endpoint wants the client token",
-            },
-        )
-        .into_response(),
-    }
 }
 
 /// Upload a scene bundle: a tar archive of scene.json and the files it references.
@@ -262,6 +215,7 @@ async fn submit_job(
     body: Result<Json<JobRequest>, JsonRejection>,
 ) -> AppResult<(StatusCode, Json<JobStatus>)> {
     let Json(req) = body?;
+    ops::check_tags(&req.require_tags, "require_tags").map_err(AppError::bad_request)?;
     if !bundle::is_hash(&req.bundle) || !app.store.bundle_exists(&req.bundle)? {
         return Err(AppError::bad_request(format!(
             "bundle: expected the hash of an uploaded bundle (POST /v1/bundles), got \"{}\"",
@@ -342,6 +296,7 @@ async fn submit_job(
             planned_tasks,
             tasks,
             passes: new_passes,
+            require_tags: req.require_tags.clone(),
         })
     })
     .await??;
@@ -349,18 +304,12 @@ async fn submit_job(
     let tasks: usize = new.tasks.iter().map(Vec::len).sum();
     tracing::info!(job = id, name = %new.name, method = %new.method, frames = %new.frames, tasks, "job queued");
     app.work.notify_waiters();
+    app.emit(Event::Job { id });
     let status = app
         .store
         .job(id)?
         .ok_or_else(|| AppError::internal("job vanished"))?;
     Ok((StatusCode::CREATED, Json(status)))
-}
-
-/// List jobs, newest first.
-#[utoipa::path(get, path = "/v1/jobs", tag = "clients",
-    responses((status = 200, body = Vec<JobStatus>)), security(("token" = [])))]
-async fn list_jobs(State(app): State<Arc<App>>) -> AppResult<Json<Vec<JobStatus>>> {
-    Ok(Json(app.store.jobs()?))
 }
 
 pub(super) fn job_not_found(id: i64) -> AppError {
@@ -402,21 +351,29 @@ async fn delete_job(State(app): State<Arc<App>>, Path(id): Path<i64>) -> AppResu
         .await?
         .map_err(|e| AppError::internal(format!("deleting job {id}: {e:#}")))?
         .ok_or_else(|| AppError::conflict(format!("job {id} changed while being deleted")))?;
+    app.emit(Event::JobDeleted { id });
     Ok(StatusCode::NO_CONTENT)
 }
 
-/// Every task of a job with its state, attempts and result size.
+#[derive(serde::Deserialize, utoipa::IntoParams)]
+struct TasksQuery {
+    /// Only this frame's tasks (0: the passes' tasks).
+    frame: Option<u32>,
+}
+
+/// Every task of a job (or of one frame) with its state, attempts and result size.
 #[utoipa::path(get, path = "/v1/jobs/{id}/tasks", tag = "clients",
-    params(("id" = i64, Path)), responses((status = 200, body = Vec<TaskStatus>), (status = 404, body = ErrorBody)),
+    params(("id" = i64, Path), TasksQuery), responses((status = 200, body = Vec<TaskStatus>), (status = 404, body = ErrorBody)),
     security(("token" = [])))]
 async fn job_tasks(
     State(app): State<Arc<App>>,
     Path(id): Path<i64>,
+    Query(q): Query<TasksQuery>,
 ) -> AppResult<Json<Vec<TaskStatus>>> {
     if !app.store.job_exists(id)? {
         return Err(job_not_found(id));
     }
-    Ok(Json(app.store.tasks(id)?))
+    Ok(Json(app.store.tasks(id, q.frame)?))
 }
 
 /// Cancel a job: queued tasks are dropped, running ones' results ignored.
@@ -438,6 +395,7 @@ async fn cancel_job(
         )));
     }
     app.forget_job(id);
+    app.emit(Event::Job { id });
     tracing::info!(job = id, "job cancelled");
     app.store
         .job(id)?

@@ -87,14 +87,16 @@ impl From<QueryRejection> for AppError {
 }
 
 /// Middleware: errors that axum answers itself (unknown route, wrong method, body over the
-/// limit) become JSON like ours.
+/// limit) become JSON like ours; the dashboard's own HTML pages stay pages.
 pub async fn json_errors(response: Response) -> Response {
     let status = response.status();
-    let is_json = response
+    let is_ours = response
         .headers()
         .get(header::CONTENT_TYPE)
-        .is_some_and(|v| v.as_bytes().starts_with(b"application/json"));
-    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        .is_some_and(|v| {
+            v.as_bytes().starts_with(b"application/json") || v.as_bytes().starts_with(b"text/html")
+        });
+    if !(status.is_client_error() || status.is_server_error()) || is_ours {
         return response;
     }
     let (mut parts, body) = response.into_parts();

@@ -21,6 +21,7 @@ use tessera_render::wire::{self, Header};
 
 use super::{App, JobPlan, now_ms, replace_file};
 use crate::job;
+use crate::protocol::Event;
 use crate::store::{Artifact, CacheEntry, StepKey};
 
 /// Frames folded in memory at once (each may hold a few bytes per pixel × 100).
@@ -359,6 +360,7 @@ impl App {
                     inner.frames.retain(|(k, _)| *k != (job_id, frame));
                     self.remove_frame_files(job_id, frame)?;
                     tracing::info!(job = job_id, frame, path = %path.display(), job_done, "frame written");
+                    self.emit(Event::Job { id: job_id });
                     if job_done {
                         inner.frames.retain(|((j, _), _)| *j != job_id);
                         inner.passes.retain(|(j, _), _| *j != job_id);
@@ -381,7 +383,7 @@ impl App {
         let message = format!("the result could not be read back: {e:#}");
         tracing::warn!(task, error = %message, "task queued again");
         self.store
-            .redo(task, &message, now_ms(), self.config.max_attempts)?;
+            .redo(task, &message, now_ms(), &self.config.retry_policy())?;
         self.work.notify_waiters();
         Ok(false)
     }

@@ -10,12 +10,16 @@
 //! expire as usual.
 
 mod api;
+mod auth;
 mod disk;
 mod error;
+mod events;
 mod fold;
 mod metrics;
+mod ops;
 mod supervisor;
 mod tasks;
+mod web;
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -32,7 +36,8 @@ pub use error::{AppError, AppResult};
 
 use crate::bundle::Bundle;
 use crate::job::{self, FrameRange, Limits, RenderSettings};
-use crate::store::{Retry, Store};
+use crate::protocol::Event;
+use crate::store::{Retry, RetryPolicy, Store};
 use fold::Folds;
 use metrics::Metrics;
 
@@ -45,8 +50,11 @@ pub struct Config {
     pub worker_token: String,
     /// A lease not renewed for this long expires.
     pub lease_ms: u64,
-    /// Leases a task may have before its job fails.
+    /// Failures a task may have (on workers not blocklisted for its job) before its job
+    /// fails.
     pub max_attempts: u32,
+    /// Failures of a job's tasks on one worker that blocklist it for the job.
+    pub blocklist_after: u32,
     pub limits: Limits,
     /// Largest scene bundle upload, bytes.
     pub max_upload: usize,
@@ -60,6 +68,8 @@ pub struct Config {
     pub cache_max: u64,
     /// Finished, failed and cancelled jobs are deleted this long after they ended.
     pub retain: Option<Duration>,
+    /// Serve HTTPS with this certificate chain and key (PEM files).
+    pub tls: Option<(PathBuf, PathBuf)>,
 }
 
 impl Config {
@@ -76,6 +86,7 @@ impl Config {
             worker_token,
             lease_ms: 15_000,
             max_attempts: 3,
+            blocklist_after: 3,
             limits: Limits::default(),
             max_upload: 512 << 20,
             max_result: 4 << 30,
@@ -83,6 +94,16 @@ impl Config {
             worker_log: None,
             cache_max: 8 << 30,
             retain: None,
+            tls: None,
+        }
+    }
+
+    /// When failed tasks are retried and jobs fail.
+    pub fn retry_policy(&self) -> RetryPolicy {
+        RetryPolicy {
+            max_attempts: self.max_attempts,
+            blocklist_after: self.blocklist_after,
+            alive_ms: 2 * self.lease_ms as i64,
         }
     }
 }
@@ -102,6 +123,8 @@ pub struct App {
     folds: Folds,
     /// To the fold thread.
     fold_requests: Mutex<std::sync::mpsc::Sender<fold::FoldRequest>>,
+    /// What changed, for dashboards (`/v1/events`).
+    events: tokio::sync::broadcast::Sender<Event>,
 }
 
 /// A job's scene with its settings applied, and its method's plan.
@@ -226,7 +249,7 @@ impl App {
 
     /// Takes back expired leases, once.
     fn reap(&self) {
-        match self.store.expire(now_ms(), self.config.max_attempts) {
+        match self.store.expire(now_ms(), &self.config.retry_policy()) {
             Ok(expired) => {
                 for (task, outcome) in expired {
                     self.metrics.count_expired();
@@ -286,8 +309,15 @@ async fn shutdown_signal() {
     let _ = tokio::signal::ctrl_c().await;
 }
 
+/// Makes ring rustls's cryptography for this process (TLS for the coordinator and for
+/// clients and workers); idempotent.
+pub fn use_ring_for_tls() {
+    let _ = rustls::crypto::ring::default_provider().install_default();
+}
+
 /// Opens the store, resumes unfinished work, binds and starts serving.
 pub async fn start(config: Config) -> anyhow::Result<Running> {
+    use_ring_for_tls();
     for dir in ["bundles", "jobs", "cache"] {
         std::fs::create_dir_all(config.data.join(dir))
             .with_context(|| format!("creating {}", config.data.join(dir).display()))?;
@@ -310,6 +340,7 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         jobs: Mutex::new(HashMap::new()),
         folds: Folds::default(),
         fold_requests: Mutex::new(fold_tx),
+        events: tokio::sync::broadcast::channel(events::CAPACITY).0,
     });
     fold::start_thread(&app, fold_rx)?;
 
@@ -354,13 +385,37 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         supervisor::spawn(&app, addr, shutdown.subscribe());
     }
     let router = api::router(app.clone());
-    let server = tokio::spawn(async move {
-        axum::serve(listener, router)
-            .with_graceful_shutdown(async move {
-                let _ = stop.changed().await;
-            })
-            .await
-    });
+    let server = match app.config.tls.clone() {
+        None => tokio::spawn(async move {
+            axum::serve(listener, router)
+                .with_graceful_shutdown(async move {
+                    let _ = stop.changed().await;
+                })
+                .await
+        }),
+        Some((cert, key)) => {
+            let tls = axum_server::tls_rustls::RustlsConfig::from_pem_file(&cert, &key)
+                .await
+                .with_context(|| {
+                    format!(
+                        "reading the TLS certificate {} and key {} (PEM)",
+                        cert.display(),
+                        key.display()
+                    )
+                })?;
+            let handle = axum_server::Handle::new();
+            {
+                let handle = handle.clone();
+                tokio::spawn(async move {
+                    let _ = stop.changed().await;
+                    handle.graceful_shutdown(Some(Duration::from_secs(10)));
+                });
+            }
+            let listener = listener.into_std()?;
+            let server = axum_server::from_tcp_rustls(listener, tls)?.handle(handle);
+            tokio::spawn(async move { server.serve(router.into_make_service()).await })
+        }
+    };
     Ok(Running {
         addr,
         app,

@@ -17,11 +17,17 @@ pub fn spawn(app: &Arc<App>, addr: SocketAddr, stop: tokio::sync::watch::Receive
     } else {
         addr
     };
-    let url = format!("http://{host}");
+    // Over TLS they trust the coordinator's own certificate (a self-signed one, or the
+    // chain's leaf), which must name the address they dial.
+    let (scheme, ca) = match &app.config.tls {
+        Some((cert, _)) => ("https", Some(cert.clone())),
+        None => ("http", None),
+    };
+    let url = format!("{scheme}://{host}");
     let log = app.config.worker_log.clone();
     for i in 1..=n {
         let (url, token, mut stop) = (url.clone(), app.config.worker_token.clone(), stop.clone());
-        let log = log.clone();
+        let (log, ca) = (log.clone(), ca.clone());
         tokio::spawn(async move {
             let exe = match std::env::current_exe() {
                 Ok(exe) => exe,
@@ -37,6 +43,10 @@ pub fn spawn(app: &Arc<App>, addr: SocketAddr, stop: tokio::sync::watch::Receive
                     .args(["worker", "--coordinator", &url, "--name", &name])
                     .args(["--slots", &slots.to_string()])
                     .args(["--parent-pid", &std::process::id().to_string()])
+                    .args(
+                        ca.iter()
+                            .flat_map(|c| [std::ffi::OsStr::new("--ca"), c.as_os_str()]),
+                    )
                     .env("TESSERA_WORKER_TOKEN", &token)
                     .envs(log.iter().map(|l| ("RUST_LOG", l.as_str())))
                     .kill_on_drop(true)

@@ -31,6 +31,7 @@ pub(super) async fn lease_task(
     body: Result<Json<LeaseRequest>, JsonRejection>,
 ) -> AppResult<Response> {
     let Json(req) = body?;
+    super::ops::check_tags(&req.worker.tags, "worker.tags").map_err(AppError::bad_request)?;
     let deadline = Instant::now() + Duration::from_millis(req.wait_ms.min(20_000));
     loop {
         // Listen before looking, so a job queued in between is not missed.
@@ -51,6 +52,10 @@ pub(super) async fn lease_task(
                 ));
             }
             tracing::debug!(job = grant.job_id, task = grant.task_id, lease = grant.lease, worker = %req.worker.name, "task leased");
+            app.emit(Event::Job { id: grant.job_id });
+            app.emit(Event::Worker {
+                id: req.worker.id.clone(),
+            });
             return Ok(Json(grant).into_response());
         }
         let left = deadline.saturating_duration_since(Instant::now());
@@ -83,10 +88,14 @@ pub(super) async fn heartbeat(
     body: Result<Json<Heartbeat>, JsonRejection>,
 ) -> AppResult<Json<Heartbeat>> {
     let Json(hb) = body?;
-    if app
-        .store
-        .heartbeat(id, hb.lease, &hb.worker, now_ms(), app.config.lease_ms)?
-    {
+    if app.store.heartbeat(
+        id,
+        hb.lease,
+        &hb.worker,
+        hb.cpu,
+        now_ms(),
+        app.config.lease_ms,
+    )? {
         Ok(Json(hb))
     } else {
         Err(stale(id, hb.lease))
@@ -242,6 +251,7 @@ pub(super) async fn upload_result(
                 "result accepted"
             );
             app.spawn_fold(step);
+            app.emit(Event::Job { id: step.job });
             Ok(StatusCode::OK)
         }
     }
@@ -259,18 +269,28 @@ pub(super) async fn fail_task(
 ) -> AppResult<StatusCode> {
     let Json(f) = body?;
     app.metrics.failed.fetch_add(1, Relaxed);
-    match app
+    let job = app.store.current_lease(id, f.lease)?.map(|(job, _)| job);
+    let outcome = app
         .store
-        .fail(id, f.lease, &f.error, now_ms(), app.config.max_attempts)?
-    {
+        .fail(id, f.lease, &f.error, now_ms(), &app.config.retry_policy())?;
+    if let Some(job) = job {
+        app.emit(Event::Job { id: job });
+    }
+    app.emit(Event::Worker {
+        id: f.worker.clone(),
+    });
+    match outcome {
         Retry::Stale => Err(stale(id, f.lease)),
         Retry::Requeued => {
-            tracing::warn!(task = id, worker = %f.worker, error = %f.error, "task failed; requeued");
+            tracing::warn!(task = id, ?job, worker = %f.worker, error = %f.error, "task failed; requeued");
             app.work.notify_waiters();
             Ok(StatusCode::OK)
         }
         Retry::JobFailed(message) => {
-            tracing::error!(task = id, error = %message, "job failed");
+            tracing::error!(task = id, ?job, error = %message, "job failed");
+            if let Some(job) = job {
+                app.forget_job(job);
+            }
             Ok(StatusCode::OK)
         }
     }

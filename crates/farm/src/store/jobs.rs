@@ -6,7 +6,9 @@ use rusqlite::{OptionalExtension, Transaction, params};
 use super::passes::NewPass;
 use super::{Result, SPEC_COLUMNS, Store, StoreError, from_json, json, task_spec};
 use crate::job::{FrameRange, RenderSettings, TaskSpec};
-use crate::protocol::{FrameStatus, JobState, JobStatus, TaskCounts, TaskStatus, WorkerStatus};
+use crate::protocol::{
+    AttemptStatus, FrameStatus, JobState, JobStatus, TaskCounts, TaskStatus, WorkerStatus,
+};
 
 /// A job ready to insert: its row and the first step of every frame.
 pub struct NewJob {
@@ -28,6 +30,25 @@ pub struct NewJob {
     pub passes: Vec<NewPass>,
     /// Tasks expected in all (for progress), counting those queued later.
     pub planned_tasks: u64,
+    /// Tags a worker must have to run its tasks.
+    pub require_tags: Vec<String>,
+}
+
+/// Jobs by state: (state, count).
+pub type StateCounts = Vec<(String, u64)>;
+
+/// Which jobs a list shows, and which page of them.
+#[derive(Debug, Clone, Default)]
+pub struct JobFilter {
+    /// Only jobs in these states (all if empty).
+    pub states: Vec<JobState>,
+    /// Only jobs whose name contains this (case-insensitive).
+    pub name: Option<String>,
+    pub offset: u64,
+    /// At most this many (all if `None`).
+    pub limit: Option<u64>,
+    /// In the order the queue serves them (priority, then age) instead of newest first.
+    pub queue_order: bool,
 }
 
 /// A file the coordinator produced for a frame.
@@ -47,8 +68,9 @@ impl Store {
         let tx = conn.transaction()?;
         tx.execute(
             "INSERT INTO jobs (name, state, priority, created_ms, bundle, scene, settings,
-                first_frame, last_frame, width, height, spp, method, decisions, planned_tasks)
-             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)",
+                first_frame, last_frame, width, height, spp, method, decisions, planned_tasks,
+                require_tags)
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)",
             params![
                 job.name,
                 job.priority,
@@ -64,6 +86,7 @@ impl Store {
                 job.method,
                 json(&job.decisions),
                 job.planned_tasks as i64,
+                Self::tags_json(&job.require_tags),
             ],
         )?;
         let id = tx.last_insert_rowid();
@@ -127,20 +150,86 @@ impl Store {
     }
 
     pub fn job(&self, id: i64) -> Result<Option<JobStatus>> {
-        Ok(self.jobs_where("WHERE j.id = ?1", [id], true)?.pop())
+        Ok(self
+            .jobs_where("WHERE id = ?1", vec![Box::new(id)], true, "id DESC")?
+            .pop())
     }
 
     /// Every job, newest first, without per-frame detail.
     pub fn jobs(&self) -> Result<Vec<JobStatus>> {
-        self.jobs_where("", [], false)
+        Ok(self.job_page(&JobFilter::default())?.0)
     }
 
-    fn jobs_where<P: rusqlite::Params>(
+    /// A page of the jobs `filter` selects, newest first, without per-frame detail,
+    /// passes or decisions; how many it selects in all, by state.
+    pub fn job_page(&self, filter: &JobFilter) -> Result<(Vec<JobStatus>, StateCounts)> {
+        let mut clauses = Vec::new();
+        let mut values: Vec<Box<dyn rusqlite::ToSql>> = Vec::new();
+        if let Some(name) = &filter.name {
+            values.push(Box::new(format!(
+                "%{}%",
+                name.replace('\\', "\\\\")
+                    .replace('%', "\\%")
+                    .replace('_', "\\_")
+            )));
+            clauses.push(format!("name LIKE ?{} ESCAPE '\\'", values.len()));
+        }
+        let by_state: Vec<(String, u64)> = {
+            let conn = self.conn();
+            let where_ = if clauses.is_empty() {
+                String::new()
+            } else {
+                format!("WHERE {}", clauses.join(" AND "))
+            };
+            let mut stmt = conn.prepare(&format!(
+                "SELECT state, COUNT(*) FROM jobs {where_} GROUP BY state"
+            ))?;
+            stmt.query_map(rusqlite::params_from_iter(values.iter()), |r| {
+                Ok((r.get(0)?, r.get::<_, i64>(1)? as u64))
+            })?
+            .collect::<rusqlite::Result<_>>()?
+        };
+        if !filter.states.is_empty() {
+            let list: Vec<String> = filter
+                .states
+                .iter()
+                .map(|s| format!("'{}'", s.as_str()))
+                .collect();
+            clauses.push(format!("state IN ({})", list.join(", ")));
+        }
+        let mut where_ = if clauses.is_empty() {
+            String::new()
+        } else {
+            format!("WHERE {}", clauses.join(" AND "))
+        };
+        let order = if filter.queue_order {
+            "priority DESC, id ASC"
+        } else {
+            "id DESC"
+        };
+        where_ += &format!(
+            " ORDER BY {order} LIMIT {} OFFSET {}",
+            filter.limit.map_or(-1, |l| l as i64),
+            filter.offset
+        );
+        Ok((self.jobs_where(&where_, values, false, order)?, by_state))
+    }
+
+    /// Jobs whose rows `filter` (a WHERE, ORDER and LIMIT on `jobs`) selects, in `order` (of
+    /// `jobs`' columns, as the filter's), with their task counts; with `frames`, also their
+    /// frames, passes, decisions and blocklist.
+    fn jobs_where(
         &self,
         filter: &str,
-        p: P,
+        values: Vec<Box<dyn rusqlite::ToSql>>,
         frames: bool,
+        order: &str,
     ) -> Result<Vec<JobStatus>> {
+        let order = order
+            .split(", ")
+            .map(|o| format!("j.{o}"))
+            .collect::<Vec<_>>()
+            .join(", ");
         let conn = self.conn();
         let mut stmt = conn.prepare(&format!(
             "SELECT j.id, j.name, j.state, j.priority, j.created_ms, j.finished_ms, j.bundle, j.scene,
@@ -148,12 +237,12 @@ impl Store {
                 COUNT(t.id),
                 SUM(t.state = 'queued'), SUM(t.state = 'leased'), SUM(t.state = 'done'),
                 SUM(t.state = 'failed'), SUM(t.state = 'cancelled'), SUM(t.attempts),
-                j.planned_tasks, j.method
-             FROM jobs j LEFT JOIN tasks t ON t.job_id = j.id {filter}
-             GROUP BY j.id ORDER BY j.id DESC"
+                j.planned_tasks, j.method, j.require_tags, j.started_ms
+             FROM (SELECT * FROM jobs {filter}) j LEFT JOIN tasks t ON t.job_id = j.id
+             GROUP BY j.id ORDER BY {order}"
         ))?;
-        let rows: Vec<(JobStatus, String, String)> = stmt
-            .query_map(p, |r| {
+        let rows: Vec<(JobStatus, String, String, String)> = stmt
+            .query_map(rusqlite::params_from_iter(values.iter()), |r| {
                 let count = |i: usize| -> rusqlite::Result<u64> {
                     Ok(r.get::<_, Option<i64>>(i)?.unwrap_or(0) as u64)
                 };
@@ -196,14 +285,20 @@ impl Store {
                     tasks,
                     frame_status: Vec::new(),
                     passes: Vec::new(),
+                    require_tags: Vec::new(),
+                    started_ms: r.get(26)?,
+                    blocklist: Vec::new(),
                 };
-                Ok((status, r.get(8)?, r.get(14)?))
+                Ok((status, r.get(8)?, r.get(14)?, r.get(25)?))
             })?
             .collect::<rusqlite::Result<_>>()?;
         let mut jobs = Vec::with_capacity(rows.len());
-        for (mut job, settings, decisions) in rows {
+        for (mut job, settings, decisions, tags) in rows {
             job.settings = from_json(&settings, &format!("settings of job {}", job.id))?;
-            job.decisions = from_json(&decisions, &format!("decisions of job {}", job.id))?;
+            job.require_tags = from_json(&tags, &format!("require_tags of job {}", job.id))?;
+            if frames {
+                job.decisions = from_json(&decisions, &format!("decisions of job {}", job.id))?;
+            }
             jobs.push(job);
         }
         if frames {
@@ -215,6 +310,7 @@ impl Store {
             )?;
             for job in jobs.iter_mut() {
                 job.passes = Self::job_passes(&conn, job.id)?;
+                job.blocklist = Self::blocklist_of(&conn, job.id)?;
                 job.frame_status = stmt
                     .query_map([job.id], |r| {
                         let frame: u32 = r.get(0)?;
@@ -237,14 +333,15 @@ impl Store {
         Ok(jobs)
     }
 
-    pub fn tasks(&self, job: i64) -> Result<Vec<TaskStatus>> {
+    /// A job's tasks, or those of one frame (0: its passes' tasks).
+    pub fn tasks(&self, job: i64, frame: Option<u32>) -> Result<Vec<TaskStatus>> {
         let conn = self.conn();
         let mut stmt = conn.prepare(&format!(
             "SELECT id, state, attempts, worker, seconds, error, result_bytes, payload_bytes, {SPEC_COLUMNS}
-             FROM tasks WHERE job_id = ?1 ORDER BY id"
+             FROM tasks WHERE job_id = ?1 AND (?2 IS NULL OR frame = ?2) ORDER BY id"
         ))?;
         let out = stmt
-            .query_map([job], |r| {
+            .query_map(params![job, frame], |r| {
                 Ok(TaskStatus {
                     id: r.get(0)?,
                     state: r.get(1)?,
@@ -255,6 +352,46 @@ impl Store {
                     result_bytes: r.get::<_, Option<i64>>(6)?.map(|b| b as u64),
                     payload_bytes: r.get::<_, Option<i64>>(7)?.map(|b| b as u64),
                     spec: task_spec(r, 8)?,
+                })
+            })?
+            .collect::<rusqlite::Result<_>>()?;
+        Ok(out)
+    }
+
+    /// A job's attempts (leases), newest first: failures first if `failures_first`; at most
+    /// `limit`.
+    pub fn attempts(
+        &self,
+        job: i64,
+        failures_first: bool,
+        limit: u64,
+    ) -> Result<Vec<AttemptStatus>> {
+        let conn = self.conn();
+        let order = if failures_first {
+            "(a.outcome IN ('failed', 'expired', 'unreadable')) DESC, a.id DESC"
+        } else {
+            "a.id DESC"
+        };
+        let mut stmt = conn.prepare(&format!(
+            "SELECT a.id, a.task_id, t.frame, t.step, t.kind, t.idx, a.worker, a.started_ms,
+                a.ended_ms, a.outcome, a.error
+             FROM attempts a JOIN tasks t ON t.id = a.task_id
+             WHERE t.job_id = ?1 ORDER BY {order} LIMIT ?2"
+        ))?;
+        let out = stmt
+            .query_map(params![job, limit as i64], |r| {
+                Ok(AttemptStatus {
+                    id: r.get(0)?,
+                    task_id: r.get(1)?,
+                    frame: r.get(2)?,
+                    step: r.get(3)?,
+                    kind: r.get(4)?,
+                    index: r.get(5)?,
+                    worker: r.get(6)?,
+                    started_ms: r.get(7)?,
+                    ended_ms: r.get(8)?,
+                    outcome: r.get(9)?,
+                    error: r.get(10)?,
                 })
             })?
             .collect::<rusqlite::Result<_>>()?;
@@ -325,7 +462,7 @@ impl Store {
         let done = left == 0
             && tx.execute(
                 "UPDATE jobs SET state = 'done', finished_ms = ?2
-                 WHERE id = ?1 AND state IN ('queued', 'running')",
+                 WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
                 params![job, now],
             )? == 1;
         tx.commit()?;
@@ -353,7 +490,7 @@ impl Store {
             "DELETE FROM attempts WHERE task_id IN (SELECT id FROM tasks WHERE job_id = ?1)",
             [job],
         )?;
-        for table in ["tasks", "frames", "artifacts", "passes"] {
+        for table in ["tasks", "frames", "artifacts", "passes", "blocklist"] {
             tx.execute(&format!("DELETE FROM {table} WHERE job_id = ?1"), [job])?;
         }
         tx.execute("DELETE FROM jobs WHERE id = ?1", [job])?;
@@ -389,33 +526,54 @@ impl Store {
         let mut stmt = conn.prepare(
             "SELECT w.id, w.name, w.host, w.slots, w.version, w.first_seen_ms, w.last_seen_ms,
                 w.scene_builds, w.tasks_done, w.pid,
-                (SELECT group_concat(t.id) FROM tasks t WHERE t.worker = w.id AND t.state = 'leased')
+                (SELECT group_concat(t.id) FROM tasks t WHERE t.worker = w.id AND t.state = 'leased'),
+                w.tags, w.draining, w.cpu, w.samples_done, w.busy_seconds, w.failures,
+                (SELECT group_concat(b.job_id) FROM blocklist b
+                 WHERE b.worker = w.id AND b.blocked_ms IS NOT NULL)
              FROM workers w ORDER BY w.last_seen_ms DESC",
         )?;
-        let out = stmt
+        let ids = |s: Option<String>| -> Vec<i64> {
+            s.unwrap_or_default()
+                .split(',')
+                .filter_map(|s| s.parse().ok())
+                .collect()
+        };
+        let rows: Vec<(WorkerStatus, String)> = stmt
             .query_map([], |r| {
                 let last: i64 = r.get(6)?;
-                let leased: Option<String> = r.get(10)?;
-                Ok(WorkerStatus {
-                    id: r.get(0)?,
-                    name: r.get(1)?,
-                    host: r.get(2)?,
-                    pid: r.get(9)?,
-                    slots: r.get(3)?,
-                    version: r.get(4)?,
-                    first_seen_ms: r.get(5)?,
-                    last_seen_ms: last,
-                    alive: now - last <= alive_ms,
-                    scene_builds: r.get::<_, i64>(7)? as u64,
-                    tasks_done: r.get::<_, i64>(8)? as u64,
-                    leased_tasks: leased
-                        .unwrap_or_default()
-                        .split(',')
-                        .filter_map(|s| s.parse().ok())
-                        .collect(),
-                })
+                let samples: i64 = r.get(14)?;
+                let busy: f64 = r.get(15)?;
+                Ok((
+                    WorkerStatus {
+                        id: r.get(0)?,
+                        name: r.get(1)?,
+                        host: r.get(2)?,
+                        pid: r.get(9)?,
+                        slots: r.get(3)?,
+                        version: r.get(4)?,
+                        first_seen_ms: r.get(5)?,
+                        last_seen_ms: last,
+                        alive: now - last <= alive_ms,
+                        scene_builds: r.get::<_, i64>(7)? as u64,
+                        tasks_done: r.get::<_, i64>(8)? as u64,
+                        leased_tasks: ids(r.get(10)?),
+                        tags: Vec::new(),
+                        draining: r.get(12)?,
+                        cpu: r.get(13)?,
+                        samples_per_second: (busy > 0.0 && samples > 0)
+                            .then(|| samples as f64 / busy),
+                        failures: r.get::<_, i64>(16)? as u64,
+                        blocklisted_for: ids(r.get(17)?),
+                    },
+                    r.get(11)?,
+                ))
             })?
             .collect::<rusqlite::Result<_>>()?;
+        let mut out = Vec::with_capacity(rows.len());
+        for (mut w, tags) in rows {
+            w.tags = from_json(&tags, &format!("tags of worker {}", w.id))?;
+            out.push(w);
+        }
         Ok(out)
     }
 }

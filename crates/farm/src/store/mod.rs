@@ -9,7 +9,9 @@
 //! core's task description.
 
 mod jobs;
+mod ops;
 mod passes;
+mod sessions;
 mod tasks;
 
 use std::path::Path;
@@ -17,9 +19,11 @@ use std::sync::{Mutex, MutexGuard};
 
 use rusqlite::{Connection, params};
 
-pub use jobs::{Artifact, NewJob};
+pub use jobs::{Artifact, JobFilter, NewJob};
+pub use ops::Blocklisting;
 pub use passes::{CacheEntry, NewPass, PassStart};
-pub use tasks::{Completion, Gauges, Retry, StepKey};
+pub use sessions::Session;
+pub use tasks::{Completion, Gauges, Retry, RetryPolicy, StepKey};
 
 use crate::job::TaskSpec;
 
@@ -35,8 +39,43 @@ pub enum StoreError {
 
 pub type Result<T> = std::result::Result<T, StoreError>;
 
-/// The schema's version (SQLite's `user_version`): a store of another version is refused.
-const SCHEMA_VERSION: i64 = 2;
+/// The schema's version (SQLite's `user_version`): [`SCHEMA`] makes version 2, and each of
+/// [`MIGRATIONS`] takes the store one version further. A store of a version before 2 or after
+/// the last is refused.
+const SCHEMA_VERSION: i64 = 2 + MIGRATIONS.len() as i64;
+
+/// The migrations after version 2, in order: migration i takes version 2 + i to 3 + i.
+const MIGRATIONS: &[&str] = &[
+    // 3: farm operations — pausing, requeueing, worker tags and requirements, per-job worker
+    // blocklists, draining, worker throughput and CPU, browser sessions.
+    r#"
+ALTER TABLE jobs ADD COLUMN require_tags TEXT NOT NULL DEFAULT '[]';
+ALTER TABLE jobs ADD COLUMN started_ms INTEGER;
+ALTER TABLE jobs ADD COLUMN requeued_ms INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE workers ADD COLUMN tags TEXT NOT NULL DEFAULT '[]';
+ALTER TABLE workers ADD COLUMN draining INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE workers ADD COLUMN cpu REAL;
+ALTER TABLE workers ADD COLUMN samples_done INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE workers ADD COLUMN busy_seconds REAL NOT NULL DEFAULT 0;
+ALTER TABLE workers ADD COLUMN failures INTEGER NOT NULL DEFAULT 0;
+CREATE INDEX IF NOT EXISTS tasks_job_queued ON tasks (job_id, id) WHERE state = 'queued';
+CREATE INDEX IF NOT EXISTS jobs_state ON jobs (state, priority DESC, id);
+CREATE TABLE IF NOT EXISTS blocklist (
+    job_id INTEGER NOT NULL REFERENCES jobs(id),
+    worker TEXT NOT NULL,
+    failures INTEGER NOT NULL DEFAULT 0,
+    blocked_ms INTEGER,
+    last_error TEXT,
+    PRIMARY KEY (job_id, worker)
+);
+CREATE TABLE IF NOT EXISTS sessions (
+    id TEXT PRIMARY KEY,
+    csrf TEXT NOT NULL,
+    created_ms INTEGER NOT NULL,
+    expires_ms INTEGER NOT NULL
+);
+"#,
+];
 
 const SCHEMA: &str = r#"
 CREATE TABLE IF NOT EXISTS bundles (
@@ -198,13 +237,23 @@ impl Store {
             [],
             |r| r.get(0),
         )?;
-        if tables > 0 && version != SCHEMA_VERSION {
+        if tables > 0 && !(2..=SCHEMA_VERSION).contains(&version) {
             return Err(StoreError::Corrupt(format!(
-                "{} has schema version {version}, this coordinator reads version {SCHEMA_VERSION}; start with an empty data directory (or move this one away)",
+                "{} has schema version {version}, this coordinator reads versions 2 to {SCHEMA_VERSION}; start with an empty data directory (or move this one away)",
                 path.display()
             )));
         }
-        conn.execute_batch(SCHEMA)?;
+        let from = if tables > 0 { version } else { 2 };
+        if tables == 0 {
+            conn.execute_batch(SCHEMA)?;
+        }
+        // Each migration in one transaction with its version: a crash leaves either.
+        for (i, m) in MIGRATIONS.iter().enumerate() {
+            let to = 3 + i as i64;
+            if from < to {
+                conn.execute_batch(&format!("BEGIN; {m} PRAGMA user_version = {to}; COMMIT;"))?;
+            }
+        }
         conn.execute_batch(&format!("PRAGMA user_version = {SCHEMA_VERSION}"))?;
         Ok(Store {
             conn: Mutex::new(conn),
@@ -257,6 +306,8 @@ pub(crate) mod tests {
             slots: 1,
             scene_builds: 0,
             version: "test".into(),
+            tags: vec![],
+            cpu: None,
         }
     }
 
@@ -295,6 +346,7 @@ pub(crate) mod tests {
                         tasks: vec![(0..tasks).map(|i| task(1, i)).collect()],
                         passes: vec![],
                         planned_tasks: tasks as u64,
+                        require_tags: vec![],
                     },
                     0,
                 )
@@ -314,11 +366,47 @@ pub(crate) mod tests {
         drop(conn);
         let e = Store::open(&path).err().expect("refused").to_string();
         assert!(
-            e.contains("schema version 1") && e.contains("reads version 2"),
+            e.contains("schema version 1") && e.contains("reads versions 2 to"),
             "{e}"
         );
         // An empty file is a new store.
         assert!(Store::open(&dir.path().join("new.db")).is_ok());
+    }
+
+    #[test]
+    fn a_store_of_version_2_is_migrated_keeping_its_jobs() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("v2.db");
+        let conn = Connection::open(&path).expect("db");
+        conn.execute_batch(SCHEMA).expect("version 2 schema");
+        conn.execute_batch(
+            "PRAGMA user_version = 2;
+             INSERT INTO bundles (hash, bytes, created_ms) VALUES ('b', 1, 0);
+             INSERT INTO jobs (name, state, priority, created_ms, bundle, scene, settings,
+                first_frame, last_frame, width, height, spp, method, decisions)
+             VALUES ('old', 'done', 0, 0, 'b', 'scene.json', '{}', 1, 1, 8, 8, 1, 'path', '[]');",
+        )
+        .expect("a job of version 2");
+        drop(conn);
+        let s = Store::open(&path).expect("migrated");
+        let version: i64 = s
+            .conn()
+            .query_row("PRAGMA user_version", [], |r| r.get(0))
+            .expect("version");
+        assert_eq!(version, SCHEMA_VERSION);
+        let jobs = s.jobs().expect("jobs");
+        assert_eq!((jobs.len(), jobs[0].name.as_str()), (1, "old"));
+        assert!(jobs[0].require_tags.is_empty() && jobs[0].started_ms.is_none());
+        // Opening again changes nothing.
+        drop(s);
+        assert_eq!(
+            Store::open(&path)
+                .expect("again")
+                .jobs()
+                .expect("jobs")
+                .len(),
+            1
+        );
     }
 
     #[test]

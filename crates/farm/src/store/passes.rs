@@ -174,7 +174,9 @@ impl Store {
         }
         // Only a job still running gets more tasks.
         let running: bool = tx
-            .prepare("SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running')")?
+            .prepare(
+                "SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
+            )?
             .exists([job])?;
         let waiting: Option<u32> = tx
             .query_row(
@@ -215,7 +217,7 @@ impl Store {
         let mut stmt = conn.prepare(
             "SELECT c.key, c.name, c.path, c.bytes, c.sha256, c.job_id,
                 EXISTS (SELECT 1 FROM passes p JOIN jobs j ON j.id = p.job_id
-                        WHERE p.key = c.key AND j.state IN ('queued', 'running'))
+                        WHERE p.key = c.key AND j.state IN ('queued', 'running', 'paused'))
              FROM cache c ORDER BY c.used_ms, c.created_ms",
         )?;
         let out = stmt
@@ -302,6 +304,7 @@ mod tests {
                         start: PassStart::Build(vec![pass_task]),
                     }],
                     planned_tasks: 4,
+                    require_tags: vec![],
                 },
                 0,
             )

@@ -32,6 +32,17 @@ pub enum Retry {
     JobFailed(String),
 }
 
+/// When a failed task is retried, and when its job fails.
+#[derive(Debug, Clone, Copy)]
+pub struct RetryPolicy {
+    /// Failures of a task (on workers not blocklisted for its job) that fail the job.
+    pub max_attempts: u32,
+    /// Failures of a job's tasks on one worker that blocklist the worker for the job.
+    pub blocklist_after: u32,
+    /// A worker seen within this long counts as able to take work (for whether any is left).
+    pub alive_ms: i64,
+}
+
 /// Queue gauges for `/metrics` and `/healthz`.
 pub struct Gauges {
     pub queued: u64,
@@ -46,16 +57,62 @@ pub type StepTask = (i64, String, Option<i64>, TaskSpec);
 impl Store {
     fn upsert_worker(tx: &Transaction, w: &WorkerInfo, now: i64) -> Result<()> {
         tx.execute(
-            "INSERT INTO workers (id, name, host, pid, slots, version, first_seen_ms, last_seen_ms, scene_builds)
-             VALUES (?1, ?2, ?3, ?8, ?4, ?5, ?6, ?6, ?7)
-             ON CONFLICT (id) DO UPDATE SET last_seen_ms = ?6, scene_builds = ?7, slots = ?4",
-            params![w.id, w.name, w.host, w.slots, w.version, now, w.scene_builds as i64, w.pid],
+            "INSERT INTO workers (id, name, host, pid, slots, version, first_seen_ms, last_seen_ms,
+                scene_builds, tags, cpu)
+             VALUES (?1, ?2, ?3, ?8, ?4, ?5, ?6, ?6, ?7, ?9, ?10)
+             ON CONFLICT (id) DO UPDATE SET last_seen_ms = ?6, scene_builds = ?7, slots = ?4,
+                tags = ?9, cpu = COALESCE(?10, cpu)",
+            params![
+                w.id,
+                w.name,
+                w.host,
+                w.slots,
+                w.version,
+                now,
+                w.scene_builds as i64,
+                w.pid,
+                Self::tags_json(&w.tags),
+                w.cpu
+            ],
         )?;
         Ok(())
     }
 
-    /// Grants the next task (priority, then job age, then task order) to `worker`. A job whose
-    /// stored settings cannot be read fails with that reason, and the next task is looked at.
+    /// The next queued task `worker` may take: of the jobs not paused, not blocklisting it
+    /// and requiring no tag it lacks, by priority, then job age, then task order.
+    fn next_task(tx: &Transaction, worker: &WorkerInfo) -> Result<Option<(i64, i64)>> {
+        let excluded = Self::excluded_jobs(tx, &worker.id, &worker.tags)?;
+        if excluded.is_empty() {
+            return Ok(tx
+                .query_row(
+                    "SELECT id, job_id FROM tasks WHERE state = 'queued'
+                     ORDER BY priority DESC, job_id, id LIMIT 1",
+                    [],
+                    |r| Ok((r.get(0)?, r.get(1)?)),
+                )
+                .optional()?);
+        }
+        // Job by job, so that a large job it may not take costs one look, not a scan.
+        let mut jobs = tx.prepare_cached(
+            "SELECT id FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id",
+        )?;
+        let mut first = tx.prepare_cached(
+            "SELECT id FROM tasks WHERE job_id = ?1 AND state = 'queued' ORDER BY id LIMIT 1",
+        )?;
+        let ids: Vec<i64> = jobs
+            .query_map([], |r| r.get(0))?
+            .collect::<rusqlite::Result<_>>()?;
+        for job in ids.into_iter().filter(|j| !excluded.contains(j)) {
+            if let Some(task) = first.query_row([job], |r| r.get(0)).optional()? {
+                return Ok(Some((task, job)));
+            }
+        }
+        Ok(None)
+    }
+
+    /// Grants the next task (priority, then job age, then task order) to `worker`, unless it
+    /// is draining. A job whose stored settings cannot be read fails with that reason, and the
+    /// next task is looked at.
     pub fn lease(
         &self,
         worker: &WorkerInfo,
@@ -65,16 +122,17 @@ impl Store {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         Self::upsert_worker(&tx, worker, now)?;
+        let draining: bool = tx.query_row(
+            "SELECT draining FROM workers WHERE id = ?1",
+            [&worker.id],
+            |r| r.get(0),
+        )?;
+        if draining {
+            tx.commit()?;
+            return Ok(None);
+        }
         loop {
-            let next: Option<(i64, i64)> = tx
-                .query_row(
-                    "SELECT id, job_id FROM tasks WHERE state = 'queued'
-                     ORDER BY priority DESC, job_id, id LIMIT 1",
-                    [],
-                    |r| Ok((r.get(0)?, r.get(1)?)),
-                )
-                .optional()?;
-            let Some((task_id, job_id)) = next else {
+            let Some((task_id, job_id)) = Self::next_task(&tx, worker)? else {
                 tx.commit()?;
                 return Ok(None);
             };
@@ -105,8 +163,9 @@ impl Store {
                 params![task_id, lease, worker.id, now + lease_ms as i64],
             )?;
             tx.execute(
-                "UPDATE jobs SET state = 'running' WHERE id = ?1 AND state = 'queued'",
-                [job_id],
+                "UPDATE jobs SET state = 'running', started_ms = COALESCE(started_ms, ?2)
+                 WHERE id = ?1 AND state = 'queued'",
+                params![job_id, now],
             )?;
             let artifacts = Self::artifacts_for(&tx, job_id, &spec)?;
             tx.commit()?;
@@ -126,19 +185,21 @@ impl Store {
         }
     }
 
-    /// Renews a lease; false if it is no longer the task's current lease.
+    /// Renews a lease (and notes the worker's CPU use); false if it is no longer the task's
+    /// current lease.
     pub fn heartbeat(
         &self,
         task: i64,
         lease: i64,
         worker: &str,
+        cpu: Option<f32>,
         now: i64,
         lease_ms: u64,
     ) -> Result<bool> {
         let conn = self.conn();
         conn.execute(
-            "UPDATE workers SET last_seen_ms = ?2 WHERE id = ?1",
-            params![worker, now],
+            "UPDATE workers SET last_seen_ms = ?2, cpu = COALESCE(?3, cpu) WHERE id = ?1",
+            params![worker, now, cpu],
         )?;
         let n = conn.execute(
             "UPDATE tasks SET lease_expires_ms = ?3
@@ -192,10 +253,14 @@ impl Store {
             "UPDATE attempts SET ended_ms = ?2, outcome = 'done' WHERE id = ?1",
             params![lease, now],
         )?;
+        // Throughput: pixel samples of the task (pixels × samples; none for a pass's task).
         tx.execute(
-            "UPDATE workers SET tasks_done = tasks_done + 1, last_seen_ms = ?2
+            "UPDATE workers SET tasks_done = tasks_done + 1, last_seen_ms = ?2,
+                busy_seconds = busy_seconds + ?3,
+                samples_done = samples_done + (SELECT (x1 - x0) * (y1 - y0) * (range_end - range_start)
+                                               FROM tasks WHERE id = ?4 AND frame > 0)
              WHERE id = (SELECT worker FROM attempts WHERE id = ?1)",
-            params![lease, now],
+            params![lease, now, seconds, task],
         )?;
         let (job, frame, step): (i64, u32, u32) = tx.query_row(
             "SELECT job_id, frame, step FROM tasks WHERE id = ?1",
@@ -226,8 +291,11 @@ impl Store {
         })
     }
 
-    /// Ends an attempt that failed (`outcome` "failed") or whose lease expired ("expired"):
-    /// requeues the task, or fails the job once the task has had `max_attempts` leases.
+    /// Ends an attempt that failed (`outcome` "failed"), whose lease expired ("expired") or
+    /// whose result could not be read ("unreadable"): a failure counts toward blocklisting
+    /// its worker for the job; the task is requeued, or the job fails once the task has
+    /// failed `max_attempts` times on workers not blocklisted for it, or when no worker that
+    /// could run it is left.
     fn retry(
         tx: &Transaction,
         task: i64,
@@ -235,43 +303,70 @@ impl Store {
         outcome: &str,
         error: &str,
         now: i64,
-        max_attempts: u32,
+        policy: &RetryPolicy,
     ) -> Result<Retry> {
-        let row: Option<(i64, u32, TaskSpec, String)> = tx
+        let row: Option<(i64, TaskSpec, String)> = tx
             .query_row(
                 &format!(
-                    "SELECT t.job_id, t.attempts, {SPEC_COLUMNS}, COALESCE(a.worker, '')
+                    "SELECT t.job_id, {SPEC_COLUMNS}, COALESCE(a.worker, '')
                      FROM tasks t LEFT JOIN attempts a ON a.id = t.lease
                      WHERE t.id = ?1 AND t.lease = ?2 AND t.state = 'leased'"
                 ),
                 params![task, lease],
-                |r| Ok((r.get(0)?, r.get(1)?, task_spec(r, 2)?, r.get(12)?)),
+                |r| Ok((r.get(0)?, task_spec(r, 1)?, r.get(11)?)),
             )
             .optional()?;
-        let Some((job, attempts, spec, worker)) = row else {
+        let Some((job, spec, worker)) = row else {
             return Ok(Retry::Stale);
         };
         tx.execute(
             "UPDATE attempts SET ended_ms = ?2, outcome = ?3, error = ?4 WHERE id = ?1",
             params![lease, now, outcome, error],
         )?;
-        if attempts < max_attempts {
+        // A worker that reports failures (not one whose lease lapsed: it may have lost the
+        // network) is blocklisted for the job after `blocklist_after` of them.
+        let blocked = outcome == "failed"
+            && Self::count_failure(tx, job, &worker, error, now, policy.blocklist_after)?
+                == super::Blocklisting::Blocked;
+        let failures = Self::counted_failures(tx, task)?;
+        let place = if spec.is_pass() {
+            format!("pass {}", spec.step)
+        } else {
+            format!("frame {}, step {}", spec.frame, spec.step)
+        };
+        let message = if blocked && !Self::has_eligible_worker(tx, job, now, policy.alive_ms)? {
+            let list = Self::blocklist_of(tx, job)?
+                .iter()
+                .map(|b| {
+                    format!(
+                        "{} ({} failures; last: {})",
+                        b.worker,
+                        b.failures,
+                        b.last_error.as_deref().unwrap_or("")
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join(", ");
+            Some(format!(
+                "every worker that could run the job is blocklisted for it after failing its tasks {} times: {list}",
+                policy.blocklist_after
+            ))
+        } else if failures >= policy.max_attempts {
+            Some(format!(
+                "task {task} ({} {} of {place}) failed {failures} times; last attempt on worker {worker}: {error}",
+                spec.kind, spec.index
+            ))
+        } else {
+            None
+        };
+        let Some(message) = message else {
             tx.execute(
                 "UPDATE tasks SET state = 'queued', lease = NULL, worker = NULL,
                     lease_expires_ms = NULL, error = ?2 WHERE id = ?1",
                 params![task, error],
             )?;
             return Ok(Retry::Requeued);
-        }
-        let place = if spec.is_pass() {
-            format!("pass {}", spec.step)
-        } else {
-            format!("frame {}, step {}", spec.frame, spec.step)
         };
-        let message = format!(
-            "task {task} ({} {} of {place}) failed {attempts} times; last attempt on worker {worker}: {error}",
-            spec.kind, spec.index
-        );
         tx.execute(
             "UPDATE tasks SET state = 'failed', lease_expires_ms = NULL, error = ?2 WHERE id = ?1",
             params![task, error],
@@ -287,18 +382,18 @@ impl Store {
         lease: i64,
         error: &str,
         now: i64,
-        max_attempts: u32,
+        policy: &RetryPolicy,
     ) -> Result<Retry> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
-        let r = Self::retry(&tx, task, lease, "failed", error, now, max_attempts)?;
+        let r = Self::retry(&tx, task, lease, "failed", error, now, policy)?;
         tx.commit()?;
         Ok(r)
     }
 
     /// A done task whose result could not be read back: it is queued again (its attempt
     /// counting), or the job fails once it has had `max_attempts`.
-    pub fn redo(&self, task: i64, error: &str, now: i64, max_attempts: u32) -> Result<Retry> {
+    pub fn redo(&self, task: i64, error: &str, now: i64, policy: &RetryPolicy) -> Result<Retry> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         let lease: Option<i64> = tx
@@ -327,13 +422,13 @@ impl Store {
             ),
             params![job, task],
         )?;
-        let r = Self::retry(&tx, task, lease, "unreadable", error, now, max_attempts)?;
+        let r = Self::retry(&tx, task, lease, "unreadable", error, now, policy)?;
         tx.commit()?;
         Ok(r)
     }
 
     /// Takes back every lease that expired before `now`. Returns what became of each.
-    pub fn expire(&self, now: i64, max_attempts: u32) -> Result<Vec<(i64, Retry)>> {
+    pub fn expire(&self, now: i64, policy: &RetryPolicy) -> Result<Vec<(i64, Retry)>> {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         let expired: Vec<(i64, i64)> = tx
@@ -351,7 +446,7 @@ impl Store {
                 "expired",
                 "the lease expired: the worker stopped renewing it (died, hung or lost the network)",
                 now,
-                max_attempts,
+                policy,
             )?;
             out.push((task, r));
         }
@@ -370,7 +465,7 @@ impl Store {
     ) -> Result<bool> {
         let n = tx.execute(
             "UPDATE jobs SET state = ?2, error = COALESCE(?3, error), finished_ms = ?4
-             WHERE id = ?1 AND state IN ('queued', 'running')",
+             WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
             params![job, state, error, now],
         )?;
         if n == 1 {
@@ -416,7 +511,9 @@ impl Store {
         let mut conn = self.conn();
         let tx = conn.transaction()?;
         let running: bool = tx
-            .prepare("SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running')")?
+            .prepare(
+                "SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
+            )?
             .exists([job])?;
         let exists: bool = tx
             .prepare("SELECT 1 FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3")?
@@ -503,14 +600,14 @@ impl Store {
         let conn = self.conn();
         let mut stmt = conn.prepare(
             "SELECT f.job_id, f.frame, f.step FROM frames f JOIN jobs j ON j.id = f.job_id
-             WHERE f.state != 'done' AND j.state IN ('queued', 'running')
+             WHERE f.state != 'done' AND j.state IN ('queued', 'running', 'paused')
                AND EXISTS (SELECT 1 FROM tasks t WHERE t.job_id = f.job_id AND t.frame = f.frame AND t.step = f.step)
                AND NOT EXISTS (SELECT 1 FROM tasks t WHERE t.job_id = f.job_id AND t.frame = f.frame
                                AND t.step = f.step AND t.state != 'done')
              UNION ALL
              SELECT p.job_id, 0, p.step FROM passes p JOIN jobs j ON j.id = p.job_id
              WHERE p.state = 'running' AND p.tasks_done = p.tasks_total
-               AND j.state IN ('queued', 'running')",
+               AND j.state IN ('queued', 'running', 'paused')",
         )?;
         let out = stmt
             .query_map([], |r| {
@@ -551,6 +648,13 @@ mod tests {
     use super::*;
     use crate::protocol::JobState;
 
+    /// A worker is blocklisted for a job only after more failures than these tests make.
+    const POLICY: RetryPolicy = RetryPolicy {
+        max_attempts: 3,
+        blocklist_after: 100,
+        alive_ms: 60_000,
+    };
+
     #[test]
     fn leases_go_by_priority_then_age_then_task_order() {
         let (_d, s, jobs) = store(&[0, 5, 5], 2);
@@ -583,9 +687,9 @@ mod tests {
         let (_d, s, jobs) = store(&[0], 1);
         let first = s.lease(&worker("a"), 0, 100).expect("lease").expect("task");
         // The lease expires and the task goes to another worker.
-        assert_eq!(s.expire(50, 3).expect("expire"), vec![]);
+        assert_eq!(s.expire(50, &POLICY).expect("expire"), vec![]);
         assert_eq!(
-            s.expire(101, 3).expect("expire"),
+            s.expire(101, &POLICY).expect("expire"),
             vec![(first.task_id, Retry::Requeued)]
         );
         let second = s
@@ -595,7 +699,7 @@ mod tests {
         assert_eq!(second.task_id, first.task_id);
         assert_ne!(second.lease, first.lease);
         assert!(
-            !s.heartbeat(first.task_id, first.lease, "a", 103, 100)
+            !s.heartbeat(first.task_id, first.lease, "a", None, 103, 100)
                 .expect("hb")
         );
         assert!(
@@ -610,7 +714,7 @@ mod tests {
         );
         // The current holder completes; its step is then complete.
         assert!(
-            s.heartbeat(second.task_id, second.lease, "b", 105, 100)
+            s.heartbeat(second.task_id, second.lease, "b", None, 105, 100)
                 .expect("hb")
         );
         let key = StepKey {
@@ -672,7 +776,7 @@ mod tests {
                 .expect("task");
             assert_eq!(g.task.index, 0, "the failed task is retried first");
             let r = s
-                .fail(g.task_id, g.lease, &format!("boom {attempt}"), 1, 3)
+                .fail(g.task_id, g.lease, &format!("boom {attempt}"), 1, &POLICY)
                 .expect("fail");
             if attempt < 3 {
                 assert_eq!(r, Retry::Requeued);

@@ -259,6 +259,7 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
                 frames: None,
                 settings,
                 priority: 0,
+                require_tags: vec![],
             })
             .await?;
         let done = loop {
@@ -398,6 +399,7 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
         frames: None,
         settings: settings.clone(),
         priority: 0,
+        require_tags: vec![],
     };
 
     for complete in [false, true] {
@@ -421,6 +423,8 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
                         slots: 1,
                         scene_builds: 0,
                         version: env!("CARGO_PKG_VERSION").into(),
+                        tags: vec![],
+                        cpu: None,
                     },
                     wait_ms: 0,
                 };

@@ -141,6 +141,7 @@ pub async fn run(args: FlythroughArgs) -> anyhow::Result<()> {
             ..Default::default()
         },
         priority: 0,
+        require_tags: vec![],
     };
 
     let mut runs = Vec::new();
