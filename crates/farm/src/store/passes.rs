@@ -310,6 +310,17 @@ mod tests {
             )
             .expect("job");
         assert_eq!(s.pass_state(job, 0).expect("q").as_deref(), Some("running"));
+        // Its task done counts for the worker, without pixel samples (a pass has none).
+        let w = super::super::tests::worker("w");
+        let g = s
+            .lease(&w, 0, 1000)
+            .expect("lease")
+            .expect("the pass's task");
+        assert!(g.task.is_pass());
+        s.complete(g.task_id, g.lease, 0.5, (1, 1), 1)
+            .expect("complete");
+        let status = &s.workers(1, 1000).expect("workers")[0];
+        assert_eq!((status.tasks_done, status.samples_per_second), (1, None));
         let entry = CacheEntry {
             key: "k".into(),
             name: "photons".into(),

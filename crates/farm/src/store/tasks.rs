@@ -257,8 +257,8 @@ impl Store {
         tx.execute(
             "UPDATE workers SET tasks_done = tasks_done + 1, last_seen_ms = ?2,
                 busy_seconds = busy_seconds + ?3,
-                samples_done = samples_done + (SELECT (x1 - x0) * (y1 - y0) * (range_end - range_start)
-                                               FROM tasks WHERE id = ?4 AND frame > 0)
+                samples_done = samples_done + COALESCE((SELECT (x1 - x0) * (y1 - y0) * (range_end - range_start)
+                                                        FROM tasks WHERE id = ?4 AND frame > 0), 0)
              WHERE id = (SELECT worker FROM attempts WHERE id = ?1)",
             params![lease, now, seconds, task],
         )?;

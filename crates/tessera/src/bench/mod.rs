@@ -7,7 +7,10 @@
 //!   built per frame: time and flicker (`flythrough.rs`).
 //! - `tessera bench load SCENE`: reading, BVH building and the first pixels of a
 //!   production-size scene, with the memory it takes (`load.rs`).
+//! - `tessera bench dashboard`: the dashboard's page and API latency with a big store
+//!   (`dashboard.rs`).
 
+mod dashboard;
 mod error;
 mod farm;
 mod flythrough;
@@ -35,6 +38,8 @@ pub enum BenchCommand {
     Flythrough(flythrough::FlythroughArgs),
     /// Load, BVH build and first pixels of a scene, and its memory.
     Load(load::LoadArgs),
+    /// The dashboard's page and API latency with 1,000 jobs and 100,000 tasks in the store.
+    Dashboard(dashboard::DashboardArgs),
 }
 
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
@@ -43,6 +48,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         Some(BenchCommand::Leases(a)) => crate::block_on(farm::leases(a)),
         Some(BenchCommand::Flythrough(a)) => crate::block_on(flythrough::run(a)),
         Some(BenchCommand::Load(a)) => load::run(a),
+        Some(BenchCommand::Dashboard(a)) => crate::block_on(dashboard::run(a)),
         None => error::run(args.error),
     }
 }
