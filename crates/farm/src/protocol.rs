@@ -309,6 +309,24 @@ pub struct WorkerInfo {
     pub cpu: Option<f32>,
 }
 
+impl WorkerInfo {
+    /// A worker of this process called `id`, one slot, no tags (simulated workers: tests,
+    /// benchmarks).
+    pub fn simulated(id: &str) -> Self {
+        WorkerInfo {
+            id: id.into(),
+            name: id.into(),
+            host: "simulated".into(),
+            pid: std::process::id(),
+            slots: 1,
+            scene_builds: 0,
+            version: env!("CARGO_PKG_VERSION").into(),
+            tags: Vec::new(),
+            cpu: None,
+        }
+    }
+}
+
 /// A request for work.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]

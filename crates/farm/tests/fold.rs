@@ -52,17 +52,7 @@ impl Resources for Bare {
 }
 
 fn worker_info() -> WorkerInfo {
-    WorkerInfo {
-        id: "sim".into(),
-        name: "sim".into(),
-        host: "test".into(),
-        pid: std::process::id(),
-        slots: 1,
-        scene_builds: 0,
-        version: "test".into(),
-        tags: vec![],
-        cpu: None,
-    }
+    WorkerInfo::simulated("sim")
 }
 
 /// The job's frame rendered in this process, as `tessera render` writes it.

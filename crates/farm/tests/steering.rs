@@ -68,15 +68,9 @@ async fn submit(client: &Client, n: usize, tags: &[&str]) -> Vec<i64> {
 fn worker(id: &str, tags: &[&str]) -> LeaseRequest {
     LeaseRequest {
         worker: WorkerInfo {
-            id: id.into(),
-            name: id.into(),
-            host: "test".into(),
-            pid: 1,
-            slots: 1,
-            scene_builds: 0,
-            version: "test".into(),
             tags: tags.iter().map(|t| t.to_string()).collect(),
             cpu: Some(0.5),
+            ..WorkerInfo::simulated(id)
         },
         wait_ms: 0,
     }

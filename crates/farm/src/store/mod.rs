@@ -298,17 +298,7 @@ pub(crate) mod tests {
     use crate::protocol::WorkerInfo;
 
     pub(crate) fn worker(id: &str) -> WorkerInfo {
-        WorkerInfo {
-            id: id.into(),
-            name: id.into(),
-            host: "test".into(),
-            pid: 1,
-            slots: 1,
-            scene_builds: 0,
-            version: "test".into(),
-            tags: vec![],
-            cpu: None,
-        }
+        WorkerInfo::simulated(id)
     }
 
     pub(crate) fn task(frame: u32, index: u32) -> TaskSpec {

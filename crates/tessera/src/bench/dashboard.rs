@@ -25,15 +25,8 @@ pub struct DashboardArgs {
 
 fn worker(id: &str) -> WorkerInfo {
     WorkerInfo {
-        id: id.into(),
-        name: id.into(),
-        host: "bench".into(),
-        pid: std::process::id(),
-        slots: 1,
-        scene_builds: 0,
-        version: env!("CARGO_PKG_VERSION").into(),
-        tags: vec![],
         cpu: Some(1.0),
+        ..WorkerInfo::simulated(id)
     }
 }
 

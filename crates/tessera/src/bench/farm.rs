@@ -415,17 +415,7 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
             handles.push(tokio::spawn(async move {
                 let client = Client::new(&url, &token)?;
                 let req = LeaseRequest {
-                    worker: WorkerInfo {
-                        id: format!("sim-{i}"),
-                        name: format!("sim-{i}"),
-                        host: "bench".into(),
-                        pid: std::process::id(),
-                        slots: 1,
-                        scene_builds: 0,
-                        version: env!("CARGO_PKG_VERSION").into(),
-                        tags: vec![],
-                        cpu: None,
-                    },
+                    worker: WorkerInfo::simulated(&format!("sim-{i}")),
                     wait_ms: 0,
                 };
                 while let Some(grant) = client.lease(&req).await? {
