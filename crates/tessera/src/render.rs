@@ -253,6 +253,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     for w in &desc.warnings {
         report += &format!("warning: {w}\n");
     }
+    if let Some(r) = meta("reproducible") {
+        report += &format!("reproducible: {r}\n");
+    }
     for p in &passes {
         report += &format!("{p}\n");
     }

@@ -214,10 +214,16 @@ impl Tiles {
             Round::Stop(reason) => {
                 f.stopped = Some(reason.to_string());
                 let image = self.image(f);
-                let estimate = crate::metrics::estimated_rel_mse(&image);
                 let (lo, hi) = spp_range(&f.tile_samples);
+                // Unknown, never 0, where a pixel has a single sample.
+                let estimate = (lo >= 2).then(|| crate::metrics::estimated_rel_mse(&image));
                 let mut meta = vec![
-                    ("estimated_rel_mse".to_string(), format!("{estimate:.6e}")),
+                    (
+                        "estimated_rel_mse".to_string(),
+                        estimate.map_or("unknown (a pixel has one sample)".into(), |e| {
+                            format!("{e:.6e}")
+                        }),
+                    ),
                     ("adaptive_spp_min".into(), lo.to_string()),
                     ("adaptive_spp_max".into(), hi.to_string()),
                     ("adaptive_rounds".into(), f.rounds.to_string()),
@@ -226,8 +232,19 @@ impl Tiles {
                 if let Some(t) = rule.target_rel_mse {
                     meta.push(("target_rel_mse".into(), format!("{t:e}")));
                 }
+                // How many rounds fit in a time depends on the machine and its load.
+                if let Some(limit) = rule.time_limit {
+                    meta.push((
+                        "reproducible".into(),
+                        format!(
+                            "no: a time limit ({:.1} s) decided how many rounds ran ({}); the same settings may stop after another round, and the image differs",
+                            limit.as_secs_f64(),
+                            f.rounds
+                        ),
+                    ));
+                }
                 let mut done = self.finish(f, meta);
-                done.estimated_rel_mse = Some(estimate);
+                done.estimated_rel_mse = estimate;
                 Next::Done(done)
             }
         }
@@ -317,11 +334,20 @@ fn next_round(
     let max_spp = rule.max_spp.max(1);
     let total: f64 = errors.iter().sum();
     let estimate = total / (3.0 * pixels);
-    if rule.target_rel_mse.is_some_and(|t| estimate <= t) {
+    // A pixel of one sample has no variance estimate: its zero says nothing.
+    if rule.target_rel_mse.is_some_and(|t| estimate <= t) && samples.iter().all(|&s| s >= 2) {
         return Round::Stop("target error reached");
     }
     if rule.time_limit.is_some_and(|l| elapsed >= l) {
         return Round::Stop("time limit reached");
+    }
+    // Tiles of one sample per pixel first get a second, so that their error can be known.
+    let single: Vec<(usize, u32)> = (0..samples.len())
+        .filter(|&i| samples[i] < 2 && max_spp >= 2)
+        .map(|i| (i, 2))
+        .collect();
+    if !single.is_empty() {
+        return Round::Render(single);
     }
     // Tiles by error, largest first; doubling a tile's samples about halves its error.
     let mut order: Vec<usize> = (0..errors.len())
@@ -368,6 +394,10 @@ mod tests {
         assert_eq!(r, Round::Render(vec![(0, 8), (2, 8)]));
         let r = next_round(&[0.1; 4], &[4; 4], 4.0, &rule, Duration::ZERO);
         assert_eq!(r, Round::Stop("target error reached"));
+        // One sample per pixel estimates no variance (0): not a reached target; every such
+        // tile gets a second sample.
+        let r = next_round(&[0.0; 4], &[1, 4, 1, 4], 4.0, &rule, Duration::ZERO);
+        assert_eq!(r, Round::Render(vec![(0, 2), (2, 2)]));
         let r = next_round(&[9.0; 4], &[16; 4], 4.0, &rule, Duration::ZERO);
         assert_eq!(r, Round::Stop("maximum samples per pixel reached"));
     }
