@@ -11,7 +11,8 @@
 //! 3. per pixel (f64): N' = N + αM, r' = r √(N'/(N + M)), τ' = (τ + Φ) r'²/r², N = N'.
 //!
 //! The radiance is L_direct/T + τ / (T π r²) after T iterations; r shrinks so bias and
-//! variance both vanish as T grows.
+//! variance both vanish as T grows. The variance AOV treats the iterations' own estimates as
+//! independent samples: it covers the noise, not the kernel's bias.
 //!
 //! An iteration's photons are gathered in chunks of [`PHOTONS_PER_CHUNK`] (each chunk its own
 //! tree, each pixel's Φ summed in tree order), and the chunks' sums are added in chunk order
@@ -89,6 +90,12 @@ pub struct SppmState {
     pub tau: Vec<DVec3>,
     pub n: Vec<f64>,
     pub r: Vec<f64>,
+    /// Σ and Σ² over iterations of each pixel's estimate from that iteration alone,
+    /// (L_d,t + Φ_t/(π r_t²))/w_t, and how many iterations gave one: the variance AOV, with
+    /// iterations taken as independent samples (the kernel's bias is not in it).
+    pub l1: Vec<DVec3>,
+    pub l2: Vec<DVec3>,
+    pub k: Vec<u32>,
 }
 
 impl SppmState {
@@ -103,6 +110,9 @@ impl SppmState {
             tau: vec![DVec3::ZERO; len],
             n: vec![0.0; len],
             r: vec![initial_radius as f64; len],
+            l1: vec![DVec3::ZERO; len],
+            l2: vec![DVec3::ZERO; len],
+            k: vec![0; len],
         }
     }
 
@@ -150,11 +160,23 @@ impl SppmState {
     ) {
         let alpha = alpha as f64;
         for i in 0..self.r.len() {
-            if let Some(l) = ld.get(i).filter(|l| l.iter().all(|v| v.is_finite())) {
-                self.ld[i] += DVec3::new(l[0] as f64, l[1] as f64, l[2] as f64);
-            }
-            if let Some(&w) = w.get(i).filter(|w| w.is_finite()) {
-                self.w[i] += w as f64;
+            let l = ld
+                .get(i)
+                .filter(|l| l.iter().all(|v| v.is_finite()))
+                .map_or(DVec3::ZERO, |l| {
+                    DVec3::new(l[0] as f64, l[1] as f64, l[2] as f64)
+                });
+            self.ld[i] += l;
+            let wi = w.get(i).copied().filter(|w| w.is_finite()).unwrap_or(0.0) as f64;
+            self.w[i] += wi;
+            // This iteration's own estimate, at the radius its photons were gathered with.
+            if wi != 0.0 {
+                let p = phi.get(i).map_or(DVec3::ZERO, |p| DVec3::from_array(*p));
+                let r = self.r[i];
+                let estimate = (l + p / (std::f64::consts::PI * r * r)) / wi;
+                self.l1[i] += estimate;
+                self.l2[i] += estimate * estimate;
+                self.k[i] += 1;
             }
             let mi = m.get(i).copied().unwrap_or(0);
             if mi > 0 {
@@ -183,9 +205,18 @@ impl SppmState {
             } else {
                 DVec3::ZERO
             };
+            // The variance of the mean of k iteration estimates, none below two.
+            let k = self.k[i] as f64;
+            let variance = if k >= 2.0 {
+                (self.l2[i] - self.l1[i] * self.l1[i] / k).max(DVec3::ZERO)
+                    * (exposure * exposure / (k * (k - 1.0)))
+            } else {
+                DVec3::ZERO
+            };
             *px = Pixel {
                 rgb: [l.x as f32, l.y as f32, l.z as f32],
                 alpha: 1.0,
+                variance: [variance.x as f32, variance.y as f32, variance.z as f32],
                 ..Pixel::default()
             };
         }
@@ -529,5 +560,36 @@ mod tests {
         assert!((s.r[0] * s.r[0] - 0.375).abs() < 1e-15);
         assert!((s.tau[0].x - 2.5 * 0.75).abs() < 1e-15);
         assert_eq!(s.iterations, 2);
+    }
+
+    /// The variance AOV is that of the mean of the iterations' own estimates: 1, 3, 1, 3
+    /// (direct light alone) have sample variance 4/3, so their mean's is 1/3.
+    #[test]
+    fn the_variance_is_that_of_the_mean_of_the_iterations_estimates() {
+        let mut s = SppmState::new(1, 1, 1.0);
+        for t in 0..4 {
+            let camera = CameraPass {
+                ld: vec![Spectrum::splat(if t % 2 == 0 { 1.0 } else { 3.0 })],
+                w: vec![1.0],
+                stats: RayStats::default(),
+            };
+            s.add_iteration(&camera, std::iter::empty::<&[PixelSum]>(), 0.7);
+        }
+        let p = s.image(1.0).pixels[0];
+        assert!((p.rgb[0] - 2.0).abs() < 1e-6);
+        assert!(
+            (p.variance[0] - 1.0 / 3.0).abs() < 1e-6,
+            "{}",
+            p.variance[0]
+        );
+        // One iteration says nothing of the variance.
+        let mut one = SppmState::new(1, 1, 1.0);
+        let camera = CameraPass {
+            ld: vec![Spectrum::splat(1.0)],
+            w: vec![1.0],
+            stats: RayStats::default(),
+        };
+        one.add_iteration(&camera, std::iter::empty::<&[PixelSum]>(), 0.7);
+        assert_eq!(one.image(1.0).pixels[0].variance, [0.0; 3]);
     }
 }

@@ -194,7 +194,22 @@ impl Method for MetropolisMethod {
     fn advance(&self, _frame: u32, f: &mut MetroFrame, _: Duration) -> Result<Next, String> {
         let image = self.image(f);
         Ok(match self.ranges.advance(&mut f.direct) {
-            Next::Done(done) => Next::Done(Finished { image, ..done }),
+            // The chains' share is correlated samples of one Markov chain each: no variance.
+            Next::Done(done) => Next::Done(Finished {
+                image,
+                metadata: vec![
+                    (
+                        "variance".into(),
+                        "direct light only (its tasks as batches): the Markov chains' share of the image has no per-pixel estimate".into(),
+                    ),
+                    (
+                        "estimated_rel_mse".into(),
+                        "unknown (the chains' variance is not estimated)".into(),
+                    ),
+                ],
+                estimated_rel_mse: None,
+                ..done
+            }),
             next => next,
         })
     }

@@ -214,11 +214,32 @@ impl Ranges {
 
     pub fn advance(&self, f: &mut RangeFrame) -> Next {
         f.steps += 1;
+        let image = self.image(f);
+        let batches = f.batches.batches;
+        let (variance, estimate) = if batches >= 2 {
+            (
+                format!(
+                    "per pixel, from the frame's {batches} tasks as independent batches of samples, light tracing included"
+                ),
+                Some(crate::metrics::estimated_rel_mse(&image)),
+            )
+        } else {
+            (
+                "unknown: the frame was one task (one batch); cut it finer (samples_per_task) for an estimate".into(),
+                None,
+            )
+        };
         Next::Done(Finished {
-            image: self.image(f),
+            image,
             stats: f.stats,
-            metadata: Vec::new(),
-            estimated_rel_mse: None,
+            metadata: vec![
+                ("variance".into(), variance),
+                (
+                    "estimated_rel_mse".into(),
+                    estimate.map_or("unknown (one batch)".into(), |e| format!("{e:.6e}")),
+                ),
+            ],
+            estimated_rel_mse: estimate,
         })
     }
 

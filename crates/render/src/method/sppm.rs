@@ -323,16 +323,30 @@ impl Method for SppmMethod {
         if f.state.iterations < f.target {
             return Ok(Next::Step(self.next_step(frame, f)));
         }
+        let image = Method::preview(self, frame, f);
+        let estimate = (f.state.iterations >= 2).then(|| crate::metrics::estimated_rel_mse(&image));
         Ok(Next::Done(Finished {
-            image: Method::preview(self, frame, f),
+            image,
             stats: f.stats,
-            metadata: Vec::new(),
-            estimated_rel_mse: None,
+            metadata: vec![
+                (
+                    "variance".into(),
+                    "per pixel, of the mean of the iterations' own estimates taken as independent samples: the noise, not the kernel's bias".into(),
+                ),
+                (
+                    "estimated_rel_mse".into(),
+                    estimate.map_or("unknown (one iteration)".into(), |e| {
+                        format!("{e:.6e} (variance only; the kernel's bias is not in it)")
+                    }),
+                ),
+            ],
+            estimated_rel_mse: estimate,
         }))
     }
 
     fn preview(&self, _frame: u32, f: &SppmFrame) -> Image {
         let sppm = f.state.image(f.exposure);
-        f.aov.image(|i| (sppm.pixels[i].rgb, [0.0; 3]))
+        f.aov
+            .image(|i| (sppm.pixels[i].rgb, sppm.pixels[i].variance))
     }
 }

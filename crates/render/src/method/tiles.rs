@@ -250,7 +250,14 @@ impl Tiles {
         }
     }
 
-    fn finish(&self, f: &TileFrame, metadata: Vec<(String, String)>) -> Finished {
+    fn finish(&self, f: &TileFrame, mut metadata: Vec<(String, String)>) -> Finished {
+        metadata.push((
+            "variance".into(),
+            "per pixel, of the mean of its samples taken as independent (the Sobol sampler's \
+             stratification makes it err high); for photon mapping, the noise of the camera \
+             samples given the photon maps and cache, not their bias"
+                .into(),
+        ));
         Finished {
             image: self.image(f),
             stats: f.stats,
