@@ -9,7 +9,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use tessera_farm::client::Client;
-use tessera_farm::protocol::JobStatus;
+use tessera_farm::protocol::{JobState, JobStatus};
 
 pub const CLIENT_TOKEN: &str = "client-secret";
 pub const WORKER_TOKEN: &str = "worker-secret";
@@ -130,7 +130,8 @@ pub fn render_locally(scene: &Path, args: &[&str], out: &Path) -> Vec<u8> {
 
 /// `tessera submit SCENE --wait ARGS` through `url`, downloaded into `dir/LABEL`, and
 /// `tessera render SCENE ARGS`: the frames must be the same bytes. Returns the job id and the
-/// farm's frame.
+/// farm's frame. `auto` measures where a job is submitted: its local render replays the
+/// farm's choice (`--auto-choice`), and the job must say what it chose.
 pub fn submit_and_compare(
     url: &str,
     scene: &Path,
@@ -138,6 +139,9 @@ pub fn submit_and_compare(
     args: &[&str],
     dir: &Path,
 ) -> (i64, Vec<u8>) {
+    if args.windows(2).any(|w| w == ["--integrator", "auto"]) {
+        return auto_and_replay(url, scene, label, args, dir);
+    }
     let out = dir.join(label);
     let o = Command::new(exe())
         .arg("submit")
@@ -170,6 +174,42 @@ pub fn submit_and_compare(
     assert!(
         farm == local,
         "{label}: the farm's frame differs from tessera render's"
+    );
+    (id, farm)
+}
+
+/// [`submit_and_compare`] for an `auto` job.
+fn auto_and_replay(
+    url: &str,
+    scene: &Path,
+    label: &str,
+    args: &[&str],
+    dir: &Path,
+) -> (i64, Vec<u8>) {
+    let rt = runtime();
+    let client = Client::new(url, CLIENT_TOKEN).expect("client");
+    let id = submit_scene(url, scene, args);
+    let job = wait_for(&rt, &client, id, Duration::from_secs(300));
+    assert_eq!(job.state, JobState::Done, "{label}: {:?}", job.error);
+    let choice = job
+        .settings
+        .choice
+        .clone()
+        .unwrap_or_else(|| panic!("{label}: the coordinator recorded no choice"));
+    assert_eq!(job.method, choice.method, "{label}");
+    assert!(
+        job.decisions.iter().any(|d| d.starts_with("auto: chose ")),
+        "{label}: {:#?}",
+        job.decisions
+    );
+    let farm = rt.block_on(client.frame_exr(id, 1)).expect("frame");
+    let json = serde_json::to_string(&choice).expect("choice as JSON");
+    let mut replay: Vec<&str> = args.to_vec();
+    replay.extend(["--auto-choice", &json]);
+    let local = render_locally(scene, &replay, &dir.join(format!("{label}.exr")));
+    assert!(
+        farm == local,
+        "{label}: the farm's frame differs from tessera render's replay of its choice"
     );
     (id, farm)
 }

@@ -7,6 +7,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 use tessera_render::film::MAX_SPP;
+use tessera_render::method::auto::{Choice, pilot};
 use tessera_render::method::{self, Finished, Job, Plan};
 use tessera_render::output::{ExrMetadata, write_exr, write_png};
 use tessera_scene::SceneDesc;
@@ -44,6 +45,11 @@ pub struct RenderSettings {
     /// `integrator.type`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub integrator: Option<String>,
+    /// What `auto` chose for this job by measuring it, set by the coordinator when the job
+    /// asks for `auto` (a job that gives one is planned with it, unmeasured: how a recorded
+    /// choice is replayed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub choice: Option<tessera_render::method::auto::Choice>,
     /// Reuse cached pass artifacts (photon maps, irradiance caches) whose key matches
     /// (default true). False builds them anew for this job — for measurements.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -216,7 +222,31 @@ pub fn job(desc: SceneDesc, settings: &RenderSettings, frames: FrameRange) -> Jo
         samples_per_task: settings.samples_per_task,
         target_error: settings.target_error,
         time_limit: None,
+        choice: settings.choice.clone(),
     }
+}
+
+/// `auto`'s choice for a job that asks for it and carries none, measured by pilots on its
+/// first frame ([`pilot::select`]) with `threads` threads; `None` for any other job. `desc`
+/// has the settings applied. The goal is the job's target error, else the error the path
+/// tracer reaches at its spp.
+pub fn measure_auto(
+    desc: &SceneDesc,
+    settings: &RenderSettings,
+    frames: FrameRange,
+    threads: usize,
+) -> Result<Option<Choice>, String> {
+    if desc.integrator.method != "auto" || settings.choice.is_some() {
+        return Ok(None);
+    }
+    let goal = match settings.target_error {
+        Some(e) => pilot::Goal::Error(e),
+        None => pilot::Goal::PathSpp(desc.integrator.spp),
+    };
+    let mut scene = tessera_render::Scene::build(desc);
+    Ok(Some(
+        pilot::select(desc, &mut scene, frames.first, goal, threads)?.choice,
+    ))
 }
 
 /// Applies `settings` to `desc` and plans the job with its method.

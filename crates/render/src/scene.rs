@@ -418,7 +418,26 @@ pub struct Scene {
     holes: bool,
 }
 
+/// A camera pixel's angular width, for texture footprints: t × this is its width at distance
+/// t (the camera of the first frame; a fly-through's keeps its field of view). The pixel's
+/// samples already average over it, so the texture filter takes a share: 1/√spp of it, but no
+/// less than 1/8 (pbrt-v4 scales its ray differentials alike).
+fn pixel_angle(desc: &SceneDesc) -> f32 {
+    let share = (1.0 / (desc.integrator.spp.max(1) as f32).sqrt()).max(0.125);
+    share * desc.camera.fov_y / desc.film.height.max(1) as f32
+}
+
 impl Scene {
+    /// Takes the film and integrator settings of `desc`, a description of the same geometry,
+    /// materials and lights with other settings (`auto`'s pilots render it smaller, with
+    /// other methods and seeds).
+    pub fn set_settings(&mut self, desc: &SceneDesc) {
+        self.film = desc.film;
+        self.filter = Filter::new(desc.film.filter);
+        self.integrator = desc.integrator.clone();
+        self.pixel_angle = pixel_angle(desc);
+    }
+
     pub fn build(desc: &SceneDesc) -> Scene {
         // Image textures, each image's pyramid once, shared by materials and emitters.
         let mut textures = Textures::default();
@@ -622,12 +641,7 @@ impl Scene {
             texture_bytes: textures.bytes(),
             ..stats
         };
-        // A camera pixel's angular width, for texture footprints: t × this is its width at
-        // distance t (the camera of the first frame; a fly-through's keeps its field of view).
-        // The pixel's samples already average over it, so the texture filter takes a share:
-        // 1/√spp of it, but no less than 1/8 (pbrt-v4 scales its ray differentials alike).
-        let share = (1.0 / (desc.integrator.spp.max(1) as f32).sqrt()).max(0.125);
-        let pixel_angle = share * desc.camera.fov_y / desc.film.height.max(1) as f32;
+        let pixel_angle = pixel_angle(desc);
         Scene {
             accel: Accel::build(&triangles, &sphere_geometry),
             meshes,

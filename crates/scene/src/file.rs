@@ -311,7 +311,7 @@ pub enum SamplerType {
 }
 
 /// How translucent (`subsurface`) materials are rendered.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SubsurfaceMethod {
     /// The dipole BSSRDF of Jensen et al. 2001, exit points sampled by probe rays.

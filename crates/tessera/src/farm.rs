@@ -258,6 +258,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         size: args.size.map(|s| s.0),
         target_error: args.target_error,
         integrator: args.integrator,
+        choice: None,
         reuse: args.no_reuse.then_some(false),
     };
     let frames = args.frames.unwrap_or(FrameRange {

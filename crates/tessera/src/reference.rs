@@ -63,6 +63,7 @@ pub fn run(args: ReferenceArgs) -> anyhow::Result<()> {
         subsurface: Some(tessera_scene::SubsurfaceMethod::RandomWalk),
         size: args.size,
         frame: 1,
+        auto_choice: None,
         target_error: Some(args.target_error),
         time_limit: args.time_limit,
         quiet: args.quiet,

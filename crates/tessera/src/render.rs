@@ -6,7 +6,8 @@ use std::time::Instant;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use tessera_farm::job::{self, FrameRange, Limits, RenderSettings};
-use tessera_render::method::Plan;
+use tessera_render::method::Job;
+use tessera_render::method::auto::{Choice, pilot};
 use tessera_render::method::local::{Local, Progress};
 use tessera_scene::{Problem, SceneDesc, SceneError};
 
@@ -52,6 +53,10 @@ pub struct RenderArgs {
     /// The frame of the scene's camera path to render (1-based).
     #[arg(long, default_value_t = 1)]
     pub frame: u32,
+    /// Replays a choice `auto` made before (JSON, as in a farm job's `settings.choice`)
+    /// instead of measuring anew: the same method, settings and header, so the same image.
+    #[arg(long, value_parser = parse_choice)]
+    pub auto_choice: Option<Choice>,
     /// Adaptive sampling: stop when the relMSE estimated from the film's own variance is at
     /// most this; samples go to the noisiest tiles. --spp becomes the per-pixel maximum.
     #[arg(long)]
@@ -73,6 +78,11 @@ pub fn parse_method(s: &str) -> Result<String, String> {
     tessera_render::method::lookup(s)
         .map(|m| m.name.to_string())
         .map_err(|e| e.trim_start_matches("integrator.type: ").to_string())
+}
+
+/// A recorded `auto` choice (JSON).
+fn parse_choice(s: &str) -> Result<Choice, String> {
+    serde_json::from_str(s).map_err(|e| format!("expected the JSON of an auto choice: {e}"))
 }
 
 /// A subsurface method by name (`dipole`, `hierarchical`, `random-walk` or `random_walk`).
@@ -102,8 +112,8 @@ pub fn setting_error(scene: &Path, message: String) -> anyhow::Error {
     .into()
 }
 
-/// A scene loaded from `args`, its settings applied and its job planned.
-pub fn planned(args: &RenderArgs) -> anyhow::Result<(SceneDesc, Box<dyn Plan>)> {
+/// A scene loaded from `args` with its settings applied, and the job to plan.
+pub fn job_of(args: &RenderArgs) -> anyhow::Result<(SceneDesc, Job)> {
     let mut desc = tessera_scene::load(&args.scene)?;
     if let Some(m) = args.subsurface {
         desc.integrator.subsurface = m;
@@ -116,6 +126,7 @@ pub fn planned(args: &RenderArgs) -> anyhow::Result<(SceneDesc, Box<dyn Plan>)> 
         size: args.size.map(|s| s.0),
         target_error: args.target_error,
         integrator: args.integrator.clone(),
+        choice: args.auto_choice.clone(),
         reuse: None,
     };
     let frames = FrameRange::single(args.frame);
@@ -129,8 +140,28 @@ pub fn planned(args: &RenderArgs) -> anyhow::Result<(SceneDesc, Box<dyn Plan>)> 
         );
         job.time_limit = Some(std::time::Duration::from_secs_f64(t));
     }
-    let plan = tessera_render::method::plan(&job).map_err(|e| setting_error(&args.scene, e))?;
-    Ok((desc, plan))
+    Ok((desc, job))
+}
+
+/// `auto`'s choice for `job` on `scene`, measured by pilots ([`pilot::select`]), with a line
+/// per candidate logged.
+pub fn choose(
+    job: &Job,
+    scene: &mut tessera_render::Scene,
+    threads: usize,
+) -> anyhow::Result<pilot::Selection> {
+    let desc = &job.desc;
+    let goal = match (job.target_error, job.time_limit) {
+        (Some(e), _) => pilot::Goal::Error(e),
+        (None, Some(t)) => pilot::Goal::Seconds(t.as_secs_f64()),
+        (None, None) => pilot::Goal::PathSpp(desc.integrator.spp),
+    };
+    let selection = pilot::select(desc, scene, *job.frames.start(), goal, threads)
+        .map_err(anyhow::Error::msg)?;
+    for line in &selection.choice.report {
+        tracing::info!(choice = %line, "auto");
+    }
+    Ok(selection)
 }
 
 /// Sizes the rayon pool that tasks which parallelise themselves use (once per process).
@@ -178,7 +209,20 @@ pub fn show(bar: &ProgressBar, p: Progress) {
 pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let threads = threads(args.threads)?;
-    let (desc, plan) = planned(&args)?;
+    let (desc, mut job) = job_of(&args)?;
+    let load_time = start.elapsed();
+    let building = Instant::now();
+    let mut scene = tessera_render::Scene::build(&desc);
+    let mut built = Vec::new();
+    let pilot_s = if desc.integrator.method == "auto" && job.choice.is_none() {
+        let s = choose(&job, &mut scene, threads)?;
+        job.choice = Some(s.choice);
+        built = s.artifacts;
+        Some(s.pilot_s)
+    } else {
+        None
+    };
+    let plan = tessera_render::method::plan(&job).map_err(|e| setting_error(&args.scene, e))?;
     anyhow::ensure!(
         args.strategies.is_none() || plan.method() == "bdpt",
         "--strategies: per-strategy images are BDPT's; give --integrator bdpt"
@@ -187,9 +231,6 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         .output
         .clone()
         .unwrap_or_else(|| default_output(&args.scene));
-    let load_time = start.elapsed();
-    let building = Instant::now();
-    let scene = tessera_render::Scene::build(&desc);
     let stats = &scene.stats;
     tracing::info!(
         scene = %desc.name,
@@ -201,7 +242,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         build_s = building.elapsed().as_secs_f64(),
         "scene ready"
     );
-    let (w, h, spp) = (desc.film.width, desc.film.height, desc.integrator.spp);
+    let spp = job.choice.as_ref().map_or(desc.integrator.spp, |c| c.spp);
+    let (w, h) = (desc.film.width, desc.film.height);
     let analysis = tessera_render::analysis::analyze(&desc);
     for d in &analysis.decisions {
         tracing::info!(topic = d.topic, choice = %d.choice, reason = %d.reason, "decision");
@@ -211,7 +253,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     }
     let bar = progress_bar(args.quiet);
     let progress = |p: Progress| show(&bar, p);
-    let local = Local::new(plan.as_ref(), &scene, &desc, threads, &progress);
+    let local = Local::new(plan.as_ref(), &scene, &desc, threads, &progress).with_artifacts(built);
     let passes = local.passes().map_err(anyhow::Error::msg)?;
     let build_time = building.elapsed().as_secs_f64();
     let rendering = Instant::now();
@@ -247,8 +289,17 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         desc.name,
         plan.method()
     );
-    if let Some(d) = analysis.decisions.first() {
-        report += &format!("{d}\n");
+    match &job.choice {
+        Some(c) => {
+            for line in &c.report {
+                report += &format!("auto: {line}\n");
+            }
+        }
+        None => {
+            if let Some(d) = analysis.decisions.first() {
+                report += &format!("{d}\n");
+            }
+        }
     }
     for w in &desc.warnings {
         report += &format!("warning: {w}\n");
@@ -266,11 +317,15 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         stats.samples as f64 / render_s / 1e6,
         stats.rays as f64 / render_s / 1e6,
     );
+    let pilot = pilot_s.unwrap_or(0.0);
     report += &format!(
-        "setup {:.2} s (load {:.2} s, BVH, lights and passes {:.2} s)\n",
+        "setup {:.2} s (load {:.2} s, BVH, lights and passes {:.2} s{})\n",
         load_time.as_secs_f64() + build_time,
         load_time.as_secs_f64(),
-        build_time
+        build_time - pilot,
+        pilot_s
+            .map(|p| format!(", auto's pilot {p:.2} s"))
+            .unwrap_or_default()
     );
     if stats.nonfinite > 0 {
         report += &format!(

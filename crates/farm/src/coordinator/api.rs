@@ -233,8 +233,20 @@ async fn submit_job(
             first: 1,
             last: desc.frame_count(),
         });
-        let plan = job::plan(&mut desc, &req.settings, frames, &app2.config.limits)
-            .map_err(|e| AppError::bad_request(format!("{}: {e}", req.scene)))?;
+        let bad = |e: String| AppError::bad_request(format!("{}: {e}", req.scene));
+        // `auto` is measured once, here, and the choice kept with the job's settings: every
+        // process then plans the same method.
+        let mut settings = req.settings.clone();
+        let mut applied = desc.clone();
+        job::apply(&mut applied, &settings, frames, &app2.config.limits).map_err(bad)?;
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        if let Some(choice) =
+            job::measure_auto(&applied, &settings, frames, threads).map_err(bad)?
+        {
+            tracing::info!(scene = %req.scene, method = %choice.method, spp = choice.spp, "auto chose");
+            settings.choice = Some(choice);
+        }
+        let plan = job::plan(&mut desc, &settings, frames, &app2.config.limits).map_err(bad)?;
         let mut decisions = job::decisions(&desc, plan.as_ref());
         let reuse = req.settings.reuse.unwrap_or(true);
         let mut new_passes = Vec::new();
@@ -286,11 +298,14 @@ async fn submit_job(
             priority: req.priority,
             bundle: req.bundle.clone(),
             scene: req.scene.clone(),
-            settings: req.settings.clone(),
             frames,
             width: desc.film.width,
             height: desc.film.height,
-            spp: desc.integrator.spp,
+            spp: settings
+                .choice
+                .as_ref()
+                .map_or(desc.integrator.spp, |c| c.spp),
+            settings,
             method: plan.method().to_string(),
             decisions,
             planned_tasks,

@@ -145,10 +145,39 @@ impl<'a> Local<'a> {
         }
     }
 
+    /// Takes artifacts built before (by `auto`'s pilot, for one): a pass whose key is among
+    /// them is not built again.
+    pub fn with_artifacts(self, artifacts: impl IntoIterator<Item = (String, Loaded)>) -> Self {
+        self.artifacts
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .extend(artifacts);
+        self
+    }
+
+    /// The artifacts built or taken so far, by key.
+    pub fn artifacts(&self) -> Vec<(String, Loaded)> {
+        let map = self.artifacts.lock().unwrap_or_else(|e| e.into_inner());
+        map.iter().map(|(k, v)| (k.clone(), v.clone())).collect()
+    }
+
     /// Builds the job's passes in order; returns a line per pass saying what it built.
     pub fn passes(&self) -> Result<Vec<String>, String> {
         let mut lines = Vec::new();
         for (i, pass) in self.plan.passes().into_iter().enumerate() {
+            let have = self
+                .artifacts
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .contains_key(pass.key());
+            if have {
+                lines.push(format!(
+                    "{}: reused, built before with the same key ({})",
+                    pass.name(),
+                    short(pass.key())
+                ));
+                continue;
+            }
             let tasks = pass.tasks(i as u32);
             let mut state = pass.start();
             (self.progress)(Progress::Start {

@@ -17,7 +17,7 @@
 //! whoever ran its tasks and whenever their results arrived.
 
 pub mod aov;
-mod auto;
+pub mod auto;
 mod bdpt;
 pub mod film;
 pub mod local;
@@ -64,6 +64,8 @@ pub struct Job {
     /// Adaptive sampling: start no new round after this long (in-process renders only: it
     /// depends on the machine).
     pub time_limit: Option<Duration>,
+    /// What `auto` chose for this job by measurement (`None`: scene analysis chooses).
+    pub choice: Option<auto::Choice>,
 }
 
 impl Job {
@@ -76,6 +78,7 @@ impl Job {
             samples_per_task: None,
             target_error: None,
             time_limit: None,
+            choice: None,
         }
     }
 }

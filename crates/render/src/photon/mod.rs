@@ -44,6 +44,9 @@ pub const DEFAULT_RECORD_RAYS: u32 = 256;
 /// Photons stored per photon emitted in a closed room of albedo ≈ 0.5: 1/(1 − ρ).
 const STORED_PER_EMITTED: f32 = 2.0;
 
+/// Pixels between irradiance-cache candidates when a scene does not say.
+pub const DEFAULT_SPACING: u32 = 4;
+
 /// Photon-mapping settings with every knob decided: what determines the maps and the image.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PhotonSettings {
@@ -133,7 +136,7 @@ impl PhotonSettings {
         });
         let irradiance_cache = d.irradiance_cache.map(|c| CacheSettings {
             accuracy: c.accuracy.unwrap_or(0.2),
-            spacing: c.spacing.unwrap_or(4),
+            spacing: c.spacing.unwrap_or(DEFAULT_SPACING),
             keyframe_step: c.keyframe_step.unwrap_or(4),
             gather_rays: c.gather_rays.unwrap_or(DEFAULT_RECORD_RAYS),
         });

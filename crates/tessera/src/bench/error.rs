@@ -12,6 +12,7 @@ use anyhow::{Context, ensure};
 use serde::Serialize;
 use tessera_farm::job::{self, FrameRange, Limits, RenderSettings};
 use tessera_render::method::Plan;
+use tessera_render::method::auto::pilot;
 use tessera_render::method::local::{Local, Progress};
 use tessera_render::metrics;
 use tessera_scene::SubsurfaceMethod;
@@ -129,6 +130,17 @@ struct Report {
     seeds: Vec<u64>,
     runs: Vec<Run>,
     time_to_error: Vec<TimeToError>,
+    /// What `auto` chose with each seed, measuring for relMSE 1e-2.
+    auto: Vec<AutoChoice>,
+}
+
+/// `auto`'s pilot in one run of the bench: its clock includes it.
+#[derive(Debug, Serialize)]
+struct AutoChoice {
+    seed: u64,
+    chosen: String,
+    pilot_s: f64,
+    report: Vec<String>,
 }
 
 pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
@@ -164,6 +176,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         .map(|i| base.integrator.seed.wrapping_add(i))
         .collect();
     let mut runs = Vec::new();
+    let mut auto = Vec::new();
     let noop = |_: Progress| {};
     for ((name, (method, subsurface)), &seed) in
         kinds.iter().flat_map(|k| seeds.iter().map(move |s| (k, s)))
@@ -173,6 +186,37 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         desc.integrator.seed = seed;
         if let Some(m) = subsurface {
             desc.integrator.subsurface = *m;
+        }
+        // The clock includes building the scene, `auto`'s pilot and any passes (photon maps,
+        // irradiance records): time to an error is time from the scene file.
+        let (start, cpu0) = (Instant::now(), crate::render::cpu_seconds());
+        let mut scene = tessera_render::Scene::build(&desc);
+        let mut built = Vec::new();
+        if method == "auto" {
+            let goal = pilot::Goal::Error(LEVELS[0]);
+            let selection = pilot::select(&desc, &mut scene, 1, goal, threads)
+                .map_err(|e| anyhow::anyhow!("--integrators auto: {e}"))?;
+            let c = &selection.choice;
+            desc.integrator.method = c.method.clone();
+            if let Some(m) = c.subsurface {
+                desc.integrator.subsurface = m;
+            }
+            let chosen = match c.subsurface {
+                Some(m) => format!("{}:{}", c.method, pilot::subsurface_name(m)),
+                None => c.method.clone(),
+            };
+            crate::print(&format!(
+                "{name:>8} chose {chosen} (pilot {:.2} s): {}\n",
+                selection.pilot_s,
+                c.report.join("\n           ")
+            ))?;
+            auto.push(AutoChoice {
+                seed,
+                chosen,
+                pilot_s: selection.pilot_s,
+                report: c.report.clone(),
+            });
+            built = selection.artifacts;
         }
         // The first render goes to the first budget's samples (1 for a time budget); later
         // ones continue it where the method can, else render anew.
@@ -190,12 +234,10 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                 .map_err(|e| anyhow::anyhow!("--integrators {name}: {e}"))?;
             Ok((d, plan))
         };
-        // The clock includes building the scene and any passes (photon maps, irradiance
-        // records): time to an error is time from the scene file.
-        let (start, cpu0) = (Instant::now(), crate::render::cpu_seconds());
         let (first_desc, plan) = plan_for(first)?;
-        let scene = tessera_render::Scene::build(&first_desc);
-        let local = Local::new(plan.as_ref(), &scene, &first_desc, threads, &noop);
+        scene.set_settings(&first_desc);
+        let local =
+            Local::new(plan.as_ref(), &scene, &first_desc, threads, &noop).with_artifacts(built);
         for p in local.passes().map_err(anyhow::Error::msg)? {
             crate::print(&format!(
                 "{name:>8} pass: {p} ({:.2} s setup)\n",
@@ -299,6 +341,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         seeds,
         runs,
         time_to_error,
+        auto,
     };
     write_report(&args.output, &report)?;
     crate::print(&format!(
@@ -519,6 +562,16 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
                 }
             }
             md += "\n";
+        }
+    }
+    for a in &report.auto {
+        let _ = write!(
+            md,
+            "\n`auto` with seed {} chose {} after a {:.2} s pilot (in its times above):\n\n",
+            a.seed, a.chosen, a.pilot_s
+        );
+        for line in &a.report {
+            let _ = writeln!(md, "- {line}");
         }
     }
     md += "\n![relMSE against wall time](report.png)\n";

@@ -1,0 +1,57 @@
+#!/usr/bin/env python3
+"""The table of scripts/bench-auto.sh: per scene, each method's wall seconds to relMSE 1e-2
+(from `tessera bench`'s report.json), auto's choice and its ratio to the best fixed method, and
+each method's estimated against measured relMSE at its last checkpoint before 1e-2 and after.
+Usage: bench-auto-table.py bench-report/auto"""
+import json
+import pathlib
+import sys
+
+root = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "bench-report/auto")
+LEVEL = 1e-2
+rows = []
+for report in sorted(root.glob("*/report.json")):
+    r = json.loads(report.read_text())
+    scene = report.parent.name
+    times = {t["integrator"]: t["wall_s"] for t in r["time_to_error"] if t["rel_mse"] == LEVEL}
+    fixed = {k: v for k, v in times.items() if k != "auto" and v is not None}
+    best = min(fixed, key=fixed.get) if fixed else None
+    auto = times.get("auto")
+    chosen = r["auto"][0]["chosen"] if r.get("auto") else "–"
+    pilot = r["auto"][0]["pilot_s"] if r.get("auto") else None
+    ratio = auto / fixed[best] if auto and best else None
+    rows.append((scene, r["width"], r["height"], times, best, chosen, pilot, ratio, r))
+
+methods = []
+for row in rows:
+    for k in row[3]:
+        if k != "auto" and k not in methods:
+            methods.append(k)
+print(f"Wall seconds to relMSE {LEVEL:g} (– not reached within the budgets):\n")
+print("| scene | " + " | ".join(methods) + " | auto (choice, pilot s) | auto / best |")
+print("|---|" + "---:|" * len(methods) + "---|---:|")
+for scene, w, h, times, best, chosen, pilot, ratio, _ in rows:
+    cells = []
+    for m in methods:
+        t = times.get(m)
+        cell = "" if m not in times else ("–" if t is None else f"{t:.2f}")
+        cells.append(f"**{cell}**" if m == best else cell)
+    a = times.get("auto")
+    auto_cell = ("–" if a is None else f"{a:.2f}") + f" ({chosen}, {pilot:.2f})" if pilot is not None else "–"
+    print(f"| {scene} {w}×{h} | " + " | ".join(cells) + f" | {auto_cell} | " + (f"{ratio:.2f}" if ratio else "–") + " |")
+
+print("\nEstimated (from the render's own variance) against measured relMSE, at the first checkpoint at or below 3e-2:\n")
+print("| scene | " + " | ".join(methods) + " |")
+print("|---|" + "---:|" * len(methods))
+for scene, *_ , r in rows:
+    cells = []
+    for m in methods:
+        runs = [x for x in r["runs"] if x["integrator"] == m]
+        hit = next((x for x in runs if x["rel_mse"] <= 3e-2), runs[-1] if runs else None)
+        if hit is None:
+            cells.append("")
+        elif hit["estimated_rel_mse"] is None:
+            cells.append(f"– / {hit['rel_mse']:.1e}")
+        else:
+            cells.append(f"{hit['estimated_rel_mse']:.1e} / {hit['rel_mse']:.1e} ({hit['estimated_rel_mse'] / hit['rel_mse']:.2f})")
+    print(f"| {scene} | " + " | ".join(cells) + " |")

@@ -1,0 +1,24 @@
+#!/bin/sh
+# Speed against error on six scenes with every method and `auto` (issue 25's "must show"):
+# `tessera bench` per scene into bench-report/auto/SCENE/, then a table of the wall seconds to
+# relMSE 1e-2 with auto's ratio to the best fixed method (scripts/bench-auto-table.py).
+# Usage: scripts/bench-auto.sh [TESSERA] (default target/release/tessera). Takes about 30 min
+# on a 2-core machine; run it with nothing else running.
+set -eu
+T=${1:-target/release/tessera}
+OUT=bench-report/auto
+ALL=auto,path,bdpt,vcm,photon,sppm,pssmlt,mlt
+SPP=1,2,3,4,6,8,12,16,24,32,48,64,96,128,192,256
+run() { # scene reference integrators budgets
+    echo "== $1"
+    "$T" bench "scenes/$1/scene.json" --reference "$2" --integrators "$3" --budgets "$4" \
+        -o "$OUT/$1"
+}
+run cornell-box scenes/cornell-box/reference.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,48
+run cornell-glass scenes/cornell-glass/reference-128.exr "$ALL" "$SPP"
+run indirect-room scenes/indirect-room/reference-128.exr "$ALL" "$SPP"
+run pool scenes/pool/reference-96.exr "$ALL" "$SPP"
+run material-spheres scenes/material-spheres/reference-128.exr "$ALL" "$SPP"
+run translucent scenes/translucent/reference-96.exr \
+    auto,path:dipole,path:hierarchical,path:random-walk "$SPP,384,512,768,1024,1536,2048,3072,4096"
+python3 scripts/bench-auto-table.py "$OUT"
