@@ -1,18 +1,27 @@
 #!/usr/bin/env python3
 """The table of scripts/bench-auto.sh: per scene, each method's wall seconds to relMSE 1e-2
 (from `tessera bench`'s report.json), auto's choice and its ratio to the best fixed method, and
-each method's estimated against measured relMSE at its last checkpoint before 1e-2 and after.
-Usage: bench-auto-table.py bench-report/auto"""
+each method's estimated against measured relMSE at its first checkpoint at or below 3e-2.
+Usage: bench-auto-table.py bench-report/auto [AUTO_DIR]: with AUTO_DIR (a later run of
+`--integrators auto` alone, one folder per scene), auto's figures come from there."""
 import json
 import pathlib
 import sys
 
 root = pathlib.Path(sys.argv[1] if len(sys.argv) > 1 else "bench-report/auto")
+auto_root = pathlib.Path(sys.argv[2]) if len(sys.argv) > 2 else None
 LEVEL = 1e-2
 rows = []
 for report in sorted(root.glob("*/report.json")):
     r = json.loads(report.read_text())
     scene = report.parent.name
+    if auto_root and (auto_root / scene / "report.json").exists():
+        a = json.loads((auto_root / scene / "report.json").read_text())
+        keep = lambda xs: [x for x in xs if x["integrator"] != "auto"]
+        r["runs"] = keep(r["runs"]) + [x for x in a["runs"] if x["integrator"] == "auto"]
+        r["time_to_error"] = keep(r["time_to_error"]) + [
+            x for x in a["time_to_error"] if x["integrator"] == "auto"]
+        r["auto"] = a["auto"]
     times = {t["integrator"]: t["wall_s"] for t in r["time_to_error"] if t["rel_mse"] == LEVEL}
     fixed = {k: v for k, v in times.items() if k != "auto" and v is not None}
     best = min(fixed, key=fixed.get) if fixed else None

@@ -2,14 +2,13 @@
 //!
 //! 1. **Features** rule methods out before anything is rendered: a scene without light, or
 //!    whose every light path has one bounce, needs direct lighting only (exact); translucent
-//!    materials leave only the path tracer, with each subsurface method; SPPM is a candidate
-//!    only where light reaches a diffuse surface through a specular one (its strength).
+//!    materials leave only the path tracer, with each subsurface method.
 //! 2. **Pilots**: each remaining candidate renders the scene at about 1/16 of its pixels (at
 //!    least 256, at most 4096) with `k` samples, then `k` more, as two independent halves A and
 //!    B (where the method cannot continue a frame, a second render with the next seed). The
 //!    relMSE of one half is estimated as mean((A − B)² / 2 / (R² + 0.01)) over pixels and
-//!    channels, R being the consensus of the unbiased candidates (their half-sums weighted by
-//!    the inverse of their variance), so v = relMSE × spp is the relative variance of one
+//!    channels, R being the consensus of the unbiased candidates but the path tracer where a
+//!    bidirectional one was measured (their means weighted by the inverse of their variance), so v = relMSE × spp is the relative variance of one
 //!    sample per pixel. For the photon map, what does not fall with samples (kernel bias and the
 //!    photon map's own noise), b = mean((Ā − R)² / (R² + 0.01)) − var(Ā) − var(R), floored at
 //!    0. SPPM's total error against R at 2k iterations is taken to fall as n^(−2/3), the rate of
@@ -21,8 +20,8 @@
 //!    at the job's spp (the same image quality, sooner), or the lowest error within a time.
 //!
 //! After the first three candidates, the pilot stops measuring once it has spent a tenth of
-//! the best prediction so far; candidates not measured are said to be. Candidates run in the order path, BDPT, VCM
-//! (unbiased: the consensus needs them), photon map, SPPM, PSSMLT, MLT.
+//! the best prediction so far; candidates not measured are said to be. Candidates run in the
+//! order path, BDPT, VCM (unbiased: the consensus needs them), photon map, SPPM, PSSMLT, MLT.
 
 use std::time::Instant;
 
@@ -117,8 +116,8 @@ pub fn subsurface_name(s: SubsurfaceMethod) -> &'static str {
 const PILOT_PIXELS: (u64, u64) = (256, 4096);
 /// The pilot stops once it has spent this share of the best prediction.
 const PILOT_SHARE: f64 = 0.1;
-/// The first candidates are measured whatever the pilot has spent: they need no passes, so
-/// cost little, and the consensus that judges the biased ones is theirs.
+/// The first candidates are measured whatever the pilot has spent: the path tracer, BDPT and
+/// VCM need no passes, so cost little, and make the consensus that judges the biased ones.
 const ALWAYS_MEASURED: usize = 3;
 /// A biased candidate is said unable to reach an error its floor is this close to.
 const FLOOR_MARGIN: f64 = 0.8;
@@ -167,7 +166,7 @@ fn measure(
             artifacts: Vec::new(),
         });
     }
-    let (candidates, mut ruled_out) = candidates(desc, analysis.caustics);
+    let (candidates, mut ruled_out) = candidates(desc);
     let film = (desc.film.width as u64) * (desc.film.height as u64);
     let pilot = pilot_desc(desc);
     let photons = crate::photon::PhotonSettings::resolve(desc, &analysis)
@@ -282,7 +281,7 @@ fn measure(
 }
 
 /// The candidates the scene's features leave, in pilot order, and what they ruled out.
-fn candidates(desc: &SceneDesc, caustics: bool) -> (Vec<Candidate>, Vec<String>) {
+fn candidates(desc: &SceneDesc) -> (Vec<Candidate>, Vec<String>) {
     let c = |label: &str, method, subsurface, model, k| Candidate {
         label: label.to_string(),
         method,
@@ -299,7 +298,6 @@ fn candidates(desc: &SceneDesc, caustics: bool) -> (Vec<Candidate>, Vec<String>)
             SubsurfaceMethod::Dipole,
             SubsurfaceMethod::Hierarchical,
         ];
-        methods.dedup();
         let mut seen = Vec::new();
         methods.retain(|m| {
             let new = !seen.contains(m);
@@ -331,23 +329,19 @@ fn candidates(desc: &SceneDesc, caustics: bool) -> (Vec<Candidate>, Vec<String>)
             )],
         );
     }
-    let mut list = vec![
+    // The unbiased methods without passes first: they are cheap to measure and make the
+    // consensus. Photon mapping's pass is measured at full cost (and reused by the render when
+    // it wins); SPPM's iterations trace all their photons whatever the film: one each.
+    let list = vec![
         c("path", "path", None, Model::Unbiased, 16),
         c("bdpt", "bdpt", None, Model::Unbiased, 4),
         c("vcm", "vcm", None, Model::Unbiased, 4),
         c("photon", "photon", None, Model::Biased, 4),
+        c("sppm", "sppm", None, Model::Progressive, 1),
+        c("pssmlt", "pssmlt", None, Model::Unbiased, 4),
+        c("mlt", "mlt", None, Model::Unbiased, 4),
     ];
-    let mut ruled_out = Vec::new();
-    if caustics {
-        list.push(c("sppm", "sppm", None, Model::Progressive, 2));
-    } else {
-        ruled_out.push(
-            "sppm: not a candidate: no light reaches a diffuse surface through a specular one, where progressive photon mapping has its strength".to_string(),
-        );
-    }
-    list.push(c("pssmlt", "pssmlt", None, Model::Unbiased, 4));
-    list.push(c("mlt", "mlt", None, Model::Unbiased, 4));
-    (list, ruled_out)
+    (list, Vec::new())
 }
 
 /// The scene at about 1/16 of its pixels (within [`PILOT_PIXELS`]), same view.
@@ -363,7 +357,6 @@ fn pilot_desc(desc: &SceneDesc) -> SceneDesc {
 }
 
 /// A candidate's pilot images: two independent halves and their mean.
-#[derive(Clone)]
 struct Halves {
     /// k samples, and k more (independent of the first).
     a: Vec<[f64; 3]>,
@@ -372,37 +365,7 @@ struct Halves {
     both: Vec<[f64; 3]>,
 }
 
-/// Side of the blocks of pilot pixels a floor is judged on.
-const BLOCK: u32 = 4;
-
 impl Halves {
-    /// Means over `side`×`side` blocks of a `w`×`h` image (whole blocks only).
-    fn blocks(&self, w: u32, h: u32, side: u32) -> Halves {
-        let (bw, bh) = (w / side, h / side);
-        let mean = |img: &[[f64; 3]]| -> Vec<[f64; 3]> {
-            let mut out = vec![[0.0; 3]; (bw * bh) as usize];
-            for by in 0..bh {
-                for bx in 0..bw {
-                    let o = &mut out[(by * bw + bx) as usize];
-                    for y in by * side..(by + 1) * side {
-                        for x in bx * side..(bx + 1) * side {
-                            let p = img[(y * w + x) as usize];
-                            for c in 0..3 {
-                                o[c] += p[c] / (side * side) as f64;
-                            }
-                        }
-                    }
-                }
-            }
-            out
-        };
-        Halves {
-            a: mean(&self.a),
-            b: mean(&self.b),
-            both: mean(&self.both),
-        }
-    }
-
     /// relMSE of one half against the consensus `r`.
     fn half_rel_mse(&self, r: &[[f64; 3]]) -> f64 {
         rel(r, |p, c| {
@@ -563,9 +526,7 @@ fn floor_of(h: &Halves, unbiased: &[&Halves]) -> f64 {
 }
 
 /// Every measured candidate's prediction for `goal`, and the relMSE aimed at (none for a
-/// time goal). Variance is judged per pixel; floors on blocks of [`BLOCK`]² pilot pixels,
-/// whose means have a small fraction of the pixels' noise, so that a floor is told from the
-/// consensus's noise (a floor finer than a block is not seen).
+/// time goal).
 fn predict(
     candidates: &[Candidate],
     runs: &[(usize, Run)],
@@ -574,26 +535,22 @@ fn predict(
     film: u64,
     photons: f64,
 ) -> (Vec<Measurement>, Option<f64>) {
-    let pixels: Vec<Halves> = runs.iter().map(|(_, r)| r.images.clone()).collect();
-    let side = if pilot.0.min(pilot.1) >= 4 * BLOCK {
-        BLOCK
-    } else {
-        1
+    let pixels: Vec<&Halves> = runs.iter().map(|(_, r)| &r.images).collect();
+    // The consensus leaves the path tracer out where a bidirectional method was measured:
+    // paths it finds too rarely to see in a pilot (caustics of small lights, light seen
+    // through glass) make its pilot's variance look small and its image dark there.
+    let judges = |all: bool| -> Vec<&Halves> {
+        runs.iter()
+            .filter(|(i, _)| candidates[*i].model == Model::Unbiased)
+            .filter(|(i, _)| all || candidates[*i].label != "path")
+            .map(|(_, r)| &r.images)
+            .collect()
     };
-    let blocks: Vec<Halves> = pixels
-        .iter()
-        .map(|h| h.blocks(pilot.0, pilot.1, side))
-        .collect();
-    let chosen: Vec<usize> = runs
-        .iter()
-        .enumerate()
-        .filter(|(_, (i, _))| candidates[*i].model == Model::Unbiased)
-        .map(|(j, _)| j)
-        .collect();
-    fn of<'a>(set: &'a [Halves], chosen: &[usize]) -> Vec<&'a Halves> {
-        chosen.iter().map(|&j| &set[j]).collect()
-    }
-    let (r, _) = consensus(&of(&pixels, &chosen));
+    let unbiased = match judges(false) {
+        j if j.is_empty() => judges(true),
+        j => j,
+    };
+    let (r, _) = consensus(&unbiased);
     if r.is_empty() {
         return (Vec::new(), None);
     }
@@ -614,9 +571,9 @@ fn predict(
             };
             let floor = match c.model {
                 Model::Unbiased => None,
-                Model::Biased => Some(floor_of(&blocks[j], &of(&blocks, &chosen))),
+                Model::Biased => Some(floor_of(pixels[j], &unbiased)),
                 // A k-iteration image's whole error: its noise and its (shrinking) bias.
-                Model::Progressive => Some(half + floor_of(&blocks[j], &of(&blocks, &chosen))),
+                Model::Progressive => Some(half + floor_of(pixels[j], &unbiased)),
             };
             Measurement {
                 label: c.label.clone(),
