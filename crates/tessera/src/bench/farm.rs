@@ -277,6 +277,26 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
         let exr = client.frame_exr(job.id, done.frames.first).await?;
         let farm_s = t.elapsed().as_secs_f64();
         let png = client.frame_preview(job.id, done.frames.first).await?;
+        // `auto` measures where it is planned: the local render is compared once it replays the
+        // farm's choice.
+        if let Some(choice) = &done.settings.choice {
+            let mut cmd = tokio::process::Command::new(&exe);
+            cmd.arg("render")
+                .arg(&args.scene)
+                .args(["--spp", &args.spp.to_string(), "--integrator", method])
+                .args(["--auto-choice", &serde_json::to_string(choice)?])
+                .args(["--threads", &args.workers.to_string(), "-q", "-o"])
+                .arg(&out);
+            if let Some([w, h]) = size {
+                cmd.args(["--size", &format!("{w}x{h}")]);
+            }
+            let o = cmd.output().await?;
+            anyhow::ensure!(
+                o.status.success(),
+                "tessera render --auto-choice failed: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
         let identical = std::fs::read(&out)? == exr;
         let mut kinds: BTreeMap<String, (u64, u64, u64, u64)> = BTreeMap::new();
         let tasks = client.tasks(job.id).await?;
