@@ -7,14 +7,16 @@
 //!    least 256, at most 4096) with `k` samples, then `k` more, as two independent halves A and
 //!    B (where the method cannot continue a frame, a second render with the next seed). The
 //!    relMSE of one half is estimated as mean((A − B)² / 2 / (R² + 0.01)) over pixels and
-//!    channels, R being the consensus of the unbiased candidates but the path tracer where a
-//!    bidirectional one was measured (their means weighted by the inverse of their variance), so v = relMSE × spp is the relative variance of one
-//!    sample per pixel. For the photon map, what does not fall with samples (kernel bias and the
-//!    photon map's own noise), b = mean((Ā − R)² / (R² + 0.01)) − var(Ā) − var(R), floored at
-//!    0. SPPM's total error against R at 2k iterations is taken to fall as n^(−2/3), the rate of
-//!    progressive photon mapping with α = 2/3 (Knaus & Zwicker 2011).
+//!    channels, R being the consensus of the unbiased candidates (leaving out the path tracer
+//!    where a bidirectional one was measured), their means weighted by the inverse of their
+//!    variance; v = relMSE × k is the relative variance of one sample per pixel. For the photon
+//!    map, what does not fall with samples (kernel bias, irradiance interpolation, the photon
+//!    map's own noise): b = mean((Ā − R)² / (R² + 0.01)) − var(Ā) − var(R), floored at 0.
+//!    SPPM renders k iterations with two seeds; the whole error e of a k-iteration image against
+//!    R is taken to fall as n^(−2/3), the rate of progressive photon mapping with α = 2/3
+//!    (Knaus & Zwicker 2011).
 //! 3. **Prediction** at full size: samples to reach relMSE E are v / E (unbiased),
-//!    v / (E − b) (photon map; none if b is near E), 2k (e/E)^(3/2) (SPPM); time is the
+//!    v / (E − b) (photon map; none if b is near E), k (e/E)^(3/2) (SPPM); time is the
 //!    passes' time (view-independent, so the pilot's) plus the samples at the pilot's time per
 //!    sample and pixel. The goal is a relMSE (`target_error`), the error path tracing reaches
 //!    at the job's spp (the same image quality, sooner), or the lowest error within a time.
