@@ -2,8 +2,8 @@
 # Speed against error on six scenes with every method and `auto` (issue 25's "must show"):
 # `tessera bench` per scene into bench-report/auto/SCENE/, then a table of the wall seconds to
 # relMSE 1e-2 with auto's ratio to the best fixed method (scripts/bench-auto-table.py).
-# Usage: scripts/bench-auto.sh [TESSERA] (default target/release/tessera). Takes about 30 min
-# on a 2-core machine; run it with nothing else running.
+# Usage: scripts/bench-auto.sh [TESSERA] (default target/release/tessera). Long (the README's
+# dated section says how long it took); run it with nothing else running.
 set -eu
 T=${1:-target/release/tessera}
 OUT=bench-report/auto

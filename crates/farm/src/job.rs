@@ -228,8 +228,7 @@ pub fn job(desc: SceneDesc, settings: &RenderSettings, frames: FrameRange) -> Jo
 
 /// `auto`'s choice for a job that asks for it and carries none, measured by pilots on its
 /// first frame ([`pilot::select`]) with `threads` threads; `None` for any other job. `desc`
-/// has the settings applied. The goal is the job's target error, else the error the path
-/// tracer reaches at its spp.
+/// has the settings applied; the goal is [`pilot::Goal::of`] the job.
 pub fn measure_auto(
     desc: &SceneDesc,
     settings: &RenderSettings,
@@ -239,10 +238,7 @@ pub fn measure_auto(
     if desc.integrator.method != "auto" || settings.choice.is_some() {
         return Ok(None);
     }
-    let goal = match settings.target_error {
-        Some(e) => pilot::Goal::Error(e),
-        None => pilot::Goal::PathSpp(desc.integrator.spp),
-    };
+    let goal = pilot::Goal::of(&job(desc.clone(), settings, frames));
     let mut scene = tessera_render::Scene::build(desc);
     Ok(Some(
         pilot::select(desc, &mut scene, frames.first, goal, threads)?.choice,

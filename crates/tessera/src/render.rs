@@ -150,13 +150,8 @@ pub fn choose(
     scene: &mut tessera_render::Scene,
     threads: usize,
 ) -> anyhow::Result<pilot::Selection> {
-    let desc = &job.desc;
-    let goal = match (job.target_error, job.time_limit) {
-        (Some(e), _) => pilot::Goal::Error(e),
-        (None, Some(t)) => pilot::Goal::Seconds(t.as_secs_f64()),
-        (None, None) => pilot::Goal::PathSpp(desc.integrator.spp),
-    };
-    let selection = pilot::select(desc, scene, *job.frames.start(), goal, threads)
+    let goal = pilot::Goal::of(job);
+    let selection = pilot::select(&job.desc, scene, *job.frames.start(), goal, threads)
         .map_err(anyhow::Error::msg)?;
     for line in &selection.choice.report {
         tracing::info!(choice = %line, "auto");

@@ -214,22 +214,30 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
             continue;
         }
         let out = dir.join(format!("render_{method}.exr"));
+        // `tessera render` of the job into `out`, with `extra` arguments.
+        let render = |extra: Vec<String>| {
+            let mut cmd = tokio::process::Command::new(&exe);
+            cmd.arg("render")
+                .arg(&args.scene)
+                .args(["--spp", &args.spp.to_string(), "--integrator", method])
+                .args(["--threads", &args.workers.to_string(), "-q", "-o"])
+                .arg(&out)
+                .args(extra);
+            if let Some([w, h]) = size {
+                cmd.args(["--size", &format!("{w}x{h}")]);
+            }
+            async move {
+                let o = cmd.output().await?;
+                anyhow::ensure!(
+                    o.status.success(),
+                    "tessera render --integrator {method} failed: {}",
+                    String::from_utf8_lossy(&o.stderr)
+                );
+                Ok(o)
+            }
+        };
         let t = Instant::now();
-        let mut cmd = tokio::process::Command::new(&exe);
-        cmd.arg("render")
-            .arg(&args.scene)
-            .args(["--spp", &args.spp.to_string(), "--integrator", method])
-            .args(["--threads", &args.workers.to_string(), "-q", "-o"])
-            .arg(&out);
-        if let Some([w, h]) = size {
-            cmd.args(["--size", &format!("{w}x{h}")]);
-        }
-        let o = cmd.output().await?;
-        anyhow::ensure!(
-            o.status.success(),
-            "tessera render --integrator {method} failed: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        let o = render(Vec::new()).await?;
         let render_s = t.elapsed().as_secs_f64();
         // The render reports its own peak resident memory.
         let render_mib = String::from_utf8_lossy(&o.stdout)
@@ -280,22 +288,7 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
         // `auto` measures where it is planned: the local render is compared once it replays the
         // farm's choice.
         if let Some(choice) = &done.settings.choice {
-            let mut cmd = tokio::process::Command::new(&exe);
-            cmd.arg("render")
-                .arg(&args.scene)
-                .args(["--spp", &args.spp.to_string(), "--integrator", method])
-                .args(["--auto-choice", &serde_json::to_string(choice)?])
-                .args(["--threads", &args.workers.to_string(), "-q", "-o"])
-                .arg(&out);
-            if let Some([w, h]) = size {
-                cmd.args(["--size", &format!("{w}x{h}")]);
-            }
-            let o = cmd.output().await?;
-            anyhow::ensure!(
-                o.status.success(),
-                "tessera render --auto-choice failed: {}",
-                String::from_utf8_lossy(&o.stderr)
-            );
+            render(vec!["--auto-choice".into(), serde_json::to_string(choice)?]).await?;
         }
         let identical = std::fs::read(&out)? == exr;
         let mut kinds: BTreeMap<String, (u64, u64, u64, u64)> = BTreeMap::new();

@@ -47,6 +47,18 @@ pub enum Goal {
     PathSpp(u32),
 }
 
+impl Goal {
+    /// What `job` asks of its render: its target error, else the lowest error within its time
+    /// limit, else the path tracer's error at its spp.
+    pub fn of(job: &Job) -> Goal {
+        match (job.target_error, job.time_limit) {
+            (Some(e), _) => Goal::Error(e),
+            (None, Some(t)) => Goal::Seconds(t.as_secs_f64()),
+            (None, None) => Goal::PathSpp(job.desc.integrator.spp),
+        }
+    }
+}
+
 /// How a candidate's error falls with its samples n.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Model {
