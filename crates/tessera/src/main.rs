@@ -2,6 +2,7 @@
 
 mod bench;
 mod compare;
+mod export;
 mod farm;
 mod reference;
 mod remote;
@@ -30,6 +31,8 @@ enum Command {
     Compare(compare::CompareArgs),
     /// Render a converged reference (adaptive, with a stated stopping rule).
     Reference(reference::ReferenceArgs),
+    /// Write a scene as Mitsuba 3 reads it (scene.xml and PLY meshes), as Tessera resolved it.
+    Export(export::ExportArgs),
     /// Run the coordinator: HTTP API, job store, scheduler (and local workers).
     Serve(farm::ServeArgs),
     /// Run a worker: lease tasks from a coordinator and render them.
@@ -104,6 +107,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render::run(args),
         Command::Compare(args) => compare::run(args),
         Command::Reference(args) => reference::run(args),
+        Command::Export(args) => export::run(args),
         Command::Serve(args) => block_on(farm::serve(args)),
         Command::Worker(args) => block_on(farm::worker(args)),
         Command::Submit(args) => block_on(farm::submit(args)),

@@ -352,3 +352,65 @@ fn adaptive_render_writes_its_error_estimate_into_the_exr_header() {
     ]);
     assert!(!o.status.success() && stderr(&o).contains("target_error: expected a positive"));
 }
+
+/// `tessera export` writes the scene as Mitsuba reads it: the sensor at the asked size, one
+/// PLY per mesh whose header counts the mesh's vertices and faces, the sphere lights with
+/// their radiance; and refuses, naming it, a material Mitsuba has no plugin for.
+#[test]
+fn export_writes_mitsuba_xml_and_refuses_what_mitsuba_lacks() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().to_str().expect("utf-8 temp path");
+    let scene = repo().join("scenes/veach-mis/scene.json");
+    let o = tessera(&[
+        "export",
+        scene.to_str().expect("utf-8"),
+        "--size",
+        "96x64",
+        "-o",
+        out,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let xml = std::fs::read_to_string(dir.path().join("scene.xml")).expect("scene.xml");
+    assert!(
+        xml.contains(r#"<integer name="width" value="96"/>"#),
+        "{xml}"
+    );
+    assert!(
+        xml.contains(r#"<string name="fov_axis" value="y"/>"#),
+        "{xml}"
+    );
+    assert_eq!(
+        xml.matches(r#"<bsdf type="roughconductor">"#).count(),
+        4,
+        "{xml}"
+    );
+    assert_eq!(xml.matches(r#"<shape type="sphere">"#).count(), 4, "{xml}");
+    assert_eq!(xml.matches(r#"<emitter type="area">"#).count(), 4, "{xml}");
+    let desc = tessera_scene::load(&scene).expect("scene");
+    assert_eq!(
+        xml.matches(r#"<shape type="ply">"#).count(),
+        desc.meshes.len()
+    );
+    for (i, m) in desc.meshes.iter().enumerate() {
+        let ply = std::fs::read(dir.path().join(format!("meshes/{i}.ply"))).expect("ply");
+        let header = String::from_utf8_lossy(&ply[..ply.len().min(400)]).into_owned();
+        assert!(
+            header.contains(&format!("element vertex {}\n", m.positions.len())),
+            "{header}"
+        );
+        assert!(
+            header.contains(&format!("element face {}\n", m.triangles.len())),
+            "{header}"
+        );
+        let body = ply.len() - (header.find("end_header\n").expect("end_header") + 11);
+        assert_eq!(body, m.positions.len() * 12 + m.triangles.len() * 13);
+    }
+    let spheres = repo().join("scenes/material-spheres/scene.json");
+    let o = tessera(&["export", spheres.to_str().expect("utf-8"), "-o", out]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("material \"brushed\": Mitsuba 3 has no Ward BSDF"),
+        "{}",
+        stderr(&o)
+    );
+}
