@@ -7,7 +7,7 @@
 //!    direct light there by light sampling;
 //! 2. photon pass — photons `t·M .. (t+1)·M` are shot (each a function of its index alone),
 //!    and those that arrive after at least one bounce are gathered at every visible point
-//!    within its radius: Φ += β f(ωo, ωp) Φp, M += 1;
+//!    within its radius, in a disc along its surface: Φ += β f(ωo, ωp) Φp, M += 1;
 //! 3. per pixel (f64): N' = N + αM, r' = r √(N'/(N + M)), τ' = (τ + Φ) r'²/r², N = N'.
 //!
 //! The radiance is L_direct/T + τ / (T π r²) after T iterations; r shrinks so bias and
@@ -30,7 +30,7 @@ use crate::analysis::Analysis;
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
 use crate::film::{Image, Pixel};
-use crate::photon::{DEFAULT_PHOTONS, KdTree, MapKind, Photon, PhotonSettings, Shooter};
+use crate::photon::{DEFAULT_PHOTONS, FLATTEN, KdTree, MapKind, Photon, PhotonSettings, Shooter};
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::{NO_LIGHT, Scene, SurfaceInteraction};
 use crate::spectrum::{Spectrum, is_black};
@@ -449,8 +449,16 @@ impl<'a> Sppm<'a> {
             let bsdf = material.bsdf_at(&vp.si);
             let (mut phi, mut m) = (DVec3::ZERO, 0u32);
             let r2 = r2.get(i as usize).copied().unwrap_or(0.0);
-            photons.within(vp.si.p, r2, &mut |j, _| {
+            let n = vp.si.ns;
+            photons.within(vp.si.p, r2, &mut |j, d2| {
                 let ph = photons.get(j);
+                // The sphere flattened into a disc along the surface (Jensen 2001 §7.1, as
+                // the photon map gathers): photons on a nearby surface of another
+                // orientation — the far side of a thin wall — are not this surface's light.
+                let along = (Vec3A::from(ph.p) - vp.si.p).dot(n);
+                if d2 + FLATTEN * along * along > r2 {
+                    return;
+                }
                 let wi = Vec3A::from(ph.wi);
                 let f = bsdf.eval(wo_local, frame.to_local(wi), TransportMode::Radiance);
                 let c = vp.beta * f * Vec3A::from(ph.power);
