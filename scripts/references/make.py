@@ -75,7 +75,8 @@ def render(name, tessera, out_dir, variant):
         total2 += img * img
         print(f"  {name}: batch {seed + 1}/{batches} ({time.time() - start:.0f} s)", flush=True)
     mean = total / batches
-    var = np.maximum(total2 / batches - mean * mean, 0.0) * batches / (batches - 1) / batches
+    # The batches' sample variance, over `batches`: the variance of their mean.
+    var = np.maximum(total2 / batches - mean * mean, 0.0) / (batches - 1)
     seconds = time.time() - start
     rel = float(np.mean(var / (mean * mean + 0.01)))
     header = {

@@ -472,11 +472,8 @@ impl Scene {
             let mut tangents = m.tangents.as_ref().map(|t| Vec::with_capacity(t.len()));
             for (ti, &[a, b, c]) in m.triangles.iter().enumerate() {
                 let v = [a, b, c].map(|i| Vec3A::from(m.positions[i as usize]));
-                // With vertex normals, the normals decide the front face: wind to agree.
                 let winding = (v[1] - v[0]).cross(v[2] - v[0]);
-                let flip = normals.as_ref().is_some_and(|n| {
-                    winding.dot(n[a as usize] + n[b as usize] + n[c as usize]) < 0.0
-                });
+                let flip = m.faces_against_normals([a, b, c]);
                 let (v, idx) = if flip {
                     ([v[0], v[2], v[1]], [a, c, b])
                 } else {

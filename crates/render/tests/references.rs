@@ -34,11 +34,13 @@ const K: usize = 8;
 /// Significance level of each pixel's test.
 const ALPHA: f64 = 0.01;
 
-/// A reference image: per pixel, the mean of `batches` Mitsuba renders and its variance.
+/// Batches per reference (scripts/references/make.py), the degrees of freedom of its variance.
+const BATCHES: f64 = 16.0;
+
+/// A reference image: per pixel, the mean of [`BATCHES`] Mitsuba renders and its variance.
 struct Reference {
     mean: Vec<[f64; 3]>,
     var: Vec<[f64; 3]>,
-    batches: f64,
 }
 
 /// Scene `name` at the size of its reference, box-filtered, with the reference.
@@ -56,7 +58,6 @@ fn scene(name: &str) -> (SceneDesc, Reference) {
     let reference = Reference {
         mean: (0..pixels).map(|i| at(0, i)).collect(),
         var: (0..pixels).map(|i| at(3, i)).collect(),
-        batches: 16.0,
     };
     let path = root.join("scenes").join(name).join("scene.json");
     let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
@@ -163,7 +164,7 @@ fn welch(desc: &SceneDesc, test: Test, reference: &Reference) -> Outcome {
             }
             // Welch–Satterthwaite degrees of freedom.
             let dof = (a + v).powi(2)
-                / (a * a / (k - 1.0) + v * v / (reference.batches - 1.0)).max(f64::MIN_POSITIVE);
+                / (a * a / (k - 1.0) + v * v / (BATCHES - 1.0)).max(f64::MIN_POSITIVE);
             let d = ((mean - r[c]).abs() - test.bias * r[c].abs()).max(0.0);
             let t = d / (a + v).sqrt();
             let p = match StudentsT::new(0.0, 1.0, dof.max(1.0)) {

@@ -346,6 +346,20 @@ pub struct MeshDesc {
 }
 
 impl MeshDesc {
+    /// Whether triangle `[a, b, c]` as listed faces away from its vertex normals (summed),
+    /// where the mesh has them: the normals decide the front face, so renderers and exports
+    /// wind such a triangle the other way, `[a, c, b]`.
+    pub fn faces_against_normals(&self, [a, b, c]: [u32; 3]) -> bool {
+        let Some(n) = &self.normals else {
+            return false;
+        };
+        let [p0, p1, p2] = [a, b, c].map(|i| self.positions[i as usize]);
+        (p1 - p0)
+            .cross(p2 - p0)
+            .dot(n[a as usize] + n[b as usize] + n[c as usize])
+            < 0.0
+    }
+
     /// Total surface area, in scene units squared (degenerate triangles count zero).
     pub fn area(&self) -> f64 {
         self.triangles

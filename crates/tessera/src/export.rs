@@ -73,21 +73,18 @@ pub fn mitsuba_xml(desc: &SceneDesc, dir: &Path) -> anyhow::Result<String> {
     let mut media = Vec::new();
     for (i, m) in desc.materials.iter().enumerate() {
         let b = bsdf(&m.kind).with_context(|| format!("material \"{}\"", m.name))?;
-        let element = format!(
-            "<bsdf type=\"{}\"{{id}}>\n{}    </bsdf>",
-            b.plugin, b.params
-        );
+        let element =
+            |id: &str| format!("<bsdf type=\"{}\"{id}>\n{}    </bsdf>", b.plugin, b.params);
+        let own_id = format!(" id=\"m{i}\"");
         media.push(b.medium.is_some());
-        let element = |id: &str| element.replace("{id}", id);
-        let dielectric = b.plugin.ends_with("dielectric");
-        match b.medium {
+        match &b.medium {
             Some(medium) => writeln!(
                 x,
                 "  {}\n  <medium type=\"homogeneous\" id=\"v{i}\">\n{medium}  </medium>",
-                element(&format!(" id=\"m{i}\""))
+                element(&own_id)
             )?,
             // An interface has an inside: a dielectric is one-sided, as it is in Tessera.
-            None if dielectric => writeln!(x, "  {}", element(&format!(" id=\"m{i}\"")))?,
+            None if b.plugin.ends_with("dielectric") => writeln!(x, "  {}", element(&own_id))?,
             None => writeln!(
                 x,
                 "  <bsdf type=\"twosided\" id=\"m{i}\">\n    {}\n  </bsdf>",
@@ -154,7 +151,7 @@ fn sensor(desc: &SceneDesc) -> String {
     format!(
         "  <sensor type=\"{plugin}\">\n{lens}{}{}      <transform name=\"to_world\">\n        \
          <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n      </transform>\n      \
-         <sampler type=\"independent\"/>\n      <film type=\"hdrfilm\">\n  {}  {}  {}        \
+         <sampler type=\"independent\"/>\n      <film type=\"hdrfilm\">\n{}{}{}      \
          <rfilter type=\"box\"/>\n      </film>\n  </sensor>\n",
         param("float", "fov", c.fov_y.to_degrees()),
         param("string", "fov_axis", "y"),
@@ -363,13 +360,11 @@ fn write_ply(path: &Path, mesh: &tessera_scene::MeshDesc) -> anyhow::Result<()> 
         }
     }
     for &[a, b, c] in &mesh.triangles {
-        let p = [a, b, c].map(|i| mesh.positions[i as usize]);
-        let winding = (p[1] - p[0]).cross(p[2] - p[0]);
-        let flip = mesh
-            .normals
-            .as_ref()
-            .is_some_and(|n| winding.dot(n[a as usize] + n[b as usize] + n[c as usize]) < 0.0);
-        let idx = if flip { [a, c, b] } else { [a, b, c] };
+        let idx = if mesh.faces_against_normals([a, b, c]) {
+            [a, c, b]
+        } else {
+            [a, b, c]
+        };
         out.push(3);
         for i in idx {
             out.extend_from_slice(&(i as i32).to_le_bytes());

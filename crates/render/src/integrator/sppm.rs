@@ -449,16 +449,11 @@ impl<'a> Sppm<'a> {
             let bsdf = material.bsdf_at(&vp.si);
             let (mut phi, mut m) = (DVec3::ZERO, 0u32);
             let r2 = r2.get(i as usize).copied().unwrap_or(0.0);
-            let n = vp.si.ns;
-            photons.within(vp.si.p, r2, &mut |j, d2| {
+            // The sphere flattened into a disc along the surface, as the photon map gathers:
+            // photons on a nearby surface of another orientation — the far side of a thin
+            // wall — are not this surface's light.
+            photons.within(vp.si.p, vp.si.ns, FLATTEN, r2, &mut |j, _| {
                 let ph = photons.get(j);
-                // The sphere flattened into a disc along the surface (Jensen 2001 §7.1, as
-                // the photon map gathers): photons on a nearby surface of another
-                // orientation — the far side of a thin wall — are not this surface's light.
-                let along = (Vec3A::from(ph.p) - vp.si.p).dot(n);
-                if d2 + FLATTEN * along * along > r2 {
-                    return;
-                }
                 let wi = Vec3A::from(ph.wi);
                 let f = bsdf.eval(wo_local, frame.to_local(wi), TransportMode::Radiance);
                 let c = vp.beta * f * Vec3A::from(ph.power);

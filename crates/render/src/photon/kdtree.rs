@@ -121,16 +121,27 @@ impl<T: Positioned> KdTree<T> {
         self.search(0, self.photons.len(), p, n, flatten, knn);
     }
 
-    /// Calls `f(index, squared distance)` for every point within squared radius `r2` of `p`,
-    /// in a fixed (tree) order.
-    pub fn within(&self, p: Vec3A, r2: f32, f: &mut impl FnMut(u32, f32)) {
-        self.within_range(0, self.photons.len(), p, r2, f);
+    /// Calls `f(index, squared distance)` for every point within squared radius `r2` of `p`
+    /// under the distance of [`KdTree::nearest`] (`flatten` 0: a ball), in a fixed (tree)
+    /// order.
+    pub fn within(&self, p: Vec3A, n: Vec3A, flatten: f32, r2: f32, f: &mut impl FnMut(u32, f32)) {
+        self.within_range(0, self.photons.len(), p, n, flatten, r2, f);
     }
 
-    fn within_range(&self, lo: usize, hi: usize, q: Vec3A, r2: f32, f: &mut impl FnMut(u32, f32)) {
+    #[allow(clippy::too_many_arguments)]
+    fn within_range(
+        &self,
+        lo: usize,
+        hi: usize,
+        q: Vec3A,
+        n: Vec3A,
+        flatten: f32,
+        r2: f32,
+        f: &mut impl FnMut(u32, f32),
+    ) {
         if hi - lo <= LEAF {
             for (i, p) in self.points[lo..hi].iter().enumerate() {
-                let d2 = (*p - q).length_squared();
+                let d2 = flattened_d2(*p - q, n, flatten);
                 if d2 <= r2 {
                     f((lo + i) as u32, d2);
                 }
@@ -146,13 +157,14 @@ impl<T: Positioned> KdTree<T> {
         } else {
             ((mid + 1, hi), (lo, mid))
         };
-        self.within_range(near.0, near.1, q, r2, f);
-        let d2 = (p - q).length_squared();
+        self.within_range(near.0, near.1, q, n, flatten, r2, f);
+        let d2 = flattened_d2(p - q, n, flatten);
         if d2 <= r2 {
             f(mid as u32, d2);
         }
+        // The flattened distance is at least the Euclidean one.
         if delta * delta <= r2 {
-            self.within_range(far.0, far.1, q, r2, f);
+            self.within_range(far.0, far.1, q, n, flatten, r2, f);
         }
     }
 
@@ -167,9 +179,7 @@ impl<T: Positioned> KdTree<T> {
     ) {
         if hi - lo <= LEAF {
             for (i, p) in self.points[lo..hi].iter().enumerate() {
-                let d = *p - q;
-                let dn = d.dot(n);
-                let d2 = d.length_squared() + flatten * dn * dn;
+                let d2 = flattened_d2(*p - q, n, flatten);
                 if d2 < knn.max_d2 {
                     knn.insert(d2, (lo + i) as u32);
                 }
@@ -188,9 +198,7 @@ impl<T: Positioned> KdTree<T> {
             ((mid + 1, hi), (lo, mid))
         };
         self.search(near.0, near.1, q, n, flatten, knn);
-        let d = p - q;
-        let dn = d.dot(n);
-        let d2 = d.length_squared() + flatten * dn * dn;
+        let d2 = flattened_d2(p - q, n, flatten);
         if d2 < knn.max_d2 {
             knn.insert(d2, mid as u32);
         }
@@ -299,6 +307,14 @@ impl<const N: usize> Knn<N> {
     }
 }
 
+/// |d|² + `flatten`·(d·`n`)²: the squared distance of a photon `d` away, the sphere squeezed
+/// into a disc along the surface of normal `n` (Jensen 2001 §7.1).
+#[inline]
+fn flattened_d2(d: Vec3A, n: Vec3A, flatten: f32) -> f32 {
+    let dn = d.dot(n);
+    d.length_squared() + flatten * dn * dn
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -360,7 +376,9 @@ mod tests {
         let q = Vec3A::new(0.4, 0.6, 0.1);
         for r2 in [0.0001f32, 0.01, 0.2] {
             let mut got = Vec::new();
-            tree.within(q, r2, &mut |i, d2| got.push((d2, tree.get(i).p.to_array())));
+            tree.within(q, Vec3A::Z, 0.0, r2, &mut |i, d2| {
+                got.push((d2, tree.get(i).p.to_array()))
+            });
             let mut want: Vec<f32> = photons
                 .iter()
                 .map(|p| (Vec3A::from(p.p) - q).length_squared())
