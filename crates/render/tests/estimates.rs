@@ -1,6 +1,6 @@
 //! The error a render estimates for itself against the error it has: for the unbiased
-//! methods whose variance AOV is complete — the path tracer (its samples), BDPT and VCM (their
-//! tasks as independent batches) — the relMSE predicted by the variance AOV, Σ Var/(r² +
+//! methods — the path tracer (its samples), BDPT and VCM (their tasks as independent batches),
+//! PSSMLT and MLT (direct light's tasks and the chains' groups as independent batches) — the relMSE predicted by the variance AOV, Σ Var/(r² +
 //! 0.01), against the relMSE measured against the converged 32×32 reference of the Cornell
 //! box (less the reference's own), over the same pixels (the emitter's left out). With
 //! independent samples the two agree within ±30 %; the Sobol sampler's stratification makes
@@ -17,7 +17,13 @@ fn unbiased_methods_estimate_their_own_error_within_thirty_percent() {
     desc.integrator.sampler = SamplerType::Independent;
     let mut report = Vec::new();
     let mut failures = Vec::new();
-    for (method, spp) in [("path", 64), ("bdpt", 64), ("vcm", 64)] {
+    for (method, spp) in [
+        ("path", 64),
+        ("bdpt", 64),
+        ("vcm", 64),
+        ("pssmlt", 64),
+        ("mlt", 64),
+    ] {
         let image = render_by_method(&desc, method, spp, 7);
         let (mut measured, mut estimated, mut n) = (0.0f64, 0.0f64, 0usize);
         for (p, r) in image.pixels.iter().zip(&reference.pixels) {

@@ -223,54 +223,121 @@ pub fn add_splats(to: &mut [[f32; 3]], from: &[[f32; 3]]) -> Result<(), String> 
     Ok(())
 }
 
-/// The variance of a whole-film method's pixels from its tasks as independent batches: each
-/// task's estimate of the pixel, weighted by its samples, merged by Chan et al.'s update. With
-/// T batches, M₂ / (T − 1) estimates the variance of one sample, so M₂ / ((T − 1) N) that of
-/// the frame's estimate of N samples (0 with one batch: unknown).
+/// The variance of a whole-film method's pixels from its tasks as independent batches.
+///
+/// A pixel's estimate is a ratio, S / W: the camera side's Σ w·L over its Σ w (filter weights
+/// f/pdf, of either sign for a filter with negative lobes), and the splats' Σ l over the
+/// samples per pixel N. A batch's own ratio s_b / w_b is no estimate to take the spread of:
+/// where a task's weights nearly cancel it is unbounded. The ratio estimator's variance by
+/// linearisation is (Cochran, *Sampling Techniques*, §6.4)
+///
+/// Var(S / W) ≈ T / (T − 1) · Σ_b (s_b − R w_b)² / W², R = S / W, over T batches,
+///
+/// which needs no division by a batch's weight. The sum of squares is kept about the current
+/// R (shifting it when R moves: A ← A − 2δB + δ²C, B ← B − δC with B = Σ w_b (s_b − R w_b),
+/// C = Σ w_b²), so it stays on the residuals' scale. The camera side and the splats come from
+/// different paths, so their variances add; both are 0 with one batch (unknown).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Batches {
+    camera: Ratios,
+    splats: Ratios,
+}
+
+/// Per pixel, a ratio S / W = Σ_b s_b / Σ_b w_b over independent batches, and the moments of
+/// its residuals about it (see [`Batches`]); with w_b = 1 the mean of T batch estimates.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Ratios {
     pub batches: u32,
-    samples: u32,
-    mean: Vec<[f32; 3]>,
-    m2: Vec<[f32; 3]>,
+    sum: Vec<[f32; 3]>,
+    weight: Vec<f32>,
+    /// Σ_b (s_b − R w_b)², Σ_b w_b (s_b − R w_b), Σ_b w_b².
+    a: Vec<[f32; 3]>,
+    b: Vec<[f32; 3]>,
+    c: Vec<f32>,
+}
+
+impl Ratios {
+    pub fn new(pixels: usize) -> Self {
+        Ratios {
+            batches: 0,
+            sum: vec![[0.0; 3]; pixels],
+            weight: vec![0.0; pixels],
+            a: vec![[0.0; 3]; pixels],
+            b: vec![[0.0; 3]; pixels],
+            c: vec![0.0; pixels],
+        }
+    }
+
+    /// Folds a batch: pixel i's (s_b, w_b) from `batch(i)`.
+    pub fn fold(&mut self, batch: impl Fn(usize) -> ([f64; 3], f64)) {
+        for i in 0..self.c.len() {
+            let (s, w) = batch(i);
+            self.add(i, s, w);
+        }
+        self.batches += 1;
+    }
+
+    fn add(&mut self, i: usize, s: [f64; 3], w: f64) {
+        let w0 = self.weight[i] as f64;
+        let w1 = w0 + w;
+        let c = self.c[i] as f64;
+        for ch in 0..3 {
+            let s0 = self.sum[i][ch] as f64;
+            let s1 = s0 + s[ch];
+            let r0 = if w0 != 0.0 { s0 / w0 } else { 0.0 };
+            let r1 = if w1 != 0.0 { s1 / w1 } else { 0.0 };
+            let d = r1 - r0;
+            let (a, b) = (self.a[i][ch] as f64, self.b[i][ch] as f64);
+            let e = s[ch] - r1 * w;
+            self.a[i][ch] = (a - 2.0 * d * b + d * d * c + e * e).max(0.0) as f32;
+            self.b[i][ch] = (b - d * c + w * e) as f32;
+            self.sum[i][ch] = s1 as f32;
+        }
+        self.c[i] = (c + w * w) as f32;
+        self.weight[i] = w1 as f32;
+    }
+
+    /// The variance of pixel `i`'s ratio, T / (T − 1) · Σ_b (s_b − R w_b)² / W² (0 below two
+    /// batches or without weight).
+    pub fn variance(&self, i: usize) -> [f64; 3] {
+        let (t, w) = (self.batches as f64, self.weight[i] as f64);
+        if self.batches < 2 || w == 0.0 {
+            return [0.0; 3];
+        }
+        self.a[i].map(|a| t / (t - 1.0) * a as f64 / (w * w))
+    }
 }
 
 impl Batches {
     pub fn new(pixels: usize) -> Self {
         Batches {
-            batches: 0,
-            samples: 0,
-            mean: vec![[0.0; 3]; pixels],
-            m2: vec![[0.0; 3]; pixels],
+            camera: Ratios::new(pixels),
+            splats: Ratios::new(pixels),
         }
     }
 
-    /// Folds a batch of `n` samples per pixel whose estimate of pixel i is `estimate(i)`.
-    pub fn fold(&mut self, n: u32, estimate: impl Fn(usize) -> [f64; 3]) {
+    /// Batches folded in.
+    pub fn batches(&self) -> u32 {
+        self.camera.batches
+    }
+
+    /// Folds a batch of `n` samples per pixel: pixel i's camera-side Σ w·L and Σ w, and its
+    /// splats' sum (exposed), from `batch(i)`.
+    pub fn fold(&mut self, n: u32, batch: impl Fn(usize) -> ([f64; 3], f64, [f64; 3])) {
         if n == 0 {
             return;
         }
-        let (na, nb) = (self.samples as f64, n as f64);
-        let total = na + nb;
-        for (i, (mean, m2)) in self.mean.iter_mut().zip(self.m2.iter_mut()).enumerate() {
-            let e = estimate(i);
-            for c in 0..3 {
-                let d = e[c] - mean[c] as f64;
-                mean[c] = (mean[c] as f64 + d * nb / total) as f32;
-                m2[c] = (m2[c] as f64 + d * d * na * nb / total) as f32;
-            }
-        }
-        self.samples += n;
-        self.batches += 1;
+        self.camera.fold(|i| {
+            let (s, w, _) = batch(i);
+            (s, w)
+        });
+        self.splats.fold(|i| (batch(i).2, n as f64));
     }
 
     /// The variance of pixel `i`'s estimate over every batch.
     pub fn variance(&self, i: usize) -> [f32; 3] {
-        if self.batches < 2 {
-            return [0.0; 3];
-        }
-        let scale = 1.0 / ((self.batches - 1) as f64 * self.samples as f64);
-        self.m2[i].map(|m| (m as f64 * scale) as f32)
+        let (a, b) = (self.camera.variance(i), self.splats.variance(i));
+        std::array::from_fn(|c| (a[c] + b[c]) as f32)
     }
 }
 
@@ -341,11 +408,61 @@ mod tests {
         let mut b = Batches::new(1);
         for k in 0..400u32 {
             let e = if k % 2 == 0 { 1.5 } else { 0.5 };
-            b.fold(4, |_| [e; 3]);
+            b.fold(4, |_| ([4.0 * e; 3], 4.0, [0.0; 3]));
         }
         let v = b.variance(0)[0] as f64;
         let expect = 4.0 * 0.25 / 1600.0;
         assert!((v / expect - 1.0).abs() < 0.01, "{v} {expect}");
         assert_eq!(Batches::new(1).variance(0), [0.0; 3]);
+    }
+
+    /// Filter weights of either sign: a batch whose weights nearly cancel has a huge ratio of
+    /// its own, but the estimate's variance stays that of the linearised ratio, which the
+    /// spread of independent frames confirms.
+    #[test]
+    fn batches_of_signed_weights_estimate_the_ratios_variance() {
+        use crate::sampler::IndependentSampler;
+        use crate::sampler::Sampler;
+        let mut rng = IndependentSampler::new(7);
+        let mut index = 0;
+        // Each sample: weight +1 with probability 0.9, else −1 (a negative lobe); value 2 + noise.
+        let mut batch = |rng: &mut IndependentSampler| {
+            let (mut s, mut w) = (0.0, 0.0);
+            for _ in 0..3 {
+                rng.start_pixel_sample(glam::UVec2::ZERO, index);
+                index += 1;
+                let wi: f64 = if rng.get_1d() < 0.9 { 1.0 } else { -1.0 };
+                let li = 2.0 + rng.get_1d() as f64 - 0.5;
+                s += wi * li;
+                w += wi;
+            }
+            (s, w)
+        };
+        let (frames, per) = (2000, 8);
+        let (mut estimates, mut predicted) = (Vec::new(), 0.0);
+        for _ in 0..frames {
+            let mut b = Batches::new(1);
+            let (mut s, mut w) = (0.0, 0.0);
+            for _ in 0..per {
+                let (bs, bw) = batch(&mut rng);
+                b.fold(3, |_| ([bs; 3], bw, [0.0; 3]));
+                s += bs;
+                w += bw;
+            }
+            if w != 0.0 {
+                estimates.push(s / w);
+                predicted += b.variance(0)[0] as f64;
+            }
+        }
+        let n = estimates.len() as f64;
+        let mean = estimates.iter().sum::<f64>() / n;
+        let measured = estimates.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        let predicted = predicted / n;
+        // Both are means of 2000 nearly independent terms: each within a few per cent (about
+        // √(2/2000) relative) of its expectation, so 15 % is several standard errors.
+        assert!(
+            (predicted / measured - 1.0).abs() < 0.15,
+            "predicted {predicted:.3e}, measured {measured:.3e}"
+        );
     }
 }

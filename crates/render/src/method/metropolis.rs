@@ -9,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::film::{Splats, add_splats, splats_from_fixed};
+use super::film::{Ratios, Splats, add_splats, splats_from_fixed};
 use super::ranges::{RangeFrame, RangePartial, Ranges};
 use std::time::Duration;
 
@@ -44,6 +44,10 @@ pub enum MetroPartial {
 pub struct MetroFrame {
     direct: RangeFrame,
     chain: Vec<[f32; 3]>,
+    /// Each group's own estimate of the chains' image, b_g × its splats: independent
+    /// batches of the chains' share (the chains within a group are correlated, the groups
+    /// are not).
+    groups: Ratios,
     brightness: f64,
     count: u64,
     exposure: f32,
@@ -131,9 +135,11 @@ impl Method for MetropolisMethod {
 
     fn new_frame(&self, frame: u32) -> MetroFrame {
         let direct = self.ranges.new_frame(frame);
+        let pixels = self.ranges.film().pixel_count();
         MetroFrame {
             direct,
-            chain: vec![[0.0; 3]; self.ranges.film().pixel_count()],
+            chain: vec![[0.0; 3]; pixels],
+            groups: Ratios::new(pixels),
             brightness: 0.0,
             count: 0,
             exposure: self.ranges.camera(frame).exposure,
@@ -183,6 +189,12 @@ impl Method for MetropolisMethod {
                 stats,
             } => {
                 add_splats(&mut f.chain, &splats)?;
+                let b = if count > 0 {
+                    brightness / count as f64
+                } else {
+                    0.0
+                };
+                f.groups.fold(|i| (splats[i].map(|v| v as f64 * b), 1.0));
                 f.brightness += brightness;
                 f.count += count;
                 Ranges::stats(&mut f.direct).add(&stats);
@@ -193,23 +205,29 @@ impl Method for MetropolisMethod {
 
     fn advance(&self, _frame: u32, f: &mut MetroFrame, _: Duration) -> Result<Next, String> {
         let image = self.image(f);
+        let (direct, groups) = (f.direct.batches(), f.groups.batches);
         Ok(match self.ranges.advance(&mut f.direct) {
-            // The chains' share is correlated samples of one Markov chain each: no variance.
-            Next::Done(done) => Next::Done(Finished {
-                image,
-                metadata: vec![
-                    (
-                        "variance".into(),
-                        "direct light only (its tasks as batches): the Markov chains' share of the image has no per-pixel estimate".into(),
-                    ),
-                    (
-                        "estimated_rel_mse".into(),
-                        "unknown (the chains' variance is not estimated)".into(),
-                    ),
-                ],
-                estimated_rel_mse: None,
-                ..done
-            }),
+            Next::Done(done) => {
+                let estimate =
+                    (direct >= 2 && groups >= 2).then(|| crate::metrics::estimated_rel_mse(&image));
+                Next::Done(Finished {
+                    metadata: vec![
+                        (
+                            "variance".into(),
+                            format!(
+                                "per pixel: direct light from its {direct} tasks as independent batches, the chains from their {groups} groups as independent batches (each its own brightness and chains)"
+                            ),
+                        ),
+                        (
+                            "estimated_rel_mse".into(),
+                            estimate.map_or("unknown (one batch)".into(), |e| format!("{e:.6e}")),
+                        ),
+                    ],
+                    image,
+                    estimated_rel_mse: estimate,
+                    ..done
+                })
+            }
             next => next,
         })
     }
@@ -221,14 +239,21 @@ impl Method for MetropolisMethod {
 
 impl MetropolisMethod {
     /// Direct light plus the chains' splats, which are f / f* per mutation: b per mutation of
-    /// the film makes them radiance.
+    /// the film makes them radiance. The chains' variance is that of the mean of the groups'
+    /// own estimates G·e/M · b_g · splats_g.
     fn image(&self, f: &MetroFrame) -> Image {
         let mut image = self.ranges.image(&f.direct);
         let b = f.brightness / f.count.max(1) as f64;
-        let scale = b * f.exposure as f64 / self.mutations.max(1) as f64;
-        for (px, s) in image.pixels.iter_mut().zip(&f.chain) {
+        let per_mutation = f.exposure as f64 / self.mutations.max(1) as f64;
+        let scale = b * per_mutation;
+        let group = (GROUPS as f64 * per_mutation).powi(2);
+        for (i, (px, s)) in image.pixels.iter_mut().zip(&f.chain).enumerate() {
             for (p, v) in px.rgb.iter_mut().zip(s) {
                 *p += (*v as f64 * scale) as f32;
+            }
+            let v = f.groups.variance(i);
+            for (p, v) in px.variance.iter_mut().zip(v) {
+                *p += (v * group) as f32;
             }
         }
         image

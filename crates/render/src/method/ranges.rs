@@ -57,6 +57,13 @@ pub struct RangeFrame {
     exposure: f32,
 }
 
+impl RangeFrame {
+    /// Independent batches (tasks) of samples folded in.
+    pub fn batches(&self) -> u32 {
+        self.batches.batches()
+    }
+}
+
 impl RangePartial {
     /// A task's result from the core's fixed-point sums.
     pub fn from_sums(sums: &BdptSums, stats: RayStats) -> Self {
@@ -193,15 +200,13 @@ impl Ranges {
                         splats.len()
                     ));
                 }
-                let scale = f.exposure as f64 / n.max(1) as f64;
+                let exposure = f.exposure as f64;
                 f.batches.fold(n, |i| {
-                    let w = camera.weight[i] as f64;
-                    let s = camera.sum[i];
-                    let l = splats[i];
-                    std::array::from_fn(|c| {
-                        let own = if w != 0.0 { s[c] as f64 / w } else { 0.0 };
-                        own + l[c] as f64 * scale
-                    })
+                    (
+                        camera.sum[i].map(f64::from),
+                        camera.weight[i] as f64,
+                        splats[i].map(|l| l as f64 * exposure),
+                    )
                 });
                 f.film.fold(&camera)?;
                 add_splats(&mut f.splats, &splats)?;
@@ -215,7 +220,7 @@ impl Ranges {
     pub fn advance(&self, f: &mut RangeFrame) -> Next {
         f.steps += 1;
         let image = self.image(f);
-        let batches = f.batches.batches;
+        let batches = f.batches.batches();
         let (variance, estimate) = if batches >= 2 {
             (
                 format!(
