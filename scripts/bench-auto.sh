@@ -12,7 +12,7 @@ SPP=1,2,3,4,6,8,12,16,24,32,48,64,96,128,192,256
 run() { # scene reference integrators budgets
     echo "== $1"
     "$T" bench "scenes/$1/scene.json" --reference "$2" --integrators "$3" --budgets "$4" \
-        -o "$OUT/$1"
+        --until 0.01 -o "$OUT/$1"
 }
 run cornell-box scenes/cornell-box/reference.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,48
 run cornell-glass scenes/cornell-glass/reference-128.exr "$ALL" "$SPP"

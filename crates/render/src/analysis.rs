@@ -21,6 +21,43 @@ const SPECULAR_ALPHA: f32 = 0.1;
 /// An emitter with less than this fraction of the scene's surface area is "small".
 const SMALL_EMITTER: f64 = 0.005;
 
+/// The share of an environment's directions in which a sun is looked for, and the share of its
+/// power a sun must send from them.
+const SUN_SOLID_ANGLE: f64 = 0.01;
+const SUN_POWER: f64 = 0.5;
+
+/// The share of `image`'s power (channel mean × solid angle) from its brightest
+/// [`SUN_SOLID_ANGLE`] of directions, when at least [`SUN_POWER`].
+fn sun_share(image: &tessera_scene::EnvImage) -> Option<f64> {
+    let (w, h) = (image.width as usize, image.height as usize);
+    let mut power: Vec<(f64, f64)> = image
+        .texels
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let sin =
+                (std::f64::consts::PI * ((i / w.max(1)) as f64 + 0.5) / h.max(1) as f64).sin();
+            let radiance = (t.x + t.y + t.z) as f64 / 3.0;
+            (radiance * sin, sin)
+        })
+        .collect();
+    power.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let total: f64 = power.iter().map(|p| p.0).sum();
+    let area: f64 = power.iter().map(|p| p.1).sum();
+    if total <= 0.0 {
+        return None;
+    }
+    let (mut p, mut a) = (0.0, 0.0);
+    for (pi, ai) in power {
+        if a + ai > SUN_SOLID_ANGLE * area {
+            break;
+        }
+        p += pi;
+        a += ai;
+    }
+    (p / total >= SUN_POWER).then_some(p / total)
+}
+
 /// One decision: what was decided and why.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Decision {
@@ -42,6 +79,10 @@ pub struct Analysis {
     pub method: String,
     /// Light can reach a diffuse surface through a specular one: a caustic map has work.
     pub caustics: bool,
+    /// Lights that send most of their power from a point or a small solid angle (point, spot
+    /// and directional lights, small emitters, an environment's sun): caustics they cast are
+    /// paths a path tracer finds only by hitting them through the specular chain.
+    pub concentrated: Vec<String>,
     pub decisions: Vec<Decision>,
 }
 
@@ -390,9 +431,30 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         choice: "ignored".into(),
         reason: w.clone(),
     }));
+    let mut concentrated: Vec<String> = small.iter().map(|s| s.name.clone()).collect();
+    for l in &desc.lights {
+        match l {
+            LightDesc::Point { .. } => concentrated.push("a point light".into()),
+            LightDesc::Spot { .. } => concentrated.push("a spot light".into()),
+            LightDesc::Directional { .. } => concentrated.push("a directional light".into()),
+            LightDesc::Environment {
+                image: Some(image), ..
+            } => {
+                if let Some(share) = sun_share(image) {
+                    concentrated.push(format!(
+                        "the environment's sun ({:.0} % of its power from {:.0} % of its directions)",
+                        100.0 * share,
+                        100.0 * SUN_SOLID_ANGLE
+                    ));
+                }
+            }
+            LightDesc::Environment { image: None, .. } => {}
+        }
+    }
     Analysis {
         method: integrator,
         caustics,
+        concentrated,
         decisions,
     }
 }
@@ -456,6 +518,24 @@ mod tests {
         let (io, text) = analyze_scene("hard/ior-one/scene.json");
         assert!(text.contains("IOR 1"), "{text}");
         assert_eq!(io.method, "direct", "{text}");
+    }
+
+    /// Lights that send their power from a point or a small solid angle are named: a sun in
+    /// an environment image, a small bulb; the Cornell box's ceiling light is neither.
+    #[test]
+    fn concentrated_lights_are_found() {
+        let (ms, _) = analyze_scene("material-spheres/scene.json");
+        assert!(
+            ms.concentrated
+                .iter()
+                .any(|c| c.contains("environment's sun")),
+            "{:?}",
+            ms.concentrated
+        );
+        let (cg, _) = analyze_scene("cornell-glass/scene.json");
+        assert!(!cg.concentrated.is_empty());
+        let (cb, _) = analyze_scene("cornell-box/scene.json");
+        assert!(cb.concentrated.is_empty(), "{:?}", cb.concentrated);
     }
 
     /// No translucent material, no point-cloud pass: the decision says so (and `prepare`

@@ -281,14 +281,14 @@ impl Ratios {
         let w0 = self.weight[i] as f64;
         let w1 = w0 + w;
         let c = self.c[i] as f64;
-        for ch in 0..3 {
+        for (ch, &sb) in s.iter().enumerate() {
             let s0 = self.sum[i][ch] as f64;
-            let s1 = s0 + s[ch];
+            let s1 = s0 + sb;
             let r0 = if w0 != 0.0 { s0 / w0 } else { 0.0 };
             let r1 = if w1 != 0.0 { s1 / w1 } else { 0.0 };
             let d = r1 - r0;
             let (a, b) = (self.a[i][ch] as f64, self.b[i][ch] as f64);
-            let e = s[ch] - r1 * w;
+            let e = sb - r1 * w;
             self.a[i][ch] = (a - 2.0 * d * b + d * d * c + e * e).max(0.0) as f32;
             self.b[i][ch] = (b - d * c + w * e) as f32;
             self.sum[i][ch] = s1 as f32;

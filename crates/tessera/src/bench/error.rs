@@ -42,6 +42,10 @@ pub struct ErrorArgs {
     /// it: one seed's time can hang on a single pixel (a highlight only a few samples find).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub seeds: u32,
+    /// Stop a method's checkpoints once its relMSE against the reference is at most this (the
+    /// later budgets are not rendered): for a time to one error, not the whole curve.
+    #[arg(long)]
+    pub until: Option<f64>,
     /// Where report.json, report.csv, report.md and report.png go.
     #[arg(short, long, default_value = "bench-report")]
     pub output: PathBuf,
@@ -327,7 +331,11 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                 run.rmse,
                 run.mean_ratio
             ))?;
+            let done = args.until.is_some_and(|u| run.rel_mse <= u);
             runs.push(run);
+            if done {
+                break;
+            }
         }
     }
     let time_to_error = time_to_error(&kinds, &seeds, &runs);

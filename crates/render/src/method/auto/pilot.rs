@@ -2,14 +2,22 @@
 //!
 //! 1. **Features** rule methods out before anything is rendered: a scene without light, or
 //!    whose every light path has one bounce, needs direct lighting only (exact); translucent
-//!    materials leave only the path tracer, with each subsurface method.
+//!    materials leave only the path tracer, with each subsurface method. Caustics of a
+//!    concentrated light (a point, spot or directional light, a small emitter, an
+//!    environment's sun) put a caveat on the path tracer: it finds them only by hitting the
+//!    light through the specular chain, rare bright samples a pilot does not see, so it is
+//!    measured (its error at the job's spp may be the goal) but chosen only when nothing else
+//!    can be.
 //! 2. **Pilots**: each remaining candidate renders the scene at about 1/16 of its pixels (at
-//!    least 256, at most 4096) with `k` samples, then `k` more, as two independent halves A and
-//!    B (where the method cannot continue a frame, a second render with the next seed). The
-//!    relMSE of one half is estimated as mean((A − B)² / 2 / (R² + 0.01)) over pixels and
-//!    channels, R being the consensus of the unbiased candidates (leaving out the path tracer
-//!    where a bidirectional one was measured), their means weighted by the inverse of their
-//!    variance; v = relMSE × k is the relative variance of one sample per pixel. For the photon
+//!    least 256, at most 4096; a Mitchell filter as a box, whose weights cannot cancel) with
+//!    `k` samples, then `k` more, as two independent halves A and B (where the method cannot
+//!    continue a frame, a second render with the next seed). The relMSE of one half is
+//!    estimated as mean((A − B)² / 2 / (R² + 0.01)) over pixels and channels, R being the
+//!    consensus of the unbiased candidates (leaving out the path tracer where a bidirectional
+//!    one was measured), their means weighted by the inverse of their variance; for an
+//!    unbiased candidate, also as twice its mean's relMSE against the consensus of the others
+//!    less that consensus's own (paths both halves missed show there), the larger counting.
+//!    v = relMSE × k is the relative variance of one sample per pixel. For the photon
 //!    map, what does not fall with samples (kernel bias, irradiance interpolation, the photon
 //!    map's own noise): b = mean((Ā − R)² / (R² + 0.01)) − var(Ā) − var(R), floored at 0.
 //!    SPPM renders k iterations with two seeds; the whole error e of a k-iteration image against
@@ -22,15 +30,16 @@
 //!    at the job's spp (the same image quality, sooner), or the lowest error within a time.
 //!
 //! After the first three candidates, the pilot stops measuring once it has spent a tenth of
-//! the best prediction so far; candidates not measured are said to be. Candidates run in the
-//! order path, BDPT, VCM (unbiased: the consensus needs them), photon map, SPPM, PSSMLT, MLT.
+//! the best prediction so far (of a candidate without a caveat); candidates not measured are
+//! said to be. Candidates run in the order path, BDPT, VCM (unbiased: the consensus needs
+//! them), SPPM (one iteration's photons), photon map (a whole photon map), PSSMLT, MLT.
 
 use std::time::Instant;
 
-use tessera_scene::{SceneDesc, SubsurfaceMethod};
+use tessera_scene::{FilterDesc, SceneDesc, SubsurfaceMethod};
 
 use super::Choice;
-use crate::analysis::analyze;
+use crate::analysis::{Analysis, analyze};
 use crate::film::{Image, MAX_SPP};
 use crate::method::local::{Local, Progress};
 use crate::method::{Job, Loaded, plan};
@@ -77,6 +86,9 @@ struct Candidate {
     model: Model,
     /// Pilot samples per half.
     k: u32,
+    /// Why a pilot cannot measure this candidate's error: it is measured (the path tracer's
+    /// error is the goal at a job's spp) but chosen only when nothing else can be.
+    caveat: Option<String>,
 }
 
 /// One candidate as the pilot measured it, and what it predicts at full size.
@@ -102,6 +114,8 @@ pub struct Measurement {
     pub predicted_error: Option<f64>,
     /// Why it cannot reach the goal, when it cannot.
     pub note: Option<String>,
+    /// Why its measurement is not trusted (see `Candidate::caveat`).
+    pub caveat: Option<String>,
 }
 
 /// The choice, every candidate's measurement, and what was ruled out without one.
@@ -180,7 +194,7 @@ fn measure(
             artifacts: Vec::new(),
         });
     }
-    let (candidates, mut ruled_out) = candidates(desc);
+    let (candidates, mut ruled_out) = candidates(desc, &analysis);
     let film = (desc.film.width as u64) * (desc.film.height as u64);
     let pilot = pilot_desc(desc);
     let photons = crate::photon::PhotonSettings::resolve(desc, &analysis)
@@ -194,7 +208,8 @@ fn measure(
         let spent = start.elapsed().as_secs_f64();
         let best = measurements
             .iter()
-            .filter_map(|m: &Measurement| m.predicted_s)
+            .filter(|m: &&Measurement| m.caveat.is_none())
+            .filter_map(|m| m.predicted_s)
             .fold(f64::INFINITY, f64::min);
         let budget = match goal {
             Goal::Seconds(t) => t,
@@ -295,13 +310,14 @@ fn measure(
 }
 
 /// The candidates the scene's features leave, in pilot order, and what they ruled out.
-fn candidates(desc: &SceneDesc) -> (Vec<Candidate>, Vec<String>) {
+fn candidates(desc: &SceneDesc, analysis: &Analysis) -> (Vec<Candidate>, Vec<String>) {
     let c = |label: &str, method, subsurface, model, k| Candidate {
         label: label.to_string(),
         method,
         subsurface,
         model,
         k,
+        caveat: None,
     };
     let translucent = desc.translucent_materials();
     if !translucent.is_empty() {
@@ -344,21 +360,38 @@ fn candidates(desc: &SceneDesc) -> (Vec<Candidate>, Vec<String>) {
         );
     }
     // The unbiased methods without passes first: they are cheap to measure and make the
-    // consensus. Photon mapping's pass is measured at full cost (and reused by the render when
-    // it wins); SPPM's iterations trace all their photons whatever the film: one each.
+    // consensus. SPPM's iterations trace all their photons whatever the film: one each, less
+    // than photon mapping's pass, which is measured at full cost (and reused by the render
+    // when it wins).
+    // Caustics of a concentrated light are paths the path tracer finds only by hitting the
+    // light through the specular chain: rare, bright samples, which a pilot of a few thousand
+    // paths does not see, so their variance cannot be measured. Light tracing (BDPT, VCM)
+    // and photon maps find them from the light's side.
+    let caveat = (analysis.caustics && !analysis.concentrated.is_empty()).then(|| {
+        format!(
+            "its caustics of {} are rare, bright samples a pilot does not see",
+            analysis.concentrated.join(", ")
+        )
+    });
     let list = vec![
-        c("path", "path", None, Model::Unbiased, 16),
+        Candidate {
+            caveat,
+            ..c("path", "path", None, Model::Unbiased, 16)
+        },
         c("bdpt", "bdpt", None, Model::Unbiased, 4),
         c("vcm", "vcm", None, Model::Unbiased, 4),
-        c("photon", "photon", None, Model::Biased, 4),
         c("sppm", "sppm", None, Model::Progressive, 1),
+        c("photon", "photon", None, Model::Biased, 4),
         c("pssmlt", "pssmlt", None, Model::Unbiased, 4),
         c("mlt", "mlt", None, Model::Unbiased, 4),
     ];
     (list, Vec::new())
 }
 
-/// The scene at about 1/16 of its pixels (within [`PILOT_PIXELS`]), same view.
+/// The scene at about 1/16 of its pixels (within [`PILOT_PIXELS`]), same view. A filter with
+/// negative lobes (Mitchell) becomes a box: with a pilot's few samples a pixel's Σ w can come
+/// near 0 and its ratio Σ w·L / Σ w blow up, which says nothing of how the render's error
+/// falls at the samples it will take.
 fn pilot_desc(desc: &SceneDesc) -> SceneDesc {
     let (w, h) = (desc.film.width as f64, desc.film.height as f64);
     let film = w * h;
@@ -367,6 +400,9 @@ fn pilot_desc(desc: &SceneDesc) -> SceneDesc {
     let mut d = desc.clone();
     d.film.width = ((w * s).round() as u32).max(1);
     d.film.height = ((h * s).round() as u32).max(1);
+    if let FilterDesc::Mitchell { .. } = d.film.filter {
+        d.film.filter = FilterDesc::Box { radius: 0.5 };
+    }
     d
 }
 
@@ -553,17 +589,19 @@ fn predict(
     // The consensus leaves the path tracer out where a bidirectional method was measured:
     // paths it finds too rarely to see in a pilot (caustics of small lights, light seen
     // through glass) make its pilot's variance look small and its image dark there.
-    let judges = |all: bool| -> Vec<&Halves> {
+    let judges_of = |all: bool| -> Vec<usize> {
         runs.iter()
-            .filter(|(i, _)| candidates[*i].model == Model::Unbiased)
-            .filter(|(i, _)| all || candidates[*i].label != "path")
-            .map(|(_, r)| &r.images)
+            .enumerate()
+            .filter(|(_, (i, _))| candidates[*i].model == Model::Unbiased)
+            .filter(|(_, (i, _))| all || candidates[*i].label != "path")
+            .map(|(j, _)| j)
             .collect()
     };
-    let unbiased = match judges(false) {
-        j if j.is_empty() => judges(true),
+    let judged = match judges_of(false) {
+        j if j.is_empty() => judges_of(true),
         j => j,
     };
+    let unbiased: Vec<&Halves> = judged.iter().map(|&j| pixels[j]).collect();
     let (r, _) = consensus(&unbiased);
     if r.is_empty() {
         return (Vec::new(), None);
@@ -583,6 +621,23 @@ fn predict(
             } else {
                 ratio
             };
+            // An unbiased pilot's halves agree where both miss the same rare paths; against
+            // the other judges (leaving itself out) the paths it missed show as error. Its
+            // variance is the larger of the two measures.
+            let others: Vec<&Halves> = judged
+                .iter()
+                .filter(|&&o| o != j)
+                .map(|&o| pixels[o])
+                .collect();
+            let half = match c.model {
+                Model::Unbiased if !others.is_empty() => {
+                    let (r, var_r) = consensus(&others);
+                    // Of both halves (2k samples): twice that for one half.
+                    let against = pixels[j].rel_mse(&r) - var_r;
+                    half.max(2.0 * against)
+                }
+                _ => half,
+            };
             let floor = match c.model {
                 Model::Unbiased => None,
                 Model::Biased => Some(floor_of(pixels[j], &unbiased)),
@@ -600,6 +655,7 @@ fn predict(
                 predicted_s: None,
                 predicted_error: None,
                 note: None,
+                caveat: c.caveat.clone(),
             }
         })
         .collect();
@@ -659,18 +715,23 @@ fn predict(
     (out, target)
 }
 
-/// The candidate with the soonest prediction (the lowest error for a time goal).
+/// The candidate with the soonest prediction (the lowest error for a time goal); one with a
+/// caveat only when no other has a prediction.
 fn choose(measurements: &[Measurement], goal: Goal) -> Option<usize> {
     let key = |m: &Measurement| match goal {
         Goal::Seconds(_) => m.predicted_error,
         _ => m.predicted_s,
     };
-    measurements
-        .iter()
-        .enumerate()
-        .filter_map(|(i, m)| key(m).filter(|v| v.is_finite()).map(|v| (i, v)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|(i, _)| i)
+    let best = |trusted: bool| {
+        measurements
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| !trusted || m.caveat.is_none())
+            .filter_map(|(i, m)| key(m).filter(|v| v.is_finite()).map(|v| (i, v)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i)
+    };
+    best(true).or_else(|| best(false))
 }
 
 /// One line for a candidate.
@@ -683,9 +744,14 @@ fn describe(m: &Measurement) -> String {
         "1-spp relMSE {:.2e}{floor}, {:.3} s per spp, passes {:.2} s; pilot {:.2} s",
         m.rel_var, m.sample_s, m.setup_s, m.pilot_s
     );
+    let caveat = m
+        .caveat
+        .as_ref()
+        .map(|c| format!("; chosen only if nothing else can be: {c}"))
+        .unwrap_or_default();
     match (m.spp, m.predicted_s, &m.note) {
         (Some(n), Some(t), _) => format!(
-            "{}: {n} spp in {t:.2} s predicted, relMSE {:.2e} ({measured})",
+            "{}: {n} spp in {t:.2} s predicted, relMSE {:.2e} ({measured}){caveat}",
             m.label,
             m.predicted_error.unwrap_or(f64::NAN)
         ),
