@@ -79,10 +79,8 @@ pub struct Analysis {
     pub method: String,
     /// Light can reach a diffuse surface through a specular one: a caustic map has work.
     pub caustics: bool,
-    /// Lights that send most of their power from a point or a small solid angle (point, spot
-    /// and directional lights, small emitters, an environment's sun): caustics they cast are
-    /// paths a path tracer finds only by hitting them through the specular chain.
-    pub concentrated: Vec<String>,
+    /// Emitters with less than [`SMALL_EMITTER`] of the scene's surface area.
+    pub small_emitters: Vec<String>,
     pub decisions: Vec<Decision>,
 }
 
@@ -235,6 +233,34 @@ fn names(list: &[&Surface]) -> String {
     } else {
         shown.join(", ")
     }
+}
+
+/// Lights that send most of their power from a point or a small solid angle (point, spot
+/// and directional lights, small emitters, an environment's sun): caustics they cast are
+/// paths a path tracer finds only by hitting them through the specular chain. Not part of
+/// [`analyze`], which every plan runs: finding a sun sorts the environment's texels.
+pub fn concentrated_lights(desc: &SceneDesc, analysis: &Analysis) -> Vec<String> {
+    let mut concentrated = analysis.small_emitters.clone();
+    for l in &desc.lights {
+        match l {
+            LightDesc::Point { .. } => concentrated.push("a point light".into()),
+            LightDesc::Spot { .. } => concentrated.push("a spot light".into()),
+            LightDesc::Directional { .. } => concentrated.push("a directional light".into()),
+            LightDesc::Environment {
+                image: Some(image), ..
+            } => {
+                if let Some(share) = sun_share(image) {
+                    concentrated.push(format!(
+                        "the environment's sun ({:.0} % of its power from {:.0} % of its directions)",
+                        100.0 * share,
+                        100.0 * SUN_SOLID_ANGLE
+                    ));
+                }
+            }
+            LightDesc::Environment { image: None, .. } => {}
+        }
+    }
+    concentrated
 }
 
 /// Analyses the scene and decides what to compute.
@@ -431,30 +457,10 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         choice: "ignored".into(),
         reason: w.clone(),
     }));
-    let mut concentrated: Vec<String> = small.iter().map(|s| s.name.clone()).collect();
-    for l in &desc.lights {
-        match l {
-            LightDesc::Point { .. } => concentrated.push("a point light".into()),
-            LightDesc::Spot { .. } => concentrated.push("a spot light".into()),
-            LightDesc::Directional { .. } => concentrated.push("a directional light".into()),
-            LightDesc::Environment {
-                image: Some(image), ..
-            } => {
-                if let Some(share) = sun_share(image) {
-                    concentrated.push(format!(
-                        "the environment's sun ({:.0} % of its power from {:.0} % of its directions)",
-                        100.0 * share,
-                        100.0 * SUN_SOLID_ANGLE
-                    ));
-                }
-            }
-            LightDesc::Environment { image: None, .. } => {}
-        }
-    }
     Analysis {
         method: integrator,
         caustics,
-        concentrated,
+        small_emitters: small.iter().map(|s| s.name.clone()).collect(),
         decisions,
     }
 }
@@ -524,18 +530,19 @@ mod tests {
     /// an environment image, a small bulb; the Cornell box's ceiling light is neither.
     #[test]
     fn concentrated_lights_are_found() {
-        let (ms, _) = analyze_scene("material-spheres/scene.json");
-        assert!(
-            ms.concentrated
-                .iter()
-                .any(|c| c.contains("environment's sun")),
-            "{:?}",
-            ms.concentrated
-        );
-        let (cg, _) = analyze_scene("cornell-glass/scene.json");
-        assert!(!cg.concentrated.is_empty());
-        let (cb, _) = analyze_scene("cornell-box/scene.json");
-        assert!(cb.concentrated.is_empty(), "{:?}", cb.concentrated);
+        let concentrated = |rel: &str| {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../../scenes")
+                .join(rel);
+            let d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            concentrated_lights(&d, &analyze(&d))
+        };
+        let ms = concentrated("material-spheres/scene.json");
+        assert!(ms.iter().any(|c| c.contains("environment's sun")), "{ms:?}");
+        let cg = concentrated("cornell-glass/scene.json");
+        assert!(!cg.is_empty());
+        let cb = concentrated("cornell-box/scene.json");
+        assert!(cb.is_empty(), "{cb:?}");
     }
 
     /// No translucent material, no point-cloud pass: the decision says so (and `prepare`

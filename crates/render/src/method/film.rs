@@ -327,11 +327,13 @@ impl Batches {
         if n == 0 {
             return;
         }
-        self.camera.fold(|i| {
-            let (s, w, _) = batch(i);
-            (s, w)
-        });
-        self.splats.fold(|i| (batch(i).2, n as f64));
+        for i in 0..self.camera.c.len() {
+            let (s, w, l) = batch(i);
+            self.camera.add(i, s, w);
+            self.splats.add(i, l, n as f64);
+        }
+        self.camera.batches += 1;
+        self.splats.batches += 1;
     }
 
     /// The variance of pixel `i`'s estimate over every batch.

@@ -14,7 +14,7 @@ use super::ranges::{RangeFrame, RangePartial, Ranges};
 use std::time::Duration;
 
 use super::registry::MethodInfo;
-use super::{Finished, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
+use super::{Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::film::Image;
 use crate::integrator::RayStats;
 use crate::integrator::metropolis::{GROUPS, Metropolis};
@@ -205,31 +205,12 @@ impl Method for MetropolisMethod {
 
     fn advance(&self, _frame: u32, f: &mut MetroFrame, _: Duration) -> Result<Next, String> {
         let image = self.image(f);
-        let (direct, groups) = (f.direct.batches(), f.groups.batches);
-        Ok(match self.ranges.advance(&mut f.direct) {
-            Next::Done(done) => {
-                let estimate =
-                    (direct >= 2 && groups >= 2).then(|| crate::metrics::estimated_rel_mse(&image));
-                Next::Done(Finished {
-                    metadata: vec![
-                        (
-                            "variance".into(),
-                            format!(
-                                "per pixel: direct light from its {direct} tasks as independent batches, the chains from their {groups} groups as independent batches (each its own brightness and chains)"
-                            ),
-                        ),
-                        (
-                            "estimated_rel_mse".into(),
-                            estimate.map_or("unknown (one batch)".into(), |e| format!("{e:.6e}")),
-                        ),
-                    ],
-                    image,
-                    estimated_rel_mse: estimate,
-                    ..done
-                })
-            }
-            next => next,
-        })
+        let how = format!(
+            "per pixel: direct light from its {} tasks as independent batches, the chains from their {} groups as independent batches (each its own brightness and chains)",
+            f.direct.batches(),
+            f.groups.batches
+        );
+        Ok(self.ranges.finish(&mut f.direct, image, how))
     }
 
     fn preview(&self, _frame: u32, f: &MetroFrame) -> Image {

@@ -218,16 +218,20 @@ impl Ranges {
     }
 
     pub fn advance(&self, f: &mut RangeFrame) -> Next {
-        f.steps += 1;
         let image = self.image(f);
-        let batches = f.batches.batches();
-        let (variance, estimate) = if batches >= 2 {
-            (
-                format!(
-                    "per pixel, from the frame's {batches} tasks as independent batches of samples, light tracing included"
-                ),
-                Some(crate::metrics::estimated_rel_mse(&image)),
-            )
+        let how = format!(
+            "per pixel, from the frame's {} tasks as independent batches of samples, light tracing included",
+            f.batches.batches()
+        );
+        self.finish(f, image, how)
+    }
+
+    /// Ends frame `f` with `image` (the frame's, or one built on it), whose variance is
+    /// obtained as `how` says when the frame had two batches or more, else unknown.
+    pub fn finish(&self, f: &mut RangeFrame, image: Image, how: String) -> Next {
+        f.steps += 1;
+        let (variance, estimate) = if f.batches.batches() >= 2 {
+            (how, Some(crate::metrics::estimated_rel_mse(&image)))
         } else {
             (
                 "unknown: the frame was one task (one batch); cut it finer (samples_per_task) for an estimate".into(),

@@ -118,32 +118,25 @@ impl<T: Positioned> KdTree<T> {
     /// Collects into `knn` the nearest photons to `p` under the distance
     /// |Δ|² + `flatten`·(Δ·`n`)² (Δ = photon − p; `n` unit), within `knn`'s radius.
     pub fn nearest<const N: usize>(&self, p: Vec3A, n: Vec3A, flatten: f32, knn: &mut Knn<N>) {
-        self.search(0, self.photons.len(), p, n, flatten, knn);
+        self.visit(0, self.photons.len(), p, n, flatten, knn);
     }
 
     /// Calls `f(index, squared distance)` for every point within squared radius `r2` of `p`
     /// under the distance of [`KdTree::nearest`] (`flatten` 0: a ball), in a fixed (tree)
     /// order.
     pub fn within(&self, p: Vec3A, n: Vec3A, flatten: f32, r2: f32, f: &mut impl FnMut(u32, f32)) {
-        self.within_range(0, self.photons.len(), p, n, flatten, r2, f);
+        self.visit(0, self.photons.len(), p, n, flatten, &mut Within { r2, f });
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn within_range(
-        &self,
-        lo: usize,
-        hi: usize,
-        q: Vec3A,
-        n: Vec3A,
-        flatten: f32,
-        r2: f32,
-        f: &mut impl FnMut(u32, f32),
-    ) {
+    /// Offers `v` every point of [lo, hi) it accepts, nearest subtree first. The flattened
+    /// distance is at least the Euclidean one, so a subtree beyond what `v` accepts along one
+    /// axis cannot hold a point it would.
+    fn visit(&self, lo: usize, hi: usize, q: Vec3A, n: Vec3A, flatten: f32, v: &mut impl Visit) {
         if hi - lo <= LEAF {
             for (i, p) in self.points[lo..hi].iter().enumerate() {
                 let d2 = flattened_d2(*p - q, n, flatten);
-                if d2 <= r2 {
-                    f((lo + i) as u32, d2);
+                if v.accepts(d2) {
+                    v.take((lo + i) as u32, d2);
                 }
             }
             return;
@@ -157,54 +150,48 @@ impl<T: Positioned> KdTree<T> {
         } else {
             ((mid + 1, hi), (lo, mid))
         };
-        self.within_range(near.0, near.1, q, n, flatten, r2, f);
+        self.visit(near.0, near.1, q, n, flatten, v);
         let d2 = flattened_d2(p - q, n, flatten);
-        if d2 <= r2 {
-            f(mid as u32, d2);
+        if v.accepts(d2) {
+            v.take(mid as u32, d2);
         }
-        // The flattened distance is at least the Euclidean one.
-        if delta * delta <= r2 {
-            self.within_range(far.0, far.1, q, n, flatten, r2, f);
+        if v.accepts(delta * delta) {
+            self.visit(far.0, far.1, q, n, flatten, v);
         }
     }
+}
 
-    fn search<const N: usize>(
-        &self,
-        lo: usize,
-        hi: usize,
-        q: Vec3A,
-        n: Vec3A,
-        flatten: f32,
-        knn: &mut Knn<N>,
-    ) {
-        if hi - lo <= LEAF {
-            for (i, p) in self.points[lo..hi].iter().enumerate() {
-                let d2 = flattened_d2(*p - q, n, flatten);
-                if d2 < knn.max_d2 {
-                    knn.insert(d2, (lo + i) as u32);
-                }
-            }
-            return;
-        }
-        let mid = (lo + hi) / 2;
-        let p = self.points[mid];
-        let axis = self.axes[mid] as usize;
-        let delta = q[axis] - p[axis];
-        // The flattened distance is at least the Euclidean one, so a subtree beyond the
-        // current radius along one axis cannot hold a closer photon.
-        let (near, far) = if delta < 0.0 {
-            ((lo, mid), (mid + 1, hi))
-        } else {
-            ((mid + 1, hi), (lo, mid))
-        };
-        self.search(near.0, near.1, q, n, flatten, knn);
-        let d2 = flattened_d2(p - q, n, flatten);
-        if d2 < knn.max_d2 {
-            knn.insert(d2, mid as u32);
-        }
-        if delta * delta < knn.max_d2 {
-            self.search(far.0, far.1, q, n, flatten, knn);
-        }
+/// What a tree search does with the points it meets.
+trait Visit {
+    /// Whether a point at squared distance `d2` is wanted (the radius may shrink as points
+    /// are taken).
+    fn accepts(&self, d2: f32) -> bool;
+    fn take(&mut self, i: u32, d2: f32);
+}
+
+/// Every point within a fixed squared radius.
+struct Within<'a, F> {
+    r2: f32,
+    f: &'a mut F,
+}
+
+impl<F: FnMut(u32, f32)> Visit for Within<'_, F> {
+    fn accepts(&self, d2: f32) -> bool {
+        d2 <= self.r2
+    }
+
+    fn take(&mut self, i: u32, d2: f32) {
+        (self.f)(i, d2)
+    }
+}
+
+impl<const N: usize> Visit for Knn<N> {
+    fn accepts(&self, d2: f32) -> bool {
+        d2 < self.max_d2
+    }
+
+    fn take(&mut self, i: u32, d2: f32) {
+        self.insert(d2, i)
     }
 }
 

@@ -39,7 +39,7 @@ use std::time::Instant;
 use tessera_scene::{FilterDesc, SceneDesc, SubsurfaceMethod};
 
 use super::Choice;
-use crate::analysis::{Analysis, analyze};
+use crate::analysis::{Analysis, analyze, concentrated_lights};
 use crate::film::{Image, MAX_SPP};
 use crate::method::local::{Local, Progress};
 use crate::method::{Job, Loaded, plan};
@@ -367,10 +367,15 @@ fn candidates(desc: &SceneDesc, analysis: &Analysis) -> (Vec<Candidate>, Vec<Str
     // light through the specular chain: rare, bright samples, which a pilot of a few thousand
     // paths does not see, so their variance cannot be measured. Light tracing (BDPT, VCM)
     // and photon maps find them from the light's side.
-    let caveat = (analysis.caustics && !analysis.concentrated.is_empty()).then(|| {
+    let concentrated = if analysis.caustics {
+        concentrated_lights(desc, analysis)
+    } else {
+        Vec::new()
+    };
+    let caveat = (!concentrated.is_empty()).then(|| {
         format!(
             "its caustics of {} are rare, bright samples a pilot does not see",
-            analysis.concentrated.join(", ")
+            concentrated.join(", ")
         )
     });
     let list = vec![
