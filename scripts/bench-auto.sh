@@ -9,12 +9,15 @@ T=${1:-target/release/tessera}
 OUT=bench-report/auto
 ALL=auto,path,bdpt,vcm,photon,sppm,pssmlt,mlt
 SPP=1,2,3,4,6,8,12,16,24,32,48,64,96,128,192,256
-run() { # scene reference integrators budgets
-    echo "== $1"
+run() { # scene reference integrators budgets [report suffix]
+    echo "== $1 $2"
     "$T" bench "scenes/$1/scene.json" --reference "$2" --integrators "$3" --budgets "$4" \
-        --until 0.01 -o "$OUT/$1"
+        --until 0.01 -o "$OUT/$1${5:+-$5}"
 }
 run cornell-box scenes/cornell-box/reference.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,48
+# The same box at 512×512 (Mitsuba's reference, scripts/references/make.py reference-512):
+# renders of seconds, where the pilot's fixed cost weighs less.
+run cornell-box scenes/cornell-box/reference-512.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,48 512
 run cornell-glass scenes/cornell-glass/reference-128.exr "$ALL" "$SPP"
 run indirect-room scenes/indirect-room/reference-128.exr "$ALL" "$SPP"
 run pool scenes/pool/reference-96.exr "$ALL" "$SPP"

@@ -12,6 +12,7 @@ tests render the same way.
 
     scripts/references/run.sh            # installs Mitsuba 3 and renders every scene
     scripts/references/run.sh veach-mis  # one scene
+    scripts/references/run.sh reference-512 --out scenes/cornell-box  # the bench's 512² box
 
 Prints, per scene, Mitsuba's time and the reference's own relMSE (mean variance over
 (r² + 0.01)). The header of each EXR names the renderer, variant, integrator, spp and
@@ -36,6 +37,9 @@ ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)),
 # walk dies and the marble comes out several times too dark. Marble absorbs almost nothing:
 # the walks end by leaving, and roulette is off (rr_depth beyond any walk).
 SCENES = {
+    # The bench's Cornell box at a size where a render takes seconds (scripts/bench-auto.sh);
+    # `--out scenes/cornell-box` and it is reference-512.exr there.
+    "reference-512": ("scenes/cornell-box/scene.json", (512, 512), {"type": "path", "max_depth": 65}, 1024, 4),
     "cornell-glass": ("scenes/cornell-glass/scene.json", (64, 64), {"type": "path", "max_depth": 65}, 16384, 16),
     "indirect-room": ("scenes/indirect-room/scene.json", (64, 48), {"type": "path", "max_depth": 65}, 16384, 16),
     "veach-mis": ("scenes/veach-mis/scene.json", (96, 64), {"type": "path", "max_depth": 65}, 8192, 16),

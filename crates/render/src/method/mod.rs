@@ -252,6 +252,11 @@ pub struct Finished {
     pub metadata: Vec<(String, String)>,
     /// The relMSE the frame estimates for itself, where the method estimates one.
     pub estimated_rel_mse: Option<f64>,
+    /// Wall seconds of the frame's work that grows with its pixels, where the method tells it
+    /// from work that does not (SPPM: camera paths and the gathering at their visible points,
+    /// not the photons each iteration shoots whatever the film); `None` where all of it grows
+    /// with the pixels. `auto`'s pilot, rendered at a fraction of the pixels, scales this part.
+    pub pixels_s: Option<f64>,
 }
 
 /// What follows a step.

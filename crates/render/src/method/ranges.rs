@@ -239,6 +239,7 @@ impl Ranges {
             )
         };
         Next::Done(Finished {
+            pixels_s: None,
             image,
             stats: f.stats,
             metadata: vec![

@@ -5,7 +5,7 @@
 //! every pixel's visible point. Each process traces an iteration's camera paths once and keeps
 //! them for the chunks it runs.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 use tessera_scene::SceneDesc;
@@ -47,17 +47,24 @@ pub struct SppmMethod {
 pub enum SppmPartial {
     Aov(super::film::AovSums),
     /// Every pixel's emitted and direct light (times the filter weight) and filter weight,
-    /// and the camera paths' counters.
+    /// the camera paths' counters, and the wall seconds the task spent on them (not the
+    /// image: what `auto` times).
     Camera {
         ld: Vec<[f32; 3]>,
         w: Vec<f32>,
         stats: RayStats,
+        #[serde(default)]
+        pixels_s: f64,
     },
-    /// What a chunk of photons left at the pixels it reached: pixel, M, Φ.
+    /// What a chunk of photons left at the pixels it reached: pixel, M, Φ; and the wall
+    /// seconds of the work that grows with the pixels (the camera paths where this task
+    /// traced them, the gathering).
     Photons {
         pixels: Vec<u32>,
         m: Vec<u32>,
         phi: Vec<[f32; 3]>,
+        #[serde(default)]
+        pixels_s: f64,
     },
 }
 
@@ -73,6 +80,10 @@ pub struct SppmFrame {
     stats: RayStats,
     /// Iterations to render.
     target: u32,
+    /// Wall seconds of the work that grows with the pixels so far (camera paths, gathering;
+    /// not the photons).
+    #[serde(default)]
+    pixels_s: f64,
     exposure: f32,
 }
 
@@ -208,6 +219,7 @@ impl Method for SppmMethod {
             aov: AovAcc::new(f.width, f.height),
             stats: RayStats::default(),
             target: self.settings.iterations,
+            pixels_s: 0.0,
             exposure: self.camera(frame).exposure,
         }
     }
@@ -221,16 +233,21 @@ impl Method for SppmMethod {
                 task.samples(),
             ))),
             CAMERA => {
+                let tracing = Instant::now();
                 let vps = self.visible_points(ctx, task)?;
                 ctx.progress(self.pixels() as u64);
                 Ok(SppmPartial::Camera {
                     ld: vps.camera.ld.iter().map(|l| l.to_array()).collect(),
                     w: vps.camera.w.clone(),
                     stats: vps.camera.stats,
+                    pixels_s: tracing.elapsed().as_secs_f64(),
                 })
             }
             PHOTONS => {
+                // The camera paths, if this task is the first to want them (they are traced once).
+                let tracing = Instant::now();
                 let vps = self.visible_points(ctx, task)?;
+                let mut pixels_s = tracing.elapsed().as_secs_f64();
                 let r2 = if task.step == 0 {
                     std::sync::Arc::new(vec![
                         radius2(self.settings.initial_radius as f64);
@@ -248,12 +265,15 @@ impl Method for SppmMethod {
                 }
                 let sppm = Sppm::new(ctx.scene, &self.photon, self.settings);
                 let photons = sppm.shoot(task.step, task.start..task.end, true);
+                let gathering = Instant::now();
                 let sums = sppm.gather_parallel(&vps, &r2, &photons);
+                pixels_s += gathering.elapsed().as_secs_f64();
                 ctx.progress((task.end - task.start) as u64);
                 Ok(SppmPartial::Photons {
                     pixels: sums.iter().map(|s| s.pixel).collect(),
                     m: sums.iter().map(|s| s.m).collect(),
                     phi: sums.iter().map(|s| s.phi.map(|v| v as f32)).collect(),
+                    pixels_s,
                 })
             }
             other => Err(format!("sppm has no {other} tasks")),
@@ -264,7 +284,13 @@ impl Method for SppmMethod {
         let n = self.pixels();
         match p {
             SppmPartial::Aov(a) => f.aov.fold(&a),
-            SppmPartial::Camera { ld, w, stats } => {
+            SppmPartial::Camera {
+                ld,
+                w,
+                stats,
+                pixels_s,
+            } => {
+                f.pixels_s += pixels_s;
                 if ld.len() != n || w.len() != n {
                     return Err(format!(
                         "sppm camera paths for {} pixels, the film has {n}",
@@ -276,7 +302,13 @@ impl Method for SppmMethod {
                 f.stats.add(&stats);
                 Ok(())
             }
-            SppmPartial::Photons { pixels, m, phi } => {
+            SppmPartial::Photons {
+                pixels,
+                m,
+                phi,
+                pixels_s,
+            } => {
+                f.pixels_s += pixels_s;
                 if m.len() != pixels.len() || phi.len() != pixels.len() {
                     return Err("sppm sums with columns of different lengths".into());
                 }
@@ -326,6 +358,7 @@ impl Method for SppmMethod {
         let image = Method::preview(self, frame, f);
         let estimate = (f.state.iterations >= 2).then(|| crate::metrics::estimated_rel_mse(&image));
         Ok(Next::Done(Finished {
+            pixels_s: Some(f.pixels_s),
             image,
             stats: f.stats,
             metadata: vec![

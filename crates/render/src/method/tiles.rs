@@ -259,6 +259,7 @@ impl Tiles {
                 .into(),
         ));
         Finished {
+            pixels_s: None,
             image: self.image(f),
             stats: f.stats,
             metadata,

@@ -20,13 +20,19 @@
 //!    v = relMSE × k is the relative variance of one sample per pixel. For the photon
 //!    map, what does not fall with samples (kernel bias, irradiance interpolation, the photon
 //!    map's own noise): b = mean((Ā − R)² / (R² + 0.01)) − var(Ā) − var(R), floored at 0.
-//!    SPPM renders k iterations with two seeds; the whole error e of a k-iteration image against
-//!    R is taken to fall as n^(−2/3), the rate of progressive photon mapping with α = 2/3
-//!    (Knaus & Zwicker 2011).
+//!    SPPM renders k iterations with two seeds: v from their difference as above, and b, its
+//!    kernel bias, as for the photon map but only where it exceeds var(R) as the judges' v
+//!    put it (a consensus of a few bidirectional samples is often noisier than SPPM's first
+//!    iterations, and its halves' agreement where both miss rare paths would pass for
+//!    bias). Its noise falls
+//!    as 1/n while each pixel's radius holds photons of many iterations, its bias as
+//!    n^(−2/3) (the radii's rate with α = 2/3: Knaus & Zwicker 2011).
 //! 3. **Prediction** at full size: samples to reach relMSE E are v / E (unbiased),
-//!    v / (E − b) (photon map; none if b is near E), k (e/E)^(3/2) (SPPM); time is the
+//!    v / (E − b) (photon map; none if b is near E), the least n with
+//!    v / n + b (k / n)^(2/3) ≤ E (SPPM); time is the
 //!    passes' time (view-independent, so the pilot's) plus the samples at the pilot's time per
-//!    sample and pixel. The goal is a relMSE (`target_error`), the error path tracing reaches
+//!    sample and pixel (SPPM's photons, shot whatever the film, at the pilot's time per
+//!    iteration). The goal is a relMSE (`target_error`), the error path tracing reaches
 //!    at the job's spp (the same image quality, sooner), or the lowest error within a time.
 //!
 //! After the first three candidates, the pilot stops measuring once it has spent a tenth of
@@ -44,6 +50,9 @@ use crate::film::{Image, MAX_SPP};
 use crate::method::local::{Local, Progress};
 use crate::method::{Job, Loaded, plan};
 use crate::scene::Scene;
+
+mod predict;
+use predict::{choose, describe, predict, rel};
 
 /// What the job asks of its render.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -75,7 +84,9 @@ enum Model {
     Unbiased,
     /// v / n + b: b is kernel bias and the noise of a view-independent pass.
     Biased,
-    /// e (2k / n)^(2/3): progressive photon mapping.
+    /// v / n + b (k / n)^(2/3): progressive photon mapping, whose noise falls as a mean's
+    /// while its radii still hold photons from many iterations, and whose kernel bias falls
+    /// with the radii.
     Progressive,
 }
 
@@ -103,8 +114,8 @@ pub struct Measurement {
     pub sample_s: f64,
     /// relMSE of a one-sample image: variance only.
     pub rel_var: f64,
-    /// relMSE that more samples do not remove (photon map), or SPPM's total relMSE at the
-    /// pilot's iterations.
+    /// relMSE that more samples do not remove (photon map), or SPPM's bias at the pilot's
+    /// iterations (0 where the consensus is too noisy to tell it).
     pub floor: Option<f64>,
     /// Samples (iterations) predicted for the goal, and the wall seconds they take with the
     /// passes; `None` where the candidate cannot reach it.
@@ -197,9 +208,6 @@ fn measure(
     let (candidates, mut ruled_out) = candidates(desc, &analysis);
     let film = (desc.film.width as u64) * (desc.film.height as u64);
     let pilot = pilot_desc(desc);
-    let photons = crate::photon::PhotonSettings::resolve(desc, &analysis)
-        .0
-        .photons as f64;
 
     let mut runs: Vec<(usize, Run)> = Vec::new();
     let mut measurements = Vec::new();
@@ -232,7 +240,6 @@ fn measure(
             goal,
             (pilot.film.width, pilot.film.height),
             film,
-            photons,
         );
         measurements = m;
         target = t;
@@ -444,8 +451,10 @@ struct Run {
     /// The passes of the first half (the job's seed).
     artifacts: Vec<(String, Loaded)>,
     setup_s: f64,
-    /// Wall seconds of the 2k samples.
+    /// Wall seconds of the 2k samples, and of the part of them that grows with the pixels
+    /// (see [`crate::method::Finished::pixels_s`]).
     frame_s: f64,
+    pixels_s: Option<f64>,
     pilot_s: f64,
 }
 
@@ -486,16 +495,22 @@ fn run(
     let rendering = Instant::now();
     let (mut state, first) = local.frame_with_state(frame)?;
     let a = rgb(&first.image);
+    let mut pixels_s = first.pixels_s;
     // SPPM's later iterations are not a second sample of its first ones: it renders anew.
     let continued = match c.model {
         Model::Progressive => None,
         _ => local.more(frame, state.as_mut(), 2 * c.k),
     };
+    let mut frame_s = rendering.elapsed().as_secs_f64();
     let artifacts = local.artifacts();
     drop(local);
     let (b, both) = match continued {
         Some(done) => {
-            let both = rgb(&done?.image);
+            let done = done?;
+            // The continued frame's is the whole frame's.
+            pixels_s = done.pixels_s;
+            frame_s = rendering.elapsed().as_secs_f64();
+            let both = rgb(&done.image);
             // The second half: the 2k mean less the first half's share.
             let b = both
                 .iter()
@@ -512,7 +527,11 @@ fn run(
             scene.set_settings(&other);
             let local = Local::new(p.as_ref(), scene, &other, threads, &noop);
             local.passes()?;
-            let b = rgb(&local.frame(frame)?.image);
+            let second = Instant::now();
+            let other = local.frame(frame)?;
+            frame_s += second.elapsed().as_secs_f64();
+            pixels_s = pixels_s.zip(other.pixels_s).map(|(a, b)| a + b);
+            let b = rgb(&other.image);
             let both = a
                 .iter()
                 .zip(&b)
@@ -525,242 +544,8 @@ fn run(
         images: Halves { a, b, both },
         artifacts,
         setup_s,
-        frame_s: rendering.elapsed().as_secs_f64(),
+        frame_s,
+        pixels_s,
         pilot_s: start.elapsed().as_secs_f64(),
     })
-}
-
-/// mean over pixels and channels of f(pixel, channel) / (r² + 0.01).
-fn rel(r: &[[f64; 3]], f: impl Fn(usize, usize) -> f64) -> f64 {
-    let mut sum = 0.0;
-    for (p, rp) in r.iter().enumerate() {
-        for (ch, &v) in rp.iter().enumerate() {
-            sum += f(p, ch) / (v * v + 0.01);
-        }
-    }
-    sum / (3 * r.len().max(1)) as f64
-}
-
-/// The unbiased candidates' means weighted by the inverse of their variance, and the
-/// consensus's own relMSE; empty without an unbiased candidate.
-fn consensus(unbiased: &[&Halves]) -> (Vec<[f64; 3]>, f64) {
-    let Some(first) = unbiased.first() else {
-        return (Vec::new(), f64::INFINITY);
-    };
-    let n = first.both.len();
-    let mut r: Vec<[f64; 3]> = vec![[0.0; 3]; n];
-    for u in unbiased {
-        for (x, y) in r.iter_mut().zip(&u.both) {
-            for c in 0..3 {
-                x[c] += y[c] / unbiased.len() as f64;
-            }
-        }
-    }
-    // Once more with weights: the variance of a mean of both halves is half a half's.
-    let weights: Vec<f64> = unbiased
-        .iter()
-        .map(|u| 2.0 / u.half_rel_mse(&r).max(1e-12))
-        .collect();
-    let total: f64 = weights.iter().sum();
-    let mut weighted: Vec<[f64; 3]> = vec![[0.0; 3]; n];
-    for (u, w) in unbiased.iter().zip(&weights) {
-        for (x, y) in weighted.iter_mut().zip(&u.both) {
-            for c in 0..3 {
-                x[c] += w / total * y[c];
-            }
-        }
-    }
-    (weighted, 1.0 / total)
-}
-
-/// relMSE of `h` beyond its own noise and the consensus's, against the consensus of
-/// `unbiased`: what more samples do not remove.
-fn floor_of(h: &Halves, unbiased: &[&Halves]) -> f64 {
-    let (r, var_r) = consensus(unbiased);
-    (h.rel_mse(&r) - 0.5 * h.half_rel_mse(&r) - var_r).max(0.0)
-}
-
-/// Every measured candidate's prediction for `goal`, and the relMSE aimed at (none for a
-/// time goal).
-fn predict(
-    candidates: &[Candidate],
-    runs: &[(usize, Run)],
-    goal: Goal,
-    pilot: (u32, u32),
-    film: u64,
-    photons: f64,
-) -> (Vec<Measurement>, Option<f64>) {
-    let pixels: Vec<&Halves> = runs.iter().map(|(_, r)| &r.images).collect();
-    // The consensus leaves the path tracer out where a bidirectional method was measured:
-    // paths it finds too rarely to see in a pilot (caustics of small lights, light seen
-    // through glass) make its pilot's variance look small and its image dark there.
-    let judges_of = |all: bool| -> Vec<usize> {
-        runs.iter()
-            .enumerate()
-            .filter(|(_, (i, _))| candidates[*i].model == Model::Unbiased)
-            .filter(|(_, (i, _))| all || candidates[*i].label != "path")
-            .map(|(j, _)| j)
-            .collect()
-    };
-    let judged = match judges_of(false) {
-        j if j.is_empty() => judges_of(true),
-        j => j,
-    };
-    let unbiased: Vec<&Halves> = judged.iter().map(|&j| pixels[j]).collect();
-    let (r, _) = consensus(&unbiased);
-    if r.is_empty() {
-        return (Vec::new(), None);
-    }
-    let pilot_film = (pilot.0 as f64) * (pilot.1 as f64);
-    let ratio = film as f64 / pilot_film;
-    let mut out: Vec<Measurement> = runs
-        .iter()
-        .enumerate()
-        .map(|(j, (i, run))| {
-            let c = &candidates[*i];
-            let k = c.k as f64;
-            let half = pixels[j].half_rel_mse(&r);
-            // SPPM's iterations trace a fixed number of photons besides a path per pixel.
-            let scale = if c.model == Model::Progressive {
-                (photons + film as f64) / (photons + pilot_film)
-            } else {
-                ratio
-            };
-            // An unbiased pilot's halves agree where both miss the same rare paths; against
-            // the other judges (leaving itself out) the paths it missed show as error. Its
-            // variance is the larger of the two measures.
-            let others: Vec<&Halves> = judged
-                .iter()
-                .filter(|&&o| o != j)
-                .map(|&o| pixels[o])
-                .collect();
-            let half = match c.model {
-                Model::Unbiased if !others.is_empty() => {
-                    let (r, var_r) = consensus(&others);
-                    // Of both halves (2k samples): twice that for one half.
-                    let against = pixels[j].rel_mse(&r) - var_r;
-                    half.max(2.0 * against)
-                }
-                _ => half,
-            };
-            let floor = match c.model {
-                Model::Unbiased => None,
-                Model::Biased => Some(floor_of(pixels[j], &unbiased)),
-                // A k-iteration image's whole error: its noise and its (shrinking) bias.
-                Model::Progressive => Some(half + floor_of(pixels[j], &unbiased)),
-            };
-            Measurement {
-                label: c.label.clone(),
-                pilot_s: run.pilot_s,
-                setup_s: run.setup_s,
-                sample_s: run.frame_s / (2.0 * k) * scale,
-                rel_var: half * k,
-                floor,
-                spp: None,
-                predicted_s: None,
-                predicted_error: None,
-                note: None,
-                caveat: c.caveat.clone(),
-            }
-        })
-        .collect();
-    // The path tracer with the scene's own settings is the first candidate.
-    let reference = out.first().map(|m| m.rel_var);
-    let target = match goal {
-        Goal::Error(e) => Some(e),
-        Goal::PathSpp(n) => reference.map(|v| v / n.max(1) as f64),
-        Goal::Seconds(_) => None,
-    };
-    for (m, (i, _)) in out.iter_mut().zip(runs) {
-        let c = &candidates[*i];
-        let k = c.k as f64;
-        let samples = |n: f64| -> Option<u32> {
-            (n.is_finite() && n <= MAX_SPP as f64).then(|| n.ceil().max(1.0) as u32)
-        };
-        let error_at = |n: f64| match (c.model, m.floor) {
-            (Model::Unbiased, _) => m.rel_var / n,
-            (Model::Biased, Some(b)) => m.rel_var / n + b,
-            (Model::Progressive, Some(e)) => e * (k / n).powf(2.0 / 3.0),
-            _ => f64::INFINITY,
-        };
-        match (goal, target) {
-            (Goal::Seconds(t), _) => {
-                let n = ((t - m.setup_s) / m.sample_s).floor();
-                if n >= 1.0 {
-                    m.spp = samples(n);
-                    m.predicted_s = m.spp.map(|n| m.setup_s + n as f64 * m.sample_s);
-                    m.predicted_error = m.spp.map(|n| error_at(n as f64));
-                } else {
-                    m.note = Some(format!("its passes and one sample take longer than {t} s"));
-                }
-            }
-            (_, Some(e)) => {
-                let n = match (c.model, m.floor) {
-                    (Model::Unbiased, _) => Some(m.rel_var / e),
-                    (Model::Biased, Some(b)) if b < FLOOR_MARGIN * e => Some(m.rel_var / (e - b)),
-                    (Model::Biased, Some(b)) => {
-                        m.note = Some(format!(
-                            "its bias and photon-map noise (relMSE {b:.2e}) leave no room under {e:.2e}"
-                        ));
-                        None
-                    }
-                    (Model::Progressive, Some(t)) => Some(k * (t / e).powf(1.5)),
-                    _ => None,
-                };
-                m.spp = n.and_then(samples);
-                if n.is_some() && m.spp.is_none() {
-                    m.note = Some(format!("it would need more than {MAX_SPP} samples"));
-                }
-                m.predicted_s = m.spp.map(|n| m.setup_s + n as f64 * m.sample_s);
-                m.predicted_error = m.spp.map(|n| error_at(n as f64));
-            }
-            _ => {}
-        }
-    }
-    (out, target)
-}
-
-/// The candidate with the soonest prediction (the lowest error for a time goal); one with a
-/// caveat only when no other has a prediction.
-fn choose(measurements: &[Measurement], goal: Goal) -> Option<usize> {
-    let key = |m: &Measurement| match goal {
-        Goal::Seconds(_) => m.predicted_error,
-        _ => m.predicted_s,
-    };
-    let best = |trusted: bool| {
-        measurements
-            .iter()
-            .enumerate()
-            .filter(|(_, m)| !trusted || m.caveat.is_none())
-            .filter_map(|(i, m)| key(m).filter(|v| v.is_finite()).map(|v| (i, v)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(i, _)| i)
-    };
-    best(true).or_else(|| best(false))
-}
-
-/// One line for a candidate.
-fn describe(m: &Measurement) -> String {
-    let floor = m
-        .floor
-        .map(|b| format!(", floor {b:.2e}"))
-        .unwrap_or_default();
-    let measured = format!(
-        "1-spp relMSE {:.2e}{floor}, {:.3} s per spp, passes {:.2} s; pilot {:.2} s",
-        m.rel_var, m.sample_s, m.setup_s, m.pilot_s
-    );
-    let caveat = m
-        .caveat
-        .as_ref()
-        .map(|c| format!("; chosen only if nothing else can be: {c}"))
-        .unwrap_or_default();
-    match (m.spp, m.predicted_s, &m.note) {
-        (Some(n), Some(t), _) => format!(
-            "{}: {n} spp in {t:.2} s predicted, relMSE {:.2e} ({measured}){caveat}",
-            m.label,
-            m.predicted_error.unwrap_or(f64::NAN)
-        ),
-        (_, _, Some(note)) => format!("{}: cannot reach the goal: {note} ({measured})", m.label),
-        _ => format!("{}: no prediction ({measured})", m.label),
-    }
 }

@@ -1,0 +1,361 @@
+//! From the pilots' images to predictions: the consensus of the unbiased candidates, each
+//! candidate's variance per sample and floor (bias) against it, its samples and time to the
+//! goal (the models of [`Model`]), and the choice.
+
+use super::{Candidate, FLOOR_MARGIN, Goal, Halves, MAX_SPP, Measurement, Model, Run};
+
+/// mean over pixels and channels of f(pixel, channel) / (r² + 0.01).
+pub(super) fn rel(r: &[[f64; 3]], f: impl Fn(usize, usize) -> f64) -> f64 {
+    let mut sum = 0.0;
+    for (p, rp) in r.iter().enumerate() {
+        for (ch, &v) in rp.iter().enumerate() {
+            sum += f(p, ch) / (v * v + 0.01);
+        }
+    }
+    sum / (3 * r.len().max(1)) as f64
+}
+
+/// The unbiased candidates' means weighted by the inverse of their variance, and the
+/// consensus's own relMSE; empty without an unbiased candidate.
+fn consensus(unbiased: &[&Halves]) -> (Vec<[f64; 3]>, f64) {
+    let Some(first) = unbiased.first() else {
+        return (Vec::new(), f64::INFINITY);
+    };
+    let n = first.both.len();
+    let mut r: Vec<[f64; 3]> = vec![[0.0; 3]; n];
+    for u in unbiased {
+        for (x, y) in r.iter_mut().zip(&u.both) {
+            for c in 0..3 {
+                x[c] += y[c] / unbiased.len() as f64;
+            }
+        }
+    }
+    // Once more with weights: the variance of a mean of both halves is half a half's.
+    let weights: Vec<f64> = unbiased
+        .iter()
+        .map(|u| 2.0 / u.half_rel_mse(&r).max(1e-12))
+        .collect();
+    let total: f64 = weights.iter().sum();
+    let mut weighted: Vec<[f64; 3]> = vec![[0.0; 3]; n];
+    for (u, w) in unbiased.iter().zip(&weights) {
+        for (x, y) in weighted.iter_mut().zip(&u.both) {
+            for c in 0..3 {
+                x[c] += w / total * y[c];
+            }
+        }
+    }
+    (weighted, 1.0 / total)
+}
+
+/// relMSE of `h` beyond its own noise and the consensus's, against the consensus of
+/// `unbiased`: what more samples do not remove.
+fn floor_of(h: &Halves, unbiased: &[&Halves]) -> f64 {
+    let (r, var_r) = consensus(unbiased);
+    (h.rel_mse(&r) - 0.5 * h.half_rel_mse(&r) - var_r).max(0.0)
+}
+
+/// Every measured candidate's prediction for `goal`, and the relMSE aimed at (none for a
+/// time goal).
+pub(super) fn predict(
+    candidates: &[Candidate],
+    runs: &[(usize, Run)],
+    goal: Goal,
+    pilot: (u32, u32),
+    film: u64,
+) -> (Vec<Measurement>, Option<f64>) {
+    let pixels: Vec<&Halves> = runs.iter().map(|(_, r)| &r.images).collect();
+    // The consensus leaves the path tracer out where a bidirectional method was measured:
+    // paths it finds too rarely to see in a pilot (caustics of small lights, light seen
+    // through glass) make its pilot's variance look small and its image dark there.
+    let judges_of = |all: bool| -> Vec<usize> {
+        runs.iter()
+            .enumerate()
+            .filter(|(_, (i, _))| candidates[*i].model == Model::Unbiased)
+            .filter(|(_, (i, _))| all || candidates[*i].label != "path")
+            .map(|(j, _)| j)
+            .collect()
+    };
+    let judged = match judges_of(false) {
+        j if j.is_empty() => judges_of(true),
+        j => j,
+    };
+    let unbiased: Vec<&Halves> = judged.iter().map(|&j| pixels[j]).collect();
+    let (r, _) = consensus(&unbiased);
+    if r.is_empty() {
+        return (Vec::new(), None);
+    }
+    let pilot_film = (pilot.0 as f64) * (pilot.1 as f64);
+    let ratio = film as f64 / pilot_film;
+    let mut out: Vec<Measurement> = runs
+        .iter()
+        .enumerate()
+        .map(|(j, (i, run))| {
+            let c = &candidates[*i];
+            let k = c.k as f64;
+            let half = pixels[j].half_rel_mse(&r);
+            // What the pixels cost grows with them (SPPM's photons do not).
+            let per_pixels = run.pixels_s.unwrap_or(run.frame_s).min(run.frame_s);
+            let sample_s = (run.frame_s + per_pixels * (ratio - 1.0)) / (2.0 * k);
+            // An unbiased pilot's halves agree where both miss the same rare paths; against
+            // the other judges (leaving itself out) the paths it missed show as error. Its
+            // variance is the larger of the two measures.
+            let others: Vec<&Halves> = judged
+                .iter()
+                .filter(|&&o| o != j)
+                .map(|&o| pixels[o])
+                .collect();
+            let half = match c.model {
+                Model::Unbiased if !others.is_empty() => {
+                    let (r, var_r) = consensus(&others);
+                    // Of both halves (2k samples): twice that for one half.
+                    let against = pixels[j].rel_mse(&r) - var_r;
+                    half.max(2.0 * against)
+                }
+                _ => half,
+            };
+            let floor = match c.model {
+                Model::Unbiased => None,
+                Model::Biased => Some(floor_of(pixels[j], &unbiased)),
+                // Its bias, kept below where the consensus is too noisy to tell it.
+                Model::Progressive => Some(floor_of(pixels[j], &unbiased)),
+            };
+            Measurement {
+                label: c.label.clone(),
+                pilot_s: run.pilot_s,
+                setup_s: run.setup_s,
+                sample_s,
+                rel_var: half * k,
+                floor,
+                spp: None,
+                predicted_s: None,
+                predicted_error: None,
+                note: None,
+                caveat: c.caveat.clone(),
+            }
+        })
+        .collect();
+    // A consensus of a few bidirectional samples is often noisier than SPPM's first
+    // iterations, its halves agreeing where both miss rare paths: SPPM's error against it
+    // beyond the consensus's variance (the judges' as measured above, which counts what their
+    // halves missed) is bias only when more than that variance.
+    let var_r = 1.0
+        / judged
+            .iter()
+            .map(|&j| 2.0 * candidates[runs[j].0].k as f64 / out[j].rel_var.max(1e-12))
+            .sum::<f64>();
+    for (m, (i, _)) in out.iter_mut().zip(runs) {
+        if candidates[*i].model == Model::Progressive {
+            m.floor = m.floor.map(|b| if b > var_r { b } else { 0.0 });
+        }
+    }
+    // The path tracer with the scene's own settings is the first candidate.
+    let reference = out.first().map(|m| m.rel_var);
+    let target = match goal {
+        Goal::Error(e) => Some(e),
+        Goal::PathSpp(n) => reference.map(|v| v / n.max(1) as f64),
+        Goal::Seconds(_) => None,
+    };
+    for (m, (i, _)) in out.iter_mut().zip(runs) {
+        let c = &candidates[*i];
+        let k = c.k as f64;
+        let samples = |n: f64| -> Option<u32> {
+            (n.is_finite() && n <= MAX_SPP as f64).then(|| n.ceil().max(1.0) as u32)
+        };
+        let error_at = |n: f64| match (c.model, m.floor) {
+            (Model::Unbiased, _) => m.rel_var / n,
+            (Model::Biased, Some(b)) => m.rel_var / n + b,
+            (Model::Progressive, Some(b)) => m.rel_var / n + b * (k / n).powf(2.0 / 3.0),
+            _ => f64::INFINITY,
+        };
+        match (goal, target) {
+            (Goal::Seconds(t), _) => {
+                let n = ((t - m.setup_s) / m.sample_s).floor();
+                if n >= 1.0 {
+                    m.spp = samples(n);
+                    m.predicted_s = m.spp.map(|n| m.setup_s + n as f64 * m.sample_s);
+                    m.predicted_error = m.spp.map(|n| error_at(n as f64));
+                } else {
+                    m.note = Some(format!("its passes and one sample take longer than {t} s"));
+                }
+            }
+            (_, Some(e)) => {
+                let n = match (c.model, m.floor) {
+                    (Model::Unbiased, _) => Some(m.rel_var / e),
+                    (Model::Biased, Some(b)) if b < FLOOR_MARGIN * e => Some(m.rel_var / (e - b)),
+                    (Model::Biased, Some(b)) => {
+                        m.note = Some(format!(
+                            "its bias and photon-map noise (relMSE {b:.2e}) leave no room under {e:.2e}"
+                        ));
+                        None
+                    }
+                    (Model::Progressive, Some(_)) => {
+                        // The first n whose error is at most e (it falls with n).
+                        let (mut lo, mut hi) = (1.0_f64, MAX_SPP as f64 + 1.0);
+                        if error_at(lo) <= e {
+                            Some(lo)
+                        } else if error_at(MAX_SPP as f64) > e {
+                            Some(hi)
+                        } else {
+                            while hi - lo > 1.0 {
+                                let mid = ((lo + hi) / 2.0).floor();
+                                if error_at(mid) <= e {
+                                    hi = mid
+                                } else {
+                                    lo = mid
+                                }
+                            }
+                            Some(hi)
+                        }
+                    }
+                    _ => None,
+                };
+                m.spp = n.and_then(samples);
+                if n.is_some() && m.spp.is_none() {
+                    m.note = Some(format!("it would need more than {MAX_SPP} samples"));
+                }
+                m.predicted_s = m.spp.map(|n| m.setup_s + n as f64 * m.sample_s);
+                m.predicted_error = m.spp.map(|n| error_at(n as f64));
+            }
+            _ => {}
+        }
+    }
+    (out, target)
+}
+
+/// The candidate with the soonest prediction (the lowest error for a time goal); one with a
+/// caveat only when no other has a prediction.
+pub(super) fn choose(measurements: &[Measurement], goal: Goal) -> Option<usize> {
+    let key = |m: &Measurement| match goal {
+        Goal::Seconds(_) => m.predicted_error,
+        _ => m.predicted_s,
+    };
+    let best = |trusted: bool| {
+        measurements
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| !trusted || m.caveat.is_none())
+            .filter_map(|(i, m)| key(m).filter(|v| v.is_finite()).map(|v| (i, v)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _)| i)
+    };
+    best(true).or_else(|| best(false))
+}
+
+/// One line for a candidate.
+pub(super) fn describe(m: &Measurement) -> String {
+    let floor = m
+        .floor
+        .map(|b| format!(", floor {b:.2e}"))
+        .unwrap_or_default();
+    let measured = format!(
+        "1-spp relMSE {:.2e}{floor}, {:.3} s per spp, passes {:.2} s; pilot {:.2} s",
+        m.rel_var, m.sample_s, m.setup_s, m.pilot_s
+    );
+    let caveat = m
+        .caveat
+        .as_ref()
+        .map(|c| format!("; chosen only if nothing else can be: {c}"))
+        .unwrap_or_default();
+    match (m.spp, m.predicted_s, &m.note) {
+        (Some(n), Some(t), _) => format!(
+            "{}: {n} spp in {t:.2} s predicted, relMSE {:.2e} ({measured}){caveat}",
+            m.label,
+            m.predicted_error.unwrap_or(f64::NAN)
+        ),
+        (_, _, Some(note)) => format!("{}: cannot reach the goal: {note} ({measured})", m.label),
+        _ => format!("{}: no prediction ({measured})", m.label),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{Candidate, Goal, Halves, Model, Run};
+    use super::predict;
+
+    /// Gaussian noise from a fixed seed (xorshift, Box–Muller).
+    struct Noise(u64);
+    impl Noise {
+        fn uniform(&mut self) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        }
+        fn normal(&mut self) -> f64 {
+            let (u, v) = (self.uniform(), self.uniform());
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        }
+    }
+
+    const PIXELS: usize = 2000;
+
+    /// Two halves of k samples each about `mean`, each sample of standard deviation `sigma`.
+    fn run(noise: &mut Noise, mean: f64, sigma: f64, k: f64) -> Run {
+        let mut half = || -> Vec<[f64; 3]> {
+            (0..PIXELS)
+                .map(|_| [0; 3].map(|_| mean + sigma / k.sqrt() * noise.normal()))
+                .collect()
+        };
+        let (a, b) = (half(), half());
+        let both = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| [0, 1, 2].map(|c| 0.5 * (x[c] + y[c])))
+            .collect();
+        Run {
+            images: Halves { a, b, both },
+            artifacts: Vec::new(),
+            setup_s: 0.0,
+            frame_s: 1.0,
+            pixels_s: None,
+            pilot_s: 1.0,
+        }
+    }
+
+    fn candidate(label: &str, model: Model, k: u32) -> Candidate {
+        Candidate {
+            label: label.into(),
+            method: "path",
+            subsurface: None,
+            model,
+            k,
+            caveat: None,
+        }
+    }
+
+    /// SPPM's bias, `offset` on every pixel of value 1, as the pilot sees it beside two
+    /// unbiased judges of per-sample deviation `judges`.
+    fn sppm_floor(offset: f64, judges: f64) -> f64 {
+        let mut noise = Noise(0x9e37_79b9_7f4a_7c15);
+        let candidates = [
+            candidate("bdpt", Model::Unbiased, 4),
+            candidate("vcm", Model::Unbiased, 4),
+            candidate("sppm", Model::Progressive, 1),
+        ];
+        let runs = vec![
+            (0, run(&mut noise, 1.0, judges, 4.0)),
+            (1, run(&mut noise, 1.0, judges, 4.0)),
+            (2, run(&mut noise, 1.0 + offset, 0.05, 1.0)),
+        ];
+        let (m, _) = predict(&candidates, &runs, Goal::Error(1e-2), (40, 50), 4 * 2000);
+        m[2].floor.expect("sppm has a floor")
+    }
+
+    /// relMSE of an offset d on a pixel of value 1: d² / 1.01.
+    #[test]
+    fn sppm_bias_counts_only_where_the_consensus_can_tell_it_from_its_own_noise() {
+        let bias = 0.1f64.powi(2) / 1.01;
+        // Precise judges (consensus variance 0.02² / 16 per pixel): the offset is bias, within
+        // the noise of the estimate (SPPM's 0.05² / 2 per pixel, over 6000 values).
+        let seen = sppm_floor(0.1, 0.02);
+        assert!(
+            (seen - bias).abs() < 0.1 * bias,
+            "floor {seen}, bias {bias}"
+        );
+        // Noisy judges (consensus variance about 0.7 / 16 per pixel, above the bias): the
+        // difference cannot be told from the consensus's noise, and counts for nothing.
+        assert_eq!(sppm_floor(0.1, 0.85), 0.0);
+        // Without an offset, the floor is small whatever the judges.
+        assert!(sppm_floor(0.0, 0.02) < 0.05 * bias);
+    }
+}
