@@ -447,8 +447,11 @@ pub fn tokens(
                 path.display()
             )
         })?,
-        Err(_) => {
-            std::fs::create_dir_all(data)?;
+        // Only a missing file means "none yet": a file that cannot be read is an error, not a
+        // reason to issue new tokens that lock out every worker and client holding the old.
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            std::fs::create_dir_all(data)
+                .with_context(|| format!("creating the data directory {}", data.display()))?;
             let saved = Saved {
                 client: random_token()?,
                 worker: random_token()?,
@@ -462,6 +465,7 @@ pub fn tokens(
             }
             saved
         }
+        Err(e) => return Err(anyhow::anyhow!("reading {}: {e}", path.display())),
     };
     Ok((
         client.unwrap_or(saved.client),
@@ -475,4 +479,37 @@ pub fn random_token() -> anyhow::Result<String> {
     let mut bytes = [0u8; 16];
     getrandom::fill(&mut bytes).map_err(|e| anyhow::anyhow!("no OS randomness: {e}"))?;
     Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tokens;
+
+    #[test]
+    fn tokens_are_generated_once_and_kept() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let data = dir.path().join("data");
+        let (c, w, _) = tokens(&data, None, None).expect("generated");
+        assert!(c != w && c.len() == 32, "{c} {w}");
+        let (c2, w2, _) = tokens(&data, None, None).expect("kept");
+        assert_eq!((c2, w2), (c, w));
+    }
+
+    /// A data directory that cannot be made, or a tokens file that cannot be read, is an error
+    /// naming it: new tokens would lock out every worker and client holding the old ones.
+    #[test]
+    fn a_data_directory_or_tokens_file_that_cannot_be_used_is_named() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let file = dir.path().join("a-file");
+        std::fs::write(&file, b"x").expect("file");
+        let e = format!(
+            "{:#}",
+            tokens(&file.join("data"), None, None).expect_err("refused")
+        );
+        assert!(e.contains("a-file/data/tokens.json"), "{e}");
+        let data = dir.path().join("data");
+        std::fs::create_dir_all(data.join("tokens.json")).expect("a directory where the file goes");
+        let e = format!("{:#}", tokens(&data, None, None).expect_err("refused"));
+        assert!(e.contains("reading") && e.contains("tokens.json"), "{e}");
+    }
 }
