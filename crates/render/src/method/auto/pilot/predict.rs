@@ -115,9 +115,8 @@ pub(super) fn predict(
             };
             let floor = match c.model {
                 Model::Unbiased => None,
-                Model::Biased => Some(floor_of(pixels[j], &unbiased)),
-                // Its bias, kept below where the consensus is too noisy to tell it.
-                Model::Progressive => Some(floor_of(pixels[j], &unbiased)),
+                // SPPM's is its bias, dropped below where the consensus is too noisy to tell it.
+                Model::Biased | Model::Progressive => Some(floor_of(pixels[j], &unbiased)),
             };
             Measurement {
                 label: c.label.clone(),
