@@ -509,7 +509,6 @@ fn run(
             let done = done?;
             // The continued frame's is the whole frame's.
             pixels_s = done.pixels_s;
-            frame_s = rendering.elapsed().as_secs_f64();
             let both = rgb(&done.image);
             // The second half: the 2k mean less the first half's share.
             let b = both

@@ -47,11 +47,10 @@ fn consensus(unbiased: &[&Halves]) -> (Vec<[f64; 3]>, f64) {
     (weighted, 1.0 / total)
 }
 
-/// relMSE of `h` beyond its own noise and the consensus's, against the consensus of
-/// `unbiased`: what more samples do not remove.
-fn floor_of(h: &Halves, unbiased: &[&Halves]) -> f64 {
-    let (r, var_r) = consensus(unbiased);
-    (h.rel_mse(&r) - 0.5 * h.half_rel_mse(&r) - var_r).max(0.0)
+/// relMSE of `h` beyond its own noise and the consensus's, against the consensus `r` of
+/// relMSE `var_r`: what more samples do not remove.
+fn floor_of(h: &Halves, r: &[[f64; 3]], var_r: f64) -> f64 {
+    (h.rel_mse(r) - 0.5 * h.half_rel_mse(r) - var_r).max(0.0)
 }
 
 /// Every measured candidate's prediction for `goal`, and the relMSE aimed at (none for a
@@ -80,7 +79,7 @@ pub(super) fn predict(
         j => j,
     };
     let unbiased: Vec<&Halves> = judged.iter().map(|&j| pixels[j]).collect();
-    let (r, _) = consensus(&unbiased);
+    let (r, var_consensus) = consensus(&unbiased);
     if r.is_empty() {
         return (Vec::new(), None);
     }
@@ -116,7 +115,7 @@ pub(super) fn predict(
             let floor = match c.model {
                 Model::Unbiased => None,
                 // SPPM's is its bias, dropped below where the consensus is too noisy to tell it.
-                Model::Biased | Model::Progressive => Some(floor_of(pixels[j], &unbiased)),
+                Model::Biased | Model::Progressive => Some(floor_of(pixels[j], &r, var_consensus)),
             };
             Measurement {
                 label: c.label.clone(),
