@@ -12,6 +12,7 @@ A screenshot of every page goes to --out; any console error fails the test.
 """
 
 import argparse
+import hashlib
 import json
 import os
 import re
@@ -30,6 +31,16 @@ CORNELL = ROOT / "scenes" / "cornell-box" / "scene.json"
 CLIENT, WORKER = "browser-client-token", "browser-worker-token"
 
 
+def store_args(data):
+    """--store for the suite's run on PostgreSQL (TESSERA_TEST_POSTGRES): a schema of its own."""
+    base = os.environ.get("TESSERA_TEST_POSTGRES")
+    if not base:
+        return []
+    schema = "t_" + hashlib.sha256(str(data).encode()).hexdigest()[:16]
+    sep = "&" if "?" in base else "?"
+    return ["--store", f"{base}{sep}options=-csearch_path%3D{schema}"]
+
+
 class Farm:
     def __init__(self, tessera, data):
         self.tessera = tessera
@@ -37,7 +48,8 @@ class Farm:
         self.procs = []
         serve = subprocess.Popen(
             [tessera, "serve", "--local-workers", "2", "--data", str(data), "--listen", "127.0.0.1:0",
-             "--client-token", CLIENT, "--worker-token", WORKER, "--lease-seconds", "5"],
+             "--client-token", CLIENT, "--worker-token", WORKER, "--lease-seconds", "5"]
+            + store_args(data),
             stdout=subprocess.PIPE, stderr=open(data.parent / "serve.log", "w"), text=True)
         self.procs.append(serve)
         line = serve.stdout.readline()

@@ -49,6 +49,12 @@ pub fn serve_with(
             lease_seconds,
         ])
         .args(extra)
+        .args(
+            tessera_farm::store::test_store_url(data)
+                .map(|url| ["--store".to_owned(), url])
+                .into_iter()
+                .flatten(),
+        )
         .arg("--data")
         .arg(data)
         .args([

@@ -19,6 +19,7 @@ async fn start(dir: &std::path::Path) -> Running {
         CLIENT.into(),
         WORKER.into(),
     );
+    config.store = tessera_farm::store::test_store_url(dir);
     config.limits.max_resolution = 512;
     config.limits.max_spp = 1024;
     config.max_upload = 64 * 1024;

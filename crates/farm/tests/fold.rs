@@ -28,6 +28,7 @@ async fn start(dir: &Path, max_result: u64) -> Running {
         CLIENT.into(),
         WORKER.into(),
     );
+    config.store = tessera_farm::store::test_store_url(dir);
     config.max_result = max_result;
     coordinator::start(config).await.expect("coordinator")
 }

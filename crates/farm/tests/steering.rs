@@ -19,12 +19,13 @@ const CLIENT: &str = "client-token";
 const WORKER: &str = "worker-token";
 
 async fn start(dir: &std::path::Path) -> Running {
-    let config = Config::new(
+    let mut config = Config::new(
         "127.0.0.1:0".parse().expect("addr"),
         dir.to_path_buf(),
         CLIENT.into(),
         WORKER.into(),
     );
+    config.store = tessera_farm::store::test_store_url(dir);
     coordinator::start(config).await.expect("coordinator")
 }
 

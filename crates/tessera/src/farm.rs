@@ -17,9 +17,15 @@ pub struct ServeArgs {
     /// Address to listen on (port 0: any free port; the address is printed).
     #[arg(long, default_value = "127.0.0.1:8720")]
     pub listen: SocketAddr,
-    /// Where the job store, bundles, tiles and frames live.
+    /// Where the job store (unless --store), bundles, tiles and frames live.
     #[arg(long, default_value = "tessera-data")]
     pub data: PathBuf,
+    /// The job store in PostgreSQL instead of the embedded SQLite in --data:
+    /// postgres://USER:PASSWORD@HOST:PORT/DATABASE (a libpq URL; `?options=-csearch_path%3DS`
+    /// keeps the farm's tables in schema S, made if missing). Coordinators sharing it are one
+    /// farm.
+    #[arg(long, env = "TESSERA_STORE", hide_env_values = true)]
+    pub store: Option<String>,
     /// Worker processes to start and supervise on this machine.
     #[arg(long, default_value_t = 0)]
     pub local_workers: u32,
@@ -88,6 +94,14 @@ pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
         client_token.clone(),
         worker_token.clone(),
     );
+    if let Some(url) = &args.store {
+        anyhow::ensure!(
+            url.starts_with("postgres://") || url.starts_with("postgresql://"),
+            "--store: expected a PostgreSQL URL (postgres://user:password@host:port/database); \
+             leave it out for the embedded SQLite store in --data"
+        );
+    }
+    config.store = args.store.clone();
     config.lease_ms = (args.lease_seconds * 1000.0) as u64;
     config.max_attempts = args.max_attempts;
     anyhow::ensure!(
@@ -124,6 +138,9 @@ pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
     let url = format!("{scheme}://{}", running.addr);
     let mut text = format!("tessera coordinator listening on {url}\n");
     text += &format!("data: {}\n", args.data.display());
+    if args.store.is_some() {
+        text += "job store: PostgreSQL (--store)\n";
+    }
     text += &format!("dashboard: {url}/ (log in with the client token); API docs: {url}/docs\n");
     if generated {
         text += &format!(

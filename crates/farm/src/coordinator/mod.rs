@@ -46,6 +46,9 @@ use metrics::Metrics;
 pub struct Config {
     pub listen: SocketAddr,
     pub data: PathBuf,
+    /// The job store: a PostgreSQL URL (`postgres://…`; coordinators sharing it are one
+    /// farm), or `None` for the embedded SQLite in `data`.
+    pub store: Option<String>,
     pub client_token: String,
     pub worker_token: String,
     /// A lease not renewed for this long expires.
@@ -82,6 +85,7 @@ impl Config {
         Config {
             listen,
             data,
+            store: None,
             client_token,
             worker_token,
             lease_ms: 15_000,
@@ -322,9 +326,14 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         std::fs::create_dir_all(config.data.join(dir))
             .with_context(|| format!("creating {}", config.data.join(dir).display()))?;
     }
-    let db = config.data.join("tessera.db");
-    let store =
-        Store::open(&db).with_context(|| format!("opening the job store {}", db.display()))?;
+    let store = match &config.store {
+        Some(url) => Store::open_at(crate::store::Location::Postgres(url))
+            .context("opening the job store (--store)")?,
+        None => {
+            let db = config.data.join("tessera.db");
+            Store::open(&db).with_context(|| format!("opening the job store {}", db.display()))?
+        }
+    };
     let listener = tokio::net::TcpListener::bind(config.listen)
         .await
         .with_context(|| format!("cannot listen on {}", config.listen))?;

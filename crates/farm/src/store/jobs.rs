@@ -1,7 +1,9 @@
 //! Jobs in the store: inserting them with their first tasks, their status, their frames'
 //! outputs, and deleting them.
 
-use rusqlite::{OptionalExtension, Transaction, params};
+use std::collections::HashMap;
+
+use super::db::{Conn, Optional, ToValue, Value, params};
 
 use super::passes::NewPass;
 use super::{Result, SPEC_COLUMNS, Store, StoreError, from_json, json, task_spec};
@@ -64,66 +66,68 @@ pub struct Artifact {
 
 impl Store {
     pub fn insert_job(&self, job: &NewJob, now: i64) -> Result<i64> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        tx.execute(
-            "INSERT INTO jobs (name, state, priority, created_ms, bundle, scene, settings,
+        self.db.write(|tx| {
+            let id: i64 = tx.query_row(
+                "INSERT INTO jobs (name, state, priority, created_ms, bundle, scene, settings,
                 first_frame, last_frame, width, height, spp, method, decisions, planned_tasks,
                 require_tags)
-             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)",
-            params![
-                job.name,
-                job.priority,
-                now,
-                job.bundle,
-                job.scene,
-                json(&job.settings),
-                job.frames.first,
-                job.frames.last,
-                job.width,
-                job.height,
-                job.spp,
-                job.method,
-                json(&job.decisions),
-                job.planned_tasks as i64,
-                Self::tags_json(&job.require_tags),
-            ],
-        )?;
-        let id = tx.last_insert_rowid();
-        {
-            let mut frame =
-                tx.prepare("INSERT INTO frames (job_id, frame, state) VALUES (?1, ?2, 'queued')")?;
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)
+             RETURNING id",
+                params![
+                    job.name,
+                    job.priority,
+                    now,
+                    job.bundle,
+                    job.scene,
+                    json(&job.settings),
+                    job.frames.first,
+                    job.frames.last,
+                    job.width,
+                    job.height,
+                    job.spp,
+                    job.method,
+                    json(&job.decisions),
+                    job.planned_tasks as i64,
+                    Self::tags_json(&job.require_tags),
+                ],
+                |r| r.get(0),
+            )?;
             for f in job.frames.iter() {
-                frame.execute(params![id, f])?;
+                tx.execute(
+                    "INSERT INTO frames (job_id, frame, state) VALUES (?1, ?2, 'queued')",
+                    params![id, f],
+                )?;
             }
-        }
-        let frames_now = Self::insert_passes(&tx, id, &job.passes)?;
-        if frames_now {
-            for tasks in &job.tasks {
-                Self::insert_tasks(&tx, id, tasks)?;
+            let frames_now = Self::insert_passes(tx, id, &job.passes)?;
+            if frames_now {
+                for tasks in &job.tasks {
+                    Self::insert_tasks(tx, id, tasks)?;
+                }
             }
-        }
-        tx.commit()?;
-        Ok(id)
+            Ok(id)
+        })
     }
 
     /// Queues tasks of a job (at the job's priority, copied for the queue index) and counts
     /// frame tasks in their frames.
-    pub(super) fn insert_tasks(tx: &Transaction, job: i64, tasks: &[TaskSpec]) -> Result<()> {
-        let mut insert = tx.prepare(&format!(
+    pub(super) fn insert_tasks(tx: &Conn, job: i64, tasks: &[TaskSpec]) -> Result<()> {
+        let insert = format!(
             "INSERT INTO tasks (job_id, priority, {SPEC_COLUMNS}, state)
              SELECT ?1, priority, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, 'queued'
              FROM jobs WHERE id = ?1"
-        ))?;
-        let mut count = tx.prepare(
-            "UPDATE frames SET tasks_total = tasks_total + 1 WHERE job_id = ?1 AND frame = ?2",
-        )?;
+        );
         for t in tasks {
-            insert.execute(params![
-                job, t.kind, t.frame, t.step, t.index, t.x0, t.y0, t.x1, t.y1, t.start, t.end
-            ])?;
+            tx.execute(
+                &insert,
+                params![
+                    job, t.kind, t.frame, t.step, t.index, t.x0, t.y0, t.x1, t.y1, t.start, t.end
+                ],
+            )?;
             if !t.is_pass() {
-                count.execute(params![job, t.frame])?;
+                tx.execute(
+                    "UPDATE frames SET tasks_total = tasks_total + 1 WHERE job_id = ?1 AND frame = ?2",
+                    params![job, t.frame],
+                )?;
             }
         }
         Ok(())
@@ -135,10 +139,10 @@ impl Store {
         job: i64,
     ) -> Result<Option<(String, String, RenderSettings, FrameRange)>> {
         let row: Option<(String, String, String, u32, u32)> = self
-            .conn()
+            .conn()?
             .query_row(
                 "SELECT bundle, scene, settings, first_frame, last_frame FROM jobs WHERE id = ?1",
-                [job],
+                params![job],
                 |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?, r.get(4)?)),
             )
             .optional()?;
@@ -151,7 +155,7 @@ impl Store {
 
     pub fn job(&self, id: i64) -> Result<Option<JobStatus>> {
         Ok(self
-            .jobs_where("WHERE id = ?1", vec![Box::new(id)], true, "id DESC")?
+            .jobs_where("WHERE id = ?1", vec![Value::Int(id)], true, "id DESC")?
             .pop())
     }
 
@@ -164,30 +168,32 @@ impl Store {
     /// passes or decisions; how many it selects in all, by state.
     pub fn job_page(&self, filter: &JobFilter) -> Result<(Vec<JobStatus>, StateCounts)> {
         let mut clauses = Vec::new();
-        let mut values: Vec<Box<dyn rusqlite::ToSql>> = Vec::new();
+        let mut values: Vec<Value> = Vec::new();
         if let Some(name) = &filter.name {
-            values.push(Box::new(format!(
+            values.push(Value::Text(format!(
                 "%{}%",
                 name.replace('\\', "\\\\")
                     .replace('%', "\\%")
                     .replace('_', "\\_")
             )));
-            clauses.push(format!("name LIKE ?{} ESCAPE '\\'", values.len()));
+            // Case-insensitive on both databases (PostgreSQL's LIKE is not).
+            clauses.push(format!(
+                "LOWER(name) LIKE LOWER(?{}) ESCAPE '\\'",
+                values.len()
+            ));
         }
         let by_state: Vec<(String, u64)> = {
-            let conn = self.conn();
+            let conn = self.conn()?;
             let where_ = if clauses.is_empty() {
                 String::new()
             } else {
                 format!("WHERE {}", clauses.join(" AND "))
             };
-            let mut stmt = conn.prepare(&format!(
-                "SELECT state, COUNT(*) FROM jobs {where_} GROUP BY state"
-            ))?;
-            stmt.query_map(rusqlite::params_from_iter(values.iter()), |r| {
-                Ok((r.get(0)?, r.get::<_, i64>(1)? as u64))
-            })?
-            .collect::<rusqlite::Result<_>>()?
+            conn.query_map(
+                &format!("SELECT state, COUNT(*) FROM jobs {where_} GROUP BY state"),
+                &refs(&values),
+                |r| Ok((r.get(0)?, r.get::<i64>(1)? as u64)),
+            )?
         };
         if !filter.states.is_empty() {
             let list: Vec<String> = filter
@@ -209,7 +215,7 @@ impl Store {
         };
         where_ += &format!(
             " ORDER BY {order} LIMIT {} OFFSET {}",
-            filter.limit.map_or(-1, |l| l as i64),
+            filter.limit.map_or(i64::MAX, |l| l as i64),
             filter.offset
         );
         Ok((self.jobs_where(&where_, values, false, order)?, by_state))
@@ -221,7 +227,7 @@ impl Store {
     fn jobs_where(
         &self,
         filter: &str,
-        values: Vec<Box<dyn rusqlite::ToSql>>,
+        values: Vec<Value>,
         frames: bool,
         order: &str,
     ) -> Result<Vec<JobStatus>> {
@@ -230,21 +236,30 @@ impl Store {
             .map(|o| format!("j.{o}"))
             .collect::<Vec<_>>()
             .join(", ");
-        let conn = self.conn();
-        let mut stmt = conn.prepare(&format!(
-            "SELECT j.id, j.name, j.state, j.priority, j.created_ms, j.finished_ms, j.bundle, j.scene,
-                j.settings, j.first_frame, j.last_frame, j.width, j.height, j.spp, j.decisions, j.error,
-                COUNT(t.id),
-                SUM(t.state = 'queued'), SUM(t.state = 'leased'), SUM(t.state = 'done'),
-                SUM(t.state = 'failed'), SUM(t.state = 'cancelled'), SUM(t.attempts),
-                j.planned_tasks, j.method, j.require_tags, j.started_ms
-             FROM (SELECT * FROM jobs {filter}) j LEFT JOIN tasks t ON t.job_id = j.id
-             GROUP BY j.id ORDER BY {order}"
-        ))?;
-        let rows: Vec<(JobStatus, String, String, String)> = stmt
-            .query_map(rusqlite::params_from_iter(values.iter()), |r| {
-                let count = |i: usize| -> rusqlite::Result<u64> {
-                    Ok(r.get::<_, Option<i64>>(i)?.unwrap_or(0) as u64)
+        let conn = self.conn()?;
+        let count_state = |s: &str| format!("SUM(CASE WHEN state = '{s}' THEN 1 ELSE 0 END)");
+        let rows: Vec<(JobStatus, String, String, String)> = conn.query_map(
+            &format!(
+                "SELECT j.id, j.name, j.state, j.priority, j.created_ms, j.finished_ms, j.bundle, j.scene,
+                    j.settings, j.first_frame, j.last_frame, j.width, j.height, j.spp, j.decisions, j.error,
+                    t.total, t.queued, t.leased, t.done, t.failed, t.cancelled, t.attempts,
+                    j.planned_tasks, j.method, j.require_tags, j.started_ms
+                 FROM (SELECT * FROM jobs {filter}) j
+                 LEFT JOIN (SELECT job_id, COUNT(*) AS total, {} AS queued, {} AS leased,
+                                {} AS done, {} AS failed, {} AS cancelled, SUM(attempts) AS attempts
+                            FROM tasks WHERE job_id IN (SELECT id FROM jobs {filter})
+                            GROUP BY job_id) t ON t.job_id = j.id
+                 ORDER BY {order}",
+                count_state("queued"),
+                count_state("leased"),
+                count_state("done"),
+                count_state("failed"),
+                count_state("cancelled"),
+            ),
+            &refs(&values),
+            |r| {
+                let count = |i: usize| -> Result<u64> {
+                    Ok(r.get::<Option<i64>>(i)?.unwrap_or(0) as u64)
                 };
                 let tasks = TaskCounts {
                     total: count(16)?,
@@ -259,7 +274,7 @@ impl Store {
                 let status = JobStatus {
                     id: r.get(0)?,
                     name: r.get(1)?,
-                    state: JobState::parse(&r.get::<_, String>(2)?),
+                    state: JobState::parse(&r.get::<String>(2)?),
                     priority: r.get(3)?,
                     created_ms: r.get(4)?,
                     finished_ms: r.get(5)?,
@@ -290,8 +305,8 @@ impl Store {
                     blocklist: Vec::new(),
                 };
                 Ok((status, r.get(8)?, r.get(14)?, r.get(25)?))
-            })?
-            .collect::<rusqlite::Result<_>>()?;
+            },
+        )?;
         let mut jobs = Vec::with_capacity(rows.len());
         for (mut job, settings, decisions, tags) in rows {
             job.settings = from_json(&settings, &format!("settings of job {}", job.id))?;
@@ -302,17 +317,16 @@ impl Store {
             jobs.push(job);
         }
         if frames {
-            let mut stmt = conn.prepare(
-                "SELECT f.frame, f.state, f.tasks_done, f.tasks_total, a.sha256, f.estimated_rel_mse, f.step
-                 FROM frames f
-                 LEFT JOIN artifacts a ON a.job_id = f.job_id AND a.frame = f.frame AND a.kind = 'exr'
-                 WHERE f.job_id = ?1 ORDER BY f.frame",
-            )?;
             for job in jobs.iter_mut() {
                 job.passes = Self::job_passes(&conn, job.id)?;
                 job.blocklist = Self::blocklist_of(&conn, job.id)?;
-                job.frame_status = stmt
-                    .query_map([job.id], |r| {
+                job.frame_status = conn.query_map(
+                    "SELECT f.frame, f.state, f.tasks_done, f.tasks_total, a.sha256, f.estimated_rel_mse, f.step
+                     FROM frames f
+                     LEFT JOIN artifacts a ON a.job_id = f.job_id AND a.frame = f.frame AND a.kind = 'exr'
+                     WHERE f.job_id = ?1 ORDER BY f.frame",
+                    params![job.id],
+                    |r| {
                         let frame: u32 = r.get(0)?;
                         let state: String = r.get(1)?;
                         Ok(FrameStatus {
@@ -321,13 +335,13 @@ impl Store {
                                 .then(|| format!("/v1/jobs/{}/frames/{frame}/exr", job.id)),
                             state,
                             step: r.get(6)?,
-                            tasks_done: r.get::<_, i64>(2)? as u64,
-                            tasks_total: r.get::<_, i64>(3)? as u64,
+                            tasks_done: r.get::<i64>(2)? as u64,
+                            tasks_total: r.get::<i64>(3)? as u64,
                             exr_sha256: r.get(4)?,
                             estimated_rel_mse: r.get(5)?,
                         })
-                    })?
-                    .collect::<rusqlite::Result<_>>()?;
+                    },
+                )?;
             }
         }
         Ok(jobs)
@@ -335,13 +349,14 @@ impl Store {
 
     /// A job's tasks, or those of one frame (0: its passes' tasks).
     pub fn tasks(&self, job: i64, frame: Option<u32>) -> Result<Vec<TaskStatus>> {
-        let conn = self.conn();
-        let mut stmt = conn.prepare(&format!(
-            "SELECT id, state, attempts, worker, seconds, error, result_bytes, payload_bytes, {SPEC_COLUMNS}
-             FROM tasks WHERE job_id = ?1 AND (?2 IS NULL OR frame = ?2) ORDER BY id"
-        ))?;
-        let out = stmt
-            .query_map(params![job, frame], |r| {
+        let conn = self.conn()?;
+        conn.query_map(
+            &format!(
+                "SELECT id, state, attempts, worker, seconds, error, result_bytes, payload_bytes, {SPEC_COLUMNS}
+                 FROM tasks WHERE job_id = ?1 AND (CAST(?2 AS BIGINT) IS NULL OR frame = ?2) ORDER BY id"
+            ),
+            params![job, frame],
+            |r| {
                 Ok(TaskStatus {
                     id: r.get(0)?,
                     state: r.get(1)?,
@@ -349,13 +364,12 @@ impl Store {
                     worker: r.get(3)?,
                     seconds: r.get(4)?,
                     error: r.get(5)?,
-                    result_bytes: r.get::<_, Option<i64>>(6)?.map(|b| b as u64),
-                    payload_bytes: r.get::<_, Option<i64>>(7)?.map(|b| b as u64),
+                    result_bytes: r.get::<Option<i64>>(6)?.map(|b| b as u64),
+                    payload_bytes: r.get::<Option<i64>>(7)?.map(|b| b as u64),
                     spec: task_spec(r, 8)?,
                 })
-            })?
-            .collect::<rusqlite::Result<_>>()?;
-        Ok(out)
+            },
+        )
     }
 
     /// A job's attempts (leases), newest first: failures first if `failures_first`; at most
@@ -366,20 +380,21 @@ impl Store {
         failures_first: bool,
         limit: u64,
     ) -> Result<Vec<AttemptStatus>> {
-        let conn = self.conn();
+        let conn = self.conn()?;
         let order = if failures_first {
-            "(a.outcome IN ('failed', 'expired', 'unreadable')) DESC, a.id DESC"
+            "CASE WHEN a.outcome IN ('failed', 'expired', 'unreadable') THEN 1 ELSE 0 END DESC, a.id DESC"
         } else {
             "a.id DESC"
         };
-        let mut stmt = conn.prepare(&format!(
-            "SELECT a.id, a.task_id, t.frame, t.step, t.kind, t.idx, a.worker, a.started_ms,
-                a.ended_ms, a.outcome, a.error
-             FROM attempts a JOIN tasks t ON t.id = a.task_id
-             WHERE t.job_id = ?1 ORDER BY {order} LIMIT ?2"
-        ))?;
-        let out = stmt
-            .query_map(params![job, limit as i64], |r| {
+        conn.query_map(
+            &format!(
+                "SELECT a.id, a.task_id, t.frame, t.step, t.kind, t.idx, a.worker, a.started_ms,
+                    a.ended_ms, a.outcome, a.error
+                 FROM attempts a JOIN tasks t ON t.id = a.task_id
+                 WHERE t.job_id = ?1 ORDER BY {order} LIMIT ?2"
+            ),
+            params![job, limit as i64],
+            |r| {
                 Ok(AttemptStatus {
                     id: r.get(0)?,
                     task_id: r.get(1)?,
@@ -393,16 +408,15 @@ impl Store {
                     outcome: r.get(9)?,
                     error: r.get(10)?,
                 })
-            })?
-            .collect::<rusqlite::Result<_>>()?;
-        Ok(out)
+            },
+        )
     }
 
     /// Whether a job exists.
     pub fn job_exists(&self, job: i64) -> Result<bool> {
         Ok(self
-            .conn()
-            .query_row("SELECT 1 FROM jobs WHERE id = ?1", [job], |_| Ok(()))
+            .conn()?
+            .query_row("SELECT 1 FROM jobs WHERE id = ?1", params![job], |_| Ok(()))
             .optional()?
             .is_some())
     }
@@ -410,9 +424,9 @@ impl Store {
     /// A job's state, if it exists.
     pub fn job_state(&self, job: i64) -> Result<Option<JobState>> {
         Ok(self
-            .conn()
-            .query_row("SELECT state FROM jobs WHERE id = ?1", [job], |r| {
-                r.get::<_, String>(0)
+            .conn()?
+            .query_row("SELECT state FROM jobs WHERE id = ?1", params![job], |r| {
+                r.get::<String>(0)
             })
             .optional()?
             .map(|s| JobState::parse(&s)))
@@ -421,7 +435,7 @@ impl Store {
     /// A frame's state (queued, running, done), if the job has that frame.
     pub fn frame_state(&self, job: i64, frame: u32) -> Result<Option<String>> {
         Ok(self
-            .conn()
+            .conn()?
             .query_row(
                 "SELECT state FROM frames WHERE job_id = ?1 AND frame = ?2",
                 params![job, frame],
@@ -440,12 +454,13 @@ impl Store {
         estimated_rel_mse: Option<f64>,
         now: i64,
     ) -> Result<bool> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        for a in files {
+        self.db.write(|tx| {
+                for a in files {
             tx.execute(
-                "INSERT OR REPLACE INTO artifacts (job_id, frame, kind, path, bytes, sha256, created_ms)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+                "INSERT INTO artifacts (job_id, frame, kind, path, bytes, sha256, created_ms)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)
+                 ON CONFLICT (job_id, frame, kind) DO UPDATE SET path = excluded.path,
+                    bytes = excluded.bytes, sha256 = excluded.sha256, created_ms = excluded.created_ms",
                 params![job, frame, a.kind, a.path, a.bytes as i64, a.sha256, now],
             )?;
         }
@@ -456,7 +471,7 @@ impl Store {
         )?;
         let left: i64 = tx.query_row(
             "SELECT COUNT(*) FROM frames WHERE job_id = ?1 AND state != 'done'",
-            [job],
+            params![job],
             |r| r.get(0),
         )?;
         let done = left == 0
@@ -465,87 +480,95 @@ impl Store {
                  WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
                 params![job, now],
             )? == 1;
-        tx.commit()?;
         Ok(done)
+        })
     }
 
     /// Deletes a job that has ended, with every row of it; returns its bundle's hash if no
     /// other job uses that bundle any more (and forgets the bundle), `None` if the job has not
     /// ended or does not exist.
     pub fn delete_job(&self, job: i64) -> Result<Option<Option<String>>> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let row: Option<(String, String)> = tx
-            .query_row("SELECT state, bundle FROM jobs WHERE id = ?1", [job], |r| {
-                Ok((r.get(0)?, r.get(1)?))
-            })
-            .optional()?;
-        let Some((state, bundle)) = row else {
-            return Ok(None);
-        };
-        if !JobState::parse(&state).is_final() {
-            return Ok(None);
-        }
-        tx.execute(
-            "DELETE FROM attempts WHERE task_id IN (SELECT id FROM tasks WHERE job_id = ?1)",
-            [job],
-        )?;
-        for table in ["tasks", "frames", "artifacts", "passes", "blocklist"] {
-            tx.execute(&format!("DELETE FROM {table} WHERE job_id = ?1"), [job])?;
-        }
-        tx.execute("DELETE FROM jobs WHERE id = ?1", [job])?;
-        let used: i64 = tx.query_row(
-            "SELECT COUNT(*) FROM jobs WHERE bundle = ?1",
-            [&bundle],
-            |r| r.get(0),
-        )?;
-        let orphan = used == 0;
-        if orphan {
-            tx.execute("DELETE FROM bundles WHERE hash = ?1", [&bundle])?;
-        }
-        tx.commit()?;
-        Ok(Some(orphan.then_some(bundle)))
+        self.db.write(|tx| {
+            let row: Option<(String, String)> = tx
+                .query_row(
+                    "SELECT state, bundle FROM jobs WHERE id = ?1",
+                    params![job],
+                    |r| Ok((r.get(0)?, r.get(1)?)),
+                )
+                .optional()?;
+            let Some((state, bundle)) = row else {
+                return Ok(None);
+            };
+            if !JobState::parse(&state).is_final() {
+                return Ok(None);
+            }
+            tx.execute(
+                "DELETE FROM attempts WHERE task_id IN (SELECT id FROM tasks WHERE job_id = ?1)",
+                params![job],
+            )?;
+            for table in ["tasks", "frames", "artifacts", "passes", "blocklist"] {
+                tx.execute(
+                    &format!("DELETE FROM {table} WHERE job_id = ?1"),
+                    params![job],
+                )?;
+            }
+            tx.execute("DELETE FROM jobs WHERE id = ?1", params![job])?;
+            let used: i64 = tx.query_row(
+                "SELECT COUNT(*) FROM jobs WHERE bundle = ?1",
+                params![&bundle],
+                |r| r.get(0),
+            )?;
+            let orphan = used == 0;
+            if orphan {
+                tx.execute("DELETE FROM bundles WHERE hash = ?1", params![&bundle])?;
+            }
+            Ok(Some(orphan.then_some(bundle)))
+        })
     }
 
     /// Jobs that ended before `before` (ms since the epoch), oldest first.
     pub fn ended_before(&self, before: i64) -> Result<Vec<i64>> {
-        let conn = self.conn();
-        let mut stmt = conn.prepare(
+        let conn = self.conn()?;
+        conn.query_map(
             "SELECT id FROM jobs WHERE state IN ('done', 'failed', 'cancelled')
                AND finished_ms IS NOT NULL AND finished_ms < ?1 ORDER BY id",
-        )?;
-        let ids = stmt
-            .query_map([before], |r| r.get(0))?
-            .collect::<rusqlite::Result<_>>()?;
-        Ok(ids)
+            params![before],
+            |r| r.get(0),
+        )
     }
 
     /// Workers, most recently seen first; alive if seen within `alive_ms`.
     pub fn workers(&self, now: i64, alive_ms: i64) -> Result<Vec<WorkerStatus>> {
-        let conn = self.conn();
-        let mut stmt = conn.prepare(
-            "SELECT w.id, w.name, w.host, w.slots, w.version, w.first_seen_ms, w.last_seen_ms,
-                w.scene_builds, w.tasks_done, w.pid,
-                (SELECT group_concat(t.id) FROM tasks t WHERE t.worker = w.id AND t.state = 'leased'),
-                w.tags, w.draining, w.cpu, w.samples_done, w.busy_seconds, w.failures,
-                (SELECT group_concat(b.job_id) FROM blocklist b
-                 WHERE b.worker = w.id AND b.blocked_ms IS NOT NULL)
-             FROM workers w ORDER BY w.last_seen_ms DESC",
-        )?;
-        let ids = |s: Option<String>| -> Vec<i64> {
-            s.unwrap_or_default()
-                .split(',')
-                .filter_map(|s| s.parse().ok())
-                .collect()
+        let conn = self.conn()?;
+        let by_worker = |sql: &str| -> Result<HashMap<String, Vec<i64>>> {
+            let mut m: HashMap<String, Vec<i64>> = HashMap::new();
+            for (w, id) in conn.query_map(sql, params![], |r| Ok((r.get(0)?, r.get(1)?)))? {
+                m.entry(w).or_default().push(id);
+            }
+            Ok(m)
         };
-        let rows: Vec<(WorkerStatus, String)> = stmt
-            .query_map([], |r| {
+        let mut leased = by_worker(
+            "SELECT worker, id FROM tasks WHERE state = 'leased' AND worker IS NOT NULL ORDER BY id",
+        )?;
+        let mut blocked = by_worker(
+            "SELECT worker, job_id FROM blocklist WHERE blocked_ms IS NOT NULL ORDER BY job_id",
+        )?;
+        let rows: Vec<(WorkerStatus, String)> = conn.query_map(
+            "SELECT w.id, w.name, w.host, w.slots, w.version, w.first_seen_ms, w.last_seen_ms,
+                w.scene_builds, w.tasks_done, w.pid, NULL,
+                w.tags, w.draining, w.cpu, w.samples_done, w.busy_seconds, w.failures
+             FROM workers w ORDER BY w.last_seen_ms DESC",
+            params![],
+            |r| {
+                let id: String = r.get(0)?;
                 let last: i64 = r.get(6)?;
                 let samples: i64 = r.get(14)?;
                 let busy: f64 = r.get(15)?;
                 Ok((
                     WorkerStatus {
-                        id: r.get(0)?,
+                        leased_tasks: leased.remove(&id).unwrap_or_default(),
+                        blocklisted_for: blocked.remove(&id).unwrap_or_default(),
+                        id,
                         name: r.get(1)?,
                         host: r.get(2)?,
                         pid: r.get(9)?,
@@ -554,21 +577,19 @@ impl Store {
                         first_seen_ms: r.get(5)?,
                         last_seen_ms: last,
                         alive: now - last <= alive_ms,
-                        scene_builds: r.get::<_, i64>(7)? as u64,
-                        tasks_done: r.get::<_, i64>(8)? as u64,
-                        leased_tasks: ids(r.get(10)?),
+                        scene_builds: r.get::<i64>(7)? as u64,
+                        tasks_done: r.get::<i64>(8)? as u64,
                         tags: Vec::new(),
                         draining: r.get(12)?,
                         cpu: r.get(13)?,
                         samples_per_second: (busy > 0.0 && samples > 0)
                             .then(|| samples as f64 / busy),
-                        failures: r.get::<_, i64>(16)? as u64,
-                        blocklisted_for: ids(r.get(17)?),
+                        failures: r.get::<i64>(16)? as u64,
                     },
                     r.get(11)?,
                 ))
-            })?
-            .collect::<rusqlite::Result<_>>()?;
+            },
+        )?;
         let mut out = Vec::with_capacity(rows.len());
         for (mut w, tags) in rows {
             w.tags = from_json(&tags, &format!("tags of worker {}", w.id))?;
@@ -582,4 +603,9 @@ impl From<StoreError> for String {
     fn from(e: StoreError) -> String {
         e.to_string()
     }
+}
+
+/// Parameters held as values, for a statement.
+fn refs(values: &[Value]) -> Vec<&dyn ToValue> {
+    values.iter().map(|v| v as &dyn ToValue).collect()
 }

@@ -1,5 +1,6 @@
 //! The job store: jobs, frames, tasks, leases (attempts), passes, the artifact cache, workers
-//! and bundles in SQLite.
+//! and bundles, in the embedded SQLite (one coordinator) or in PostgreSQL (any number of
+//! coordinators sharing it); see [`db`].
 //!
 //! Everything the coordinator needs to resume lives here; task results, frame checkpoints and
 //! artifacts are files beside it, and a task is `done` only once its result file is in place.
@@ -8,6 +9,7 @@
 //! the store knows one rendering method from another: tasks are (frame, step, index) with the
 //! core's task description.
 
+pub(crate) mod db;
 mod jobs;
 mod ops;
 mod passes;
@@ -15,9 +17,8 @@ mod sessions;
 mod tasks;
 
 use std::path::Path;
-use std::sync::{Mutex, MutexGuard};
 
-use rusqlite::{Connection, params};
+use db::{Conn, Db, Dialect, Optional, params};
 
 pub use jobs::{Artifact, JobFilter, NewJob};
 pub use ops::Blocklisting;
@@ -31,6 +32,25 @@ use crate::job::TaskSpec;
 pub enum StoreError {
     #[error("job store: {0}")]
     Sql(#[from] rusqlite::Error),
+    #[error("job store: {}", describe(.0))]
+    Postgres(#[from] tokio_postgres::Error),
+    #[error("cannot connect to the job store, the {place}: {}", describe(.source))]
+    Connect {
+        place: String,
+        source: tokio_postgres::Error,
+    },
+    /// A statement PostgreSQL refused or could not run.
+    #[error("job store: {} in `{sql}`", describe(.source))]
+    Statement {
+        sql: String,
+        source: tokio_postgres::Error,
+    },
+    /// The store's configuration or connection (not a statement) failed.
+    #[error("job store: {0}")]
+    Config(String),
+    /// A query that must return a row returned none.
+    #[error("job store: no such row")]
+    NoRow,
     /// A row the store cannot read as what it should hold (written by another version, or
     /// edited by hand).
     #[error("job store: {0}")]
@@ -39,9 +59,39 @@ pub enum StoreError {
 
 pub type Result<T> = std::result::Result<T, StoreError>;
 
-/// The schema's version (SQLite's `user_version`): [`SCHEMA`] makes version 2, and each of
-/// [`MIGRATIONS`] takes the store one version further. A store of a version before 2 or after
-/// the last is refused.
+impl StoreError {
+    /// A statement's error, naming the statement by its first line.
+    fn statement(sql: &str, source: tokio_postgres::Error) -> StoreError {
+        StoreError::Statement {
+            sql: sql.lines().next().unwrap_or("").trim().to_owned(),
+            source,
+        }
+    }
+}
+
+/// A PostgreSQL error with what the server said (its message, detail and hint), or the
+/// client's error and its cause.
+fn describe(e: &tokio_postgres::Error) -> String {
+    if let Some(db) = e.as_db_error() {
+        let mut s = format!("{} ({})", db.message(), db.code().code());
+        if let Some(d) = db.detail() {
+            s += &format!("; {d}");
+        }
+        if let Some(h) = db.hint() {
+            s += &format!("; hint: {h}");
+        }
+        return s;
+    }
+    match std::error::Error::source(e) {
+        Some(cause) => format!("{e}: {cause}"),
+        None => e.to_string(),
+    }
+}
+
+/// The schema's version (SQLite's `user_version`, PostgreSQL's table `tessera_schema`):
+/// [`SCHEMA`] makes version 2, and each of [`MIGRATIONS`] takes the store one version further,
+/// on either database ([`Dialect::ddl`]). A store of a version before 2 or after the last is
+/// refused.
 const SCHEMA_VERSION: i64 = 2 + MIGRATIONS.len() as i64;
 
 /// The migrations after version 2, in order: migration i takes version 2 + i to 3 + i.
@@ -194,10 +244,13 @@ CREATE TABLE IF NOT EXISTS workers (
 "#;
 
 pub struct Store {
-    conn: Mutex<Connection>,
+    db: Db,
 }
 
-fn task_spec(row: &rusqlite::Row, at: usize) -> rusqlite::Result<TaskSpec> {
+/// The PostgreSQL advisory lock held while a coordinator creates or migrates the schema.
+const MIGRATION_LOCK: i64 = 0x7465_7373_6572_6101;
+
+fn task_spec(row: &db::Row, at: usize) -> Result<TaskSpec> {
     Ok(TaskSpec {
         kind: row.get(at)?,
         frame: row.get(at + 1)?,
@@ -223,69 +276,182 @@ fn from_json<T: serde::de::DeserializeOwned>(text: &str, what: &str) -> Result<T
     serde_json::from_str(text).map_err(|e| StoreError::Corrupt(format!("{what}: {e}: {text:?}")))
 }
 
+/// The store a test coordinator whose data directory is `data` uses: when the environment
+/// variable `TESSERA_TEST_POSTGRES` names a PostgreSQL database (CI's second run of the
+/// suite), a schema of it named after `data` (made when the store opens; the same directory
+/// gives the same schema, so a restarted coordinator finds its jobs); else `None`, the
+/// embedded SQLite in `data`.
+pub fn test_store_url(data: &Path) -> Option<String> {
+    use sha2::Digest;
+    let base = std::env::var("TESSERA_TEST_POSTGRES").ok()?;
+    let hash = sha2::Sha256::digest(data.to_string_lossy().as_bytes());
+    let schema: String = hash[..8].iter().map(|b| format!("{b:02x}")).collect();
+    let sep = if base.contains('?') { '&' } else { '?' };
+    Some(format!("{base}{sep}options=-csearch_path%3Dt_{schema}"))
+}
+
+/// Where the store lives: `postgres://…` (or `postgresql://…`) is PostgreSQL, anything else
+/// a path for the embedded SQLite.
+pub enum Location<'a> {
+    Sqlite(&'a Path),
+    Postgres(&'a str),
+}
+
 impl Store {
-    /// Opens (or creates) the store at `path`; refuses a store of another schema version.
+    /// Opens (or creates) the embedded store at `path`; refuses a store of another schema
+    /// version.
     pub fn open(path: &Path) -> Result<Store> {
-        let conn = Connection::open(path)?;
-        conn.busy_timeout(std::time::Duration::from_secs(10))?;
-        conn.execute_batch(
-            "PRAGMA journal_mode = WAL; PRAGMA synchronous = NORMAL; PRAGMA foreign_keys = ON;",
-        )?;
-        let version: i64 = conn.query_row("PRAGMA user_version", [], |r| r.get(0))?;
-        let tables: i64 = conn.query_row(
-            "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table'",
-            [],
-            |r| r.get(0),
-        )?;
+        Store::open_at(Location::Sqlite(path))
+    }
+
+    /// Opens (or creates, or migrates) the store at `at`; refuses a store of another schema
+    /// version.
+    pub fn open_at(at: Location) -> Result<Store> {
+        let (db, place) = match at {
+            Location::Sqlite(path) => {
+                let conn = rusqlite::Connection::open(path)?;
+                conn.busy_timeout(std::time::Duration::from_secs(10))?;
+                conn.execute_batch(
+                    "PRAGMA journal_mode = WAL; PRAGMA synchronous = NORMAL; PRAGMA foreign_keys = ON;",
+                )?;
+                (Db::sqlite(conn), path.display().to_string())
+            }
+            Location::Postgres(url) => (Db::postgres(url)?, "the PostgreSQL store".to_owned()),
+        };
+        let conn = db.conn()?;
+        let dialect = conn.dialect();
+        if dialect == Dialect::Postgres {
+            // One coordinator at a time creates or migrates a shared store; the lock is the
+            // session's, so it ends with the connection if this process dies.
+            conn.execute_batch(&format!("SELECT pg_advisory_lock({MIGRATION_LOCK})"))?;
+        }
+        let migrated = Self::migrate(&conn, &place);
+        if dialect == Dialect::Postgres {
+            conn.execute_batch(&format!("SELECT pg_advisory_unlock({MIGRATION_LOCK})"))?;
+        }
+        migrated?;
+        drop(conn);
+        Ok(Store { db })
+    }
+
+    /// Brings the schema to [`SCHEMA_VERSION`], each migration in one transaction with its
+    /// version (a crash leaves either).
+    fn migrate(conn: &Conn, place: &str) -> Result<()> {
+        let dialect = conn.dialect();
+        let (tables, version): (i64, i64) = match dialect {
+            Dialect::Sqlite => (
+                conn.query_row(
+                    "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table'",
+                    params![],
+                    |r| r.get(0),
+                )?,
+                conn.query_row("PRAGMA user_version", params![], |r| r.get(0))?,
+            ),
+            Dialect::Postgres => {
+                // A search_path naming a schema that does not exist yet: make it (a farm of its
+                // own in a shared database).
+                let schema: Option<String> =
+                    conn.query_row("SELECT current_schema()", params![], |r| r.get(0))?;
+                if schema.is_none() {
+                    let path: String =
+                        conn.query_row("SHOW search_path", params![], |r| r.get(0))?;
+                    let first = path
+                        .split(',')
+                        .next()
+                        .unwrap_or("")
+                        .trim()
+                        .trim_matches('"');
+                    if first.is_empty() || first.starts_with('$') {
+                        return Err(StoreError::Config(format!(
+                            "{place}: the search_path {path:?} names no schema to create the tables in"
+                        )));
+                    }
+                    conn.execute_batch(&format!(
+                        "CREATE SCHEMA IF NOT EXISTS \"{}\"",
+                        first.replace('"', "")
+                    ))?;
+                }
+                conn.execute_batch(
+                    "CREATE TABLE IF NOT EXISTS tessera_schema (version BIGINT NOT NULL)",
+                )?;
+                let version: Option<i64> =
+                    conn.query_row("SELECT MAX(version) FROM tessera_schema", params![], |r| {
+                        r.get(0)
+                    })?;
+                let tables: i64 = conn.query_row(
+                    "SELECT COUNT(*) FROM information_schema.tables
+                     WHERE table_schema = current_schema() AND table_name = 'jobs'",
+                    params![],
+                    |r| r.get(0),
+                )?;
+                (tables, version.unwrap_or(0))
+            }
+        };
         if tables > 0 && !(2..=SCHEMA_VERSION).contains(&version) {
             return Err(StoreError::Corrupt(format!(
-                "{} has schema version {version}, this coordinator reads versions 2 to {SCHEMA_VERSION}; start with an empty data directory (or move this one away)",
-                path.display()
+                "{place} has schema version {version}, this coordinator reads versions 2 to {SCHEMA_VERSION}; start with an empty data directory or database (or move this one away)"
             )));
         }
-        let from = if tables > 0 { version } else { 2 };
+        let set_version = |to: i64| match dialect {
+            Dialect::Sqlite => format!("PRAGMA user_version = {to};"),
+            Dialect::Postgres => {
+                format!("DELETE FROM tessera_schema; INSERT INTO tessera_schema VALUES ({to});")
+            }
+        };
         if tables == 0 {
-            conn.execute_batch(SCHEMA)?;
+            conn.execute_batch(&format!(
+                "BEGIN; {} {} COMMIT;",
+                dialect.ddl(SCHEMA),
+                set_version(2)
+            ))?;
         }
-        // Each migration in one transaction with its version: a crash leaves either.
+        let from = if tables > 0 { version } else { 2 };
         for (i, m) in MIGRATIONS.iter().enumerate() {
             let to = 3 + i as i64;
             if from < to {
-                conn.execute_batch(&format!("BEGIN; {m} PRAGMA user_version = {to}; COMMIT;"))?;
+                conn.execute_batch(&format!(
+                    "BEGIN; {} {} COMMIT;",
+                    dialect.ddl(m),
+                    set_version(to)
+                ))?;
             }
         }
-        conn.execute_batch(&format!("PRAGMA user_version = {SCHEMA_VERSION}"))?;
-        Ok(Store {
-            conn: Mutex::new(conn),
-        })
+        Ok(())
     }
 
-    fn conn(&self) -> MutexGuard<'_, Connection> {
-        // A panic while holding the lock leaves SQLite consistent (transactions roll back).
-        self.conn.lock().unwrap_or_else(|e| e.into_inner())
+    /// A connection for statements outside a transaction of their own.
+    fn conn(&self) -> Result<Conn<'_>> {
+        self.db.conn()
     }
 
-    /// Moves the write-ahead log into the database and truncates it (after a job ends: the
-    /// log would otherwise keep the size of its busiest moment).
+    /// Moves SQLite's write-ahead log into the database and truncates it (after a job ends:
+    /// the log would otherwise keep the size of its busiest moment); nothing on PostgreSQL.
     pub fn checkpoint(&self) -> Result<()> {
-        self.conn()
-            .query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
+        let conn = self.db.conn()?;
+        if conn.dialect() == Dialect::Sqlite {
+            conn.query_row("PRAGMA wal_checkpoint(TRUNCATE)", params![], |_| Ok(()))?;
+        }
         Ok(())
     }
 
     pub fn insert_bundle(&self, hash: &str, bytes: u64, now: i64) -> Result<()> {
-        self.conn().execute(
-            "INSERT OR IGNORE INTO bundles (hash, bytes, created_ms) VALUES (?1, ?2, ?3)",
+        self.db.conn()?.execute(
+            "INSERT INTO bundles (hash, bytes, created_ms) VALUES (?1, ?2, ?3)
+             ON CONFLICT (hash) DO NOTHING",
             params![hash, bytes as i64, now],
         )?;
         Ok(())
     }
 
     pub fn bundle_exists(&self, hash: &str) -> Result<bool> {
-        use rusqlite::OptionalExtension;
         Ok(self
-            .conn()
-            .query_row("SELECT 1 FROM bundles WHERE hash = ?1", [hash], |_| Ok(()))
+            .db
+            .conn()?
+            .query_row(
+                "SELECT 1 FROM bundles WHERE hash = ?1",
+                params![hash],
+                |_| Ok(()),
+            )
             .optional()?
             .is_some())
     }
@@ -315,7 +481,7 @@ pub(crate) mod tests {
     /// A store with one job per priority given, each of `tasks` tasks in one frame.
     pub(crate) fn store(priorities: &[i32], tasks: u32) -> (tempfile::TempDir, Store, Vec<i64>) {
         let dir = tempfile::tempdir().expect("temp dir");
-        let s = Store::open(&dir.path().join("t.db")).expect("open");
+        let s = open_test(dir.path());
         s.insert_bundle("b", 1, 0).expect("bundle");
         let ids = priorities
             .iter()
@@ -346,66 +512,133 @@ pub(crate) mod tests {
         (dir, s, ids)
     }
 
+    /// Where a test's store lives: a new schema of the PostgreSQL database that
+    /// `TESSERA_TEST_POSTGRES` names (CI's second run of the suite), else a SQLite file in
+    /// `dir`.
+    fn test_location(dir: &Path) -> (Option<String>, std::path::PathBuf) {
+        (test_store_url(dir), dir.join("t.db"))
+    }
+
+    pub(crate) fn open_test(dir: &Path) -> Store {
+        match test_location(dir) {
+            (Some(url), _) => Store::open_at(Location::Postgres(&url)).expect("open"),
+            (None, path) => Store::open(&path).expect("open"),
+        }
+    }
+
+    /// The database of a test's store without the store: for writing what another version
+    /// left behind.
+    fn raw(at: &(Option<String>, std::path::PathBuf)) -> Db {
+        match at {
+            (Some(url), _) => {
+                let db = Db::postgres(url).expect("connect");
+                let c = db.conn().expect("conn");
+                let path: String = c
+                    .query_row("SHOW search_path", params![], |r| r.get(0))
+                    .expect("search_path");
+                c.execute_batch(&format!("CREATE SCHEMA IF NOT EXISTS {path}"))
+                    .expect("schema");
+                drop(c);
+                db
+            }
+            (None, path) => Db::sqlite(rusqlite::Connection::open(path).expect("db")),
+        }
+    }
+
+    fn reopen(at: &(Option<String>, std::path::PathBuf)) -> Result<Store> {
+        match at {
+            (Some(url), _) => Store::open_at(Location::Postgres(url)),
+            (None, path) => Store::open(path),
+        }
+    }
+
+    fn set_version(c: &Conn, v: i64) {
+        let sql = match c.dialect() {
+            Dialect::Sqlite => format!("PRAGMA user_version = {v}"),
+            Dialect::Postgres => format!(
+                "CREATE TABLE IF NOT EXISTS tessera_schema (version BIGINT NOT NULL);
+                 DELETE FROM tessera_schema; INSERT INTO tessera_schema VALUES ({v})"
+            ),
+        };
+        c.execute_batch(&sql).expect("version");
+    }
+
     #[test]
     fn a_store_of_another_schema_version_is_refused() {
         let dir = tempfile::tempdir().expect("temp dir");
-        let path = dir.path().join("old.db");
-        let conn = Connection::open(&path).expect("db");
-        conn.execute_batch("CREATE TABLE jobs (id INTEGER); PRAGMA user_version = 1;")
-            .expect("old schema");
-        drop(conn);
-        let e = Store::open(&path).err().expect("refused").to_string();
-        assert!(
-            e.contains("schema version 1") && e.contains("reads versions 2 to"),
-            "{e}"
-        );
-        // An empty file is a new store.
-        assert!(Store::open(&dir.path().join("new.db")).is_ok());
+        for (old, v) in [(true, 1), (false, SCHEMA_VERSION + 1)] {
+            let at = test_location(&dir.path().join(format!("v{v}")));
+            std::fs::create_dir_all(dir.path().join(format!("v{v}"))).expect("dir");
+            let db = raw(&at);
+            let c = db.conn().expect("conn");
+            if old {
+                c.execute_batch("CREATE TABLE jobs (id INTEGER)")
+                    .expect("old schema");
+            } else {
+                c.execute_batch(&c.dialect().ddl(SCHEMA)).expect("schema");
+            }
+            set_version(&c, v);
+            drop(c);
+            drop(db);
+            let e = reopen(&at).err().expect("refused").to_string();
+            assert!(
+                e.contains(&format!("schema version {v}")) && e.contains("reads versions 2 to"),
+                "{e}"
+            );
+        }
+        // An empty store is a new store.
+        let fresh = dir.path().join("new");
+        std::fs::create_dir_all(&fresh).expect("dir");
+        assert!(reopen(&test_location(&fresh)).is_ok());
     }
 
     #[test]
     fn a_store_of_version_2_is_migrated_keeping_its_jobs() {
         let dir = tempfile::tempdir().expect("temp dir");
-        let path = dir.path().join("v2.db");
-        let conn = Connection::open(&path).expect("db");
-        conn.execute_batch(SCHEMA).expect("version 2 schema");
-        conn.execute_batch(
-            "PRAGMA user_version = 2;
-             INSERT INTO bundles (hash, bytes, created_ms) VALUES ('b', 1, 0);
+        let at = test_location(dir.path());
+        let db = raw(&at);
+        let c = db.conn().expect("conn");
+        c.execute_batch(&c.dialect().ddl(SCHEMA))
+            .expect("version 2 schema");
+        set_version(&c, 2);
+        c.execute_batch(
+            "INSERT INTO bundles (hash, bytes, created_ms) VALUES ('b', 1, 0);
              INSERT INTO jobs (name, state, priority, created_ms, bundle, scene, settings,
                 first_frame, last_frame, width, height, spp, method, decisions)
              VALUES ('old', 'done', 0, 0, 'b', 'scene.json', '{}', 1, 1, 8, 8, 1, 'path', '[]');",
         )
         .expect("a job of version 2");
-        drop(conn);
-        let s = Store::open(&path).expect("migrated");
-        let version: i64 = s
-            .conn()
-            .query_row("PRAGMA user_version", [], |r| r.get(0))
-            .expect("version");
+        drop(c);
+        drop(db);
+        let s = reopen(&at).expect("migrated");
+        let c = s.conn().expect("conn");
+        let version: i64 = match c.dialect() {
+            Dialect::Sqlite => c.query_row("PRAGMA user_version", params![], |r| r.get(0)),
+            Dialect::Postgres => {
+                c.query_row("SELECT MAX(version) FROM tessera_schema", params![], |r| {
+                    r.get(0)
+                })
+            }
+        }
+        .expect("version");
+        drop(c);
         assert_eq!(version, SCHEMA_VERSION);
         let jobs = s.jobs().expect("jobs");
         assert_eq!((jobs.len(), jobs[0].name.as_str()), (1, "old"));
         assert!(jobs[0].require_tags.is_empty() && jobs[0].started_ms.is_none());
         // Opening again changes nothing.
         drop(s);
-        assert_eq!(
-            Store::open(&path)
-                .expect("again")
-                .jobs()
-                .expect("jobs")
-                .len(),
-            1
-        );
+        assert_eq!(reopen(&at).expect("again").jobs().expect("jobs").len(), 1);
     }
 
     #[test]
     fn a_job_whose_stored_settings_cannot_be_read_is_an_error_not_defaults() {
         let (_d, s, jobs) = store(&[0], 1);
         s.conn()
+            .expect("conn")
             .execute(
                 "UPDATE jobs SET settings = '{\"spp\": \"many\"}' WHERE id = ?1",
-                [jobs[0]],
+                params![jobs[0]],
             )
             .expect("edit");
         let e = s.job_source(jobs[0]).expect_err("refused").to_string();
@@ -420,9 +653,12 @@ pub(crate) mod tests {
         );
         let error: String = s
             .conn()
-            .query_row("SELECT error FROM jobs WHERE id = ?1", [jobs[0]], |r| {
-                r.get(0)
-            })
+            .expect("conn")
+            .query_row(
+                "SELECT error FROM jobs WHERE id = ?1",
+                params![jobs[0]],
+                |r| r.get(0),
+            )
             .expect("error");
         assert!(error.contains("settings of job"), "{error}");
     }

@@ -2,7 +2,7 @@
 //! changing a priority, draining a worker, and the per-job worker blocklist (a worker that
 //! fails a job's tasks too often takes no more of them, as Flamenco does).
 
-use rusqlite::{OptionalExtension, Transaction, params};
+use super::db::{Conn, Optional, params};
 
 use super::{Result, Store, from_json, json};
 use crate::protocol::{Blocklisted, JobState};
@@ -20,19 +20,19 @@ impl Store {
     /// Pauses a queued or running job: nothing more of it is leased; leased tasks finish.
     /// False if it was not queued or running.
     pub fn pause(&self, job: i64) -> Result<bool> {
-        let n = self.conn().execute(
+        let n = self.conn()?.execute(
             "UPDATE jobs SET state = 'paused' WHERE id = ?1 AND state IN ('queued', 'running')",
-            [job],
+            params![job],
         )?;
         Ok(n == 1)
     }
 
     /// Resumes a paused job; false if it was not paused.
     pub fn resume(&self, job: i64) -> Result<bool> {
-        let n = self.conn().execute(
+        let n = self.conn()?.execute(
             "UPDATE jobs SET state = CASE WHEN started_ms IS NULL THEN 'queued' ELSE 'running' END
              WHERE id = ?1 AND state = 'paused'",
-            [job],
+            params![job],
         )?;
         Ok(n == 1)
     }
@@ -42,58 +42,58 @@ impl Store {
     /// blocklist are forgotten. Returns how many tasks were requeued, `None` if the job was
     /// not failed or cancelled.
     pub fn requeue(&self, job: i64, now: i64) -> Result<Option<u64>> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let state: Option<String> = tx
-            .query_row("SELECT state FROM jobs WHERE id = ?1", [job], |r| r.get(0))
-            .optional()?;
-        if !matches!(
-            state.as_deref().map(JobState::parse),
-            Some(JobState::Failed | JobState::Cancelled)
-        ) {
-            return Ok(None);
-        }
-        let n = tx.execute(
-            "UPDATE tasks SET
+        self.db.write(|tx| {
+            let state: Option<String> = tx
+                .query_row("SELECT state FROM jobs WHERE id = ?1", params![job], |r| {
+                    r.get(0)
+                })
+                .optional()?;
+            if !matches!(
+                state.as_deref().map(JobState::parse),
+                Some(JobState::Failed | JobState::Cancelled)
+            ) {
+                return Ok(None);
+            }
+            let n = tx.execute(
+                "UPDATE tasks SET
                 state = CASE WHEN frame = 0 AND (SELECT p.state FROM passes p
                     WHERE p.job_id = tasks.job_id AND p.step = tasks.step) = 'waiting'
                     THEN 'waiting' ELSE 'queued' END,
                 lease = NULL, worker = NULL, lease_expires_ms = NULL, error = NULL
              WHERE job_id = ?1 AND state IN ('failed', 'cancelled')",
-            [job],
-        )?;
-        tx.execute(
+                params![job],
+            )?;
+            tx.execute(
             "UPDATE jobs SET state = CASE WHEN started_ms IS NULL THEN 'queued' ELSE 'running' END,
                 error = NULL, finished_ms = NULL, requeued_ms = ?2
              WHERE id = ?1",
             params![job, now],
         )?;
-        tx.execute("DELETE FROM blocklist WHERE job_id = ?1", [job])?;
-        tx.commit()?;
-        Ok(Some(n as u64))
+            tx.execute("DELETE FROM blocklist WHERE job_id = ?1", params![job])?;
+            Ok(Some(n as u64))
+        })
     }
 
     /// Sets a job's priority (and its tasks', which the queue orders by); false if there is no
     /// such job.
     pub fn set_priority(&self, job: i64, priority: i32) -> Result<bool> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let n = tx.execute(
-            "UPDATE jobs SET priority = ?2 WHERE id = ?1",
-            params![job, priority],
-        )?;
-        tx.execute(
-            "UPDATE tasks SET priority = ?2 WHERE job_id = ?1",
-            params![job, priority],
-        )?;
-        tx.commit()?;
-        Ok(n == 1)
+        self.db.write(|tx| {
+            let n = tx.execute(
+                "UPDATE jobs SET priority = ?2 WHERE id = ?1",
+                params![job, priority],
+            )?;
+            tx.execute(
+                "UPDATE tasks SET priority = ?2 WHERE job_id = ?1",
+                params![job, priority],
+            )?;
+            Ok(n == 1)
+        })
     }
 
     /// Drains a worker (it finishes what it holds and leases nothing more), or lets it take
     /// work again; false if no such worker has been seen.
     pub fn set_draining(&self, worker: &str, draining: bool) -> Result<bool> {
-        let n = self.conn().execute(
+        let n = self.conn()?.execute(
             "UPDATE workers SET draining = ?2 WHERE id = ?1",
             params![worker, draining],
         )?;
@@ -104,13 +104,13 @@ impl Store {
     /// blocklist entries removed.
     pub fn unblock(&self, worker: &str, job: Option<i64>) -> Result<u64> {
         let n = match job {
-            Some(j) => self.conn().execute(
+            Some(j) => self.conn()?.execute(
                 "DELETE FROM blocklist WHERE worker = ?1 AND job_id = ?2",
                 params![worker, j],
             )?,
             None => self
-                .conn()
-                .execute("DELETE FROM blocklist WHERE worker = ?1", [worker])?,
+                .conn()?
+                .execute("DELETE FROM blocklist WHERE worker = ?1", params![worker])?,
         };
         Ok(n as u64)
     }
@@ -118,7 +118,7 @@ impl Store {
     /// Counts a failure of `job`'s task on `worker`; at `after` failures the worker is
     /// blocklisted for the job.
     pub(super) fn count_failure(
-        tx: &Transaction,
+        tx: &Conn,
         job: i64,
         worker: &str,
         error: &str,
@@ -127,11 +127,11 @@ impl Store {
     ) -> Result<Blocklisting> {
         tx.execute(
             "UPDATE workers SET failures = failures + 1 WHERE id = ?1",
-            [worker],
+            params![worker],
         )?;
         tx.execute(
             "INSERT INTO blocklist (job_id, worker, failures, last_error) VALUES (?1, ?2, 1, ?3)
-             ON CONFLICT (job_id, worker) DO UPDATE SET failures = failures + 1, last_error = ?3",
+             ON CONFLICT (job_id, worker) DO UPDATE SET failures = blocklist.failures + 1, last_error = ?3",
             params![job, worker, error],
         )?;
         let n = tx.execute(
@@ -148,7 +148,7 @@ impl Store {
 
     /// Failures of a task that count toward its attempts: since its job was last requeued,
     /// on workers not blocklisted for the job (a broken worker's failures are its own).
-    pub(super) fn counted_failures(tx: &Transaction, task: i64) -> Result<u32> {
+    pub(super) fn counted_failures(tx: &Conn, task: i64) -> Result<u32> {
         Ok(tx.query_row(
             "SELECT COUNT(*) FROM attempts a JOIN tasks t ON t.id = a.task_id
              JOIN jobs j ON j.id = t.job_id
@@ -156,7 +156,7 @@ impl Store {
                AND a.started_ms >= j.requeued_ms
                AND NOT EXISTS (SELECT 1 FROM blocklist b WHERE b.job_id = t.job_id
                                AND b.worker = a.worker AND b.blocked_ms IS NOT NULL)",
-            [task],
+            params![task],
             |r| r.get(0),
         )?)
     }
@@ -164,25 +164,25 @@ impl Store {
     /// Whether some worker seen within `alive_ms` of `now`, not draining, could still run
     /// `job`'s tasks: not blocklisted for it and with the tags it requires.
     pub(super) fn has_eligible_worker(
-        tx: &Transaction,
+        tx: &Conn,
         job: i64,
         now: i64,
         alive_ms: i64,
     ) -> Result<bool> {
-        let required: String =
-            tx.query_row("SELECT require_tags FROM jobs WHERE id = ?1", [job], |r| {
-                r.get(0)
-            })?;
+        let required: String = tx.query_row(
+            "SELECT require_tags FROM jobs WHERE id = ?1",
+            params![job],
+            |r| r.get(0),
+        )?;
         let required: Vec<String> = from_json(&required, &format!("require_tags of job {job}"))?;
-        let mut stmt = tx.prepare(
+        let tags: Vec<String> = tx.query_map(
             "SELECT w.tags FROM workers w
              WHERE w.last_seen_ms >= ?2 AND w.draining = 0
                AND NOT EXISTS (SELECT 1 FROM blocklist b WHERE b.job_id = ?1 AND b.worker = w.id
                                AND b.blocked_ms IS NOT NULL)",
+            params![job, now - alive_ms],
+            |r| r.get(0),
         )?;
-        let tags: Vec<String> = stmt
-            .query_map(params![job, now - alive_ms], |r| r.get(0))?
-            .collect::<rusqlite::Result<_>>()?;
         for t in tags {
             let offered: Vec<String> = from_json(&t, "tags of a worker")?;
             if required.iter().all(|r| offered.contains(r)) {
@@ -193,44 +193,35 @@ impl Store {
     }
 
     /// The workers blocklisted for a job.
-    pub(super) fn blocklist_of(tx: &rusqlite::Connection, job: i64) -> Result<Vec<Blocklisted>> {
-        let mut stmt = tx.prepare_cached(
+    pub(super) fn blocklist_of(tx: &Conn, job: i64) -> Result<Vec<Blocklisted>> {
+        tx.query_map(
             "SELECT worker, failures, blocked_ms, last_error FROM blocklist
              WHERE job_id = ?1 AND blocked_ms IS NOT NULL ORDER BY blocked_ms",
-        )?;
-        let out = stmt
-            .query_map([job], |r| {
+            params![job],
+            |r| {
                 Ok(Blocklisted {
                     worker: r.get(0)?,
                     failures: r.get(1)?,
                     since_ms: r.get(2)?,
                     last_error: r.get(3)?,
                 })
-            })?
-            .collect::<rusqlite::Result<_>>()?;
-        Ok(out)
+            },
+        )
     }
 
     /// Jobs a worker may not lease from now: paused, blocklisting it, or requiring a tag it
     /// lacks (of the jobs that have not ended).
-    pub(super) fn excluded_jobs(
-        tx: &Transaction,
-        worker: &str,
-        tags: &[String],
-    ) -> Result<Vec<i64>> {
-        let mut stmt = tx.prepare_cached(
+    pub(super) fn excluded_jobs(tx: &Conn, worker: &str, tags: &[String]) -> Result<Vec<i64>> {
+        let rows: Vec<(i64, String, String, bool)> = tx.query_map(
             "SELECT j.id, j.state, j.require_tags,
                 EXISTS (SELECT 1 FROM blocklist b WHERE b.job_id = j.id AND b.worker = ?1
                         AND b.blocked_ms IS NOT NULL)
              FROM jobs j WHERE j.state IN ('queued', 'running', 'paused')
                AND (j.state = 'paused' OR j.require_tags != '[]'
                     OR EXISTS (SELECT 1 FROM blocklist b WHERE b.job_id = j.id AND b.worker = ?1))",
+            params![worker],
+            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?)),
         )?;
-        let rows: Vec<(i64, String, String, bool)> = stmt
-            .query_map([worker], |r| {
-                Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?))
-            })?
-            .collect::<rusqlite::Result<_>>()?;
         let mut out = Vec::new();
         for (id, state, required, blocked) in rows {
             let required: Vec<String> = from_json(&required, &format!("require_tags of job {id}"))?;
@@ -250,6 +241,7 @@ impl Store {
 #[cfg(test)]
 mod tests {
     use super::super::tests::{store, worker};
+    use crate::store::db::params;
     use crate::store::{Retry, RetryPolicy};
 
     fn policy() -> RetryPolicy {
@@ -296,9 +288,10 @@ mod tests {
     fn tags_and_draining_decide_who_leases() {
         let (_d, s, jobs) = store(&[0], 1);
         s.conn()
+            .expect("conn")
             .execute(
                 "UPDATE jobs SET require_tags = '[\"gpu\",\"big\"]' WHERE id = ?1",
-                [jobs[0]],
+                params![jobs[0]],
             )
             .expect("tags");
         let mut gpu = worker("g");

@@ -6,7 +6,7 @@
 //! `waiting`. Frames are queued when every pass is built or reused. Artifacts are files named
 //! by key; `cache` says which job built each and when one was last used, for eviction.
 
-use rusqlite::{OptionalExtension, Transaction, params};
+use super::db::{Conn, Optional, params};
 
 use super::{Result, Store};
 use crate::job::TaskSpec;
@@ -47,7 +47,7 @@ pub struct CacheEntry {
 impl Store {
     /// Inserts a new job's passes and the tasks of the one that builds first. Returns whether
     /// the frames can be queued at once (every pass reused).
-    pub(super) fn insert_passes(tx: &Transaction, job: i64, passes: &[NewPass]) -> Result<bool> {
+    pub(super) fn insert_passes(tx: &Conn, job: i64, passes: &[NewPass]) -> Result<bool> {
         let mut building = false;
         for (step, p) in passes.iter().enumerate() {
             let (state, tasks) = match &p.start {
@@ -74,39 +74,33 @@ impl Store {
     }
 
     /// The artifacts a task reads: those of the job's passes before it (a frame's task: all).
-    pub(super) fn artifacts_for(
-        tx: &Transaction,
-        job: i64,
-        task: &TaskSpec,
-    ) -> Result<Vec<ArtifactRef>> {
+    pub(super) fn artifacts_for(tx: &Conn, job: i64, task: &TaskSpec) -> Result<Vec<ArtifactRef>> {
         let below = if task.is_pass() { task.step } else { u32::MAX };
-        let mut stmt = tx.prepare(
+        tx.query_map(
             "SELECT name, key FROM passes WHERE job_id = ?1 AND step < ?2 ORDER BY step",
-        )?;
-        let out = stmt
-            .query_map(params![job, below], |r| {
+            params![job, below],
+            |r| {
                 Ok(ArtifactRef {
                     pass: r.get(0)?,
                     key: r.get(1)?,
                 })
-            })?
-            .collect::<rusqlite::Result<_>>()?;
-        Ok(out)
+            },
+        )
     }
 
     /// The cached artifact with this key.
     pub fn cached(&self, key: &str) -> Result<Option<CacheEntry>> {
         Ok(self
-            .conn()
+            .conn()?
             .query_row(
                 "SELECT key, name, path, bytes, sha256, job_id FROM cache WHERE key = ?1",
-                [key],
+                params![key],
                 |r| {
                     Ok(CacheEntry {
                         key: r.get(0)?,
                         name: r.get(1)?,
                         path: r.get(2)?,
-                        bytes: r.get::<_, i64>(3)? as u64,
+                        bytes: r.get::<i64>(3)? as u64,
                         sha256: r.get(4)?,
                         job: r.get(5)?,
                     })
@@ -118,7 +112,7 @@ impl Store {
     /// A pass's state (`running`, `waiting`, `built`, `reused`), if the job has that pass.
     pub fn pass_state(&self, job: i64, step: u32) -> Result<Option<String>> {
         Ok(self
-            .conn()
+            .conn()?
             .query_row(
                 "SELECT state FROM passes WHERE job_id = ?1 AND step = ?2",
                 params![job, step],
@@ -129,7 +123,7 @@ impl Store {
 
     /// Notes that an artifact was used now (for least-recently-used eviction).
     pub fn touch(&self, key: &str, now: i64) -> Result<()> {
-        self.conn().execute(
+        self.conn()?.execute(
             "UPDATE cache SET used_ms = ?2 WHERE key = ?1",
             params![key, now],
         )?;
@@ -148,11 +142,13 @@ impl Store {
         frames: &[Vec<TaskSpec>],
         now: i64,
     ) -> Result<bool> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        tx.execute(
-            "INSERT OR REPLACE INTO cache (key, name, path, bytes, sha256, job_id, created_ms, used_ms)
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?7)",
+        self.db.write(|tx| {
+                tx.execute(
+            "INSERT INTO cache (key, name, path, bytes, sha256, job_id, created_ms, used_ms)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?7)
+             ON CONFLICT (key) DO UPDATE SET name = excluded.name, path = excluded.path,
+                bytes = excluded.bytes, sha256 = excluded.sha256, job_id = excluded.job_id,
+                created_ms = excluded.created_ms, used_ms = excluded.used_ms",
             params![
                 entry.key,
                 entry.name,
@@ -169,19 +165,21 @@ impl Store {
             params![job, step, summary],
         )?;
         if changed == 0 {
-            tx.commit()?;
             return Ok(false);
         }
         // Only a job still running gets more tasks.
-        let running: bool = tx
-            .prepare(
+        let running = tx
+            .query_row(
                 "SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
-            )?
-            .exists([job])?;
+                params![job],
+                |_| Ok(()),
+            )
+            .optional()?
+            .is_some();
         let waiting: Option<u32> = tx
             .query_row(
                 "SELECT step FROM passes WHERE job_id = ?1 AND state = 'waiting' ORDER BY step LIMIT 1",
-                [job],
+                params![job],
                 |r| r.get(0),
             )
             .optional()?;
@@ -200,72 +198,68 @@ impl Store {
                 }
                 None => {
                     for tasks in frames {
-                        Self::insert_tasks(&tx, job, tasks)?;
+                        Self::insert_tasks(tx, job, tasks)?;
                     }
                     frames_queued = true;
                 }
             }
         }
-        tx.commit()?;
         Ok(frames_queued)
+        })
     }
 
     /// Every cached artifact, least recently used first, with whether a job that has not ended
     /// reads it.
     pub fn cache_entries(&self) -> Result<Vec<(CacheEntry, bool)>> {
-        let conn = self.conn();
-        let mut stmt = conn.prepare(
+        let conn = self.conn()?;
+        conn.query_map(
             "SELECT c.key, c.name, c.path, c.bytes, c.sha256, c.job_id,
                 EXISTS (SELECT 1 FROM passes p JOIN jobs j ON j.id = p.job_id
                         WHERE p.key = c.key AND j.state IN ('queued', 'running', 'paused'))
              FROM cache c ORDER BY c.used_ms, c.created_ms",
-        )?;
-        let out = stmt
-            .query_map([], |r| {
+            params![],
+            |r| {
                 Ok((
                     CacheEntry {
                         key: r.get(0)?,
                         name: r.get(1)?,
                         path: r.get(2)?,
-                        bytes: r.get::<_, i64>(3)? as u64,
+                        bytes: r.get::<i64>(3)? as u64,
                         sha256: r.get(4)?,
                         job: r.get(5)?,
                     },
                     r.get(6)?,
                 ))
-            })?
-            .collect::<rusqlite::Result<_>>()?;
-        Ok(out)
+            },
+        )
     }
 
     /// Forgets a cached artifact (its file is the caller's to delete).
     pub fn uncache(&self, key: &str) -> Result<()> {
-        self.conn()
-            .execute("DELETE FROM cache WHERE key = ?1", [key])?;
+        self.conn()?
+            .execute("DELETE FROM cache WHERE key = ?1", params![key])?;
         Ok(())
     }
 
-    pub(super) fn job_passes(conn: &rusqlite::Connection, job: i64) -> Result<Vec<PassStatus>> {
-        let mut stmt = conn.prepare(
+    pub(super) fn job_passes(conn: &Conn, job: i64) -> Result<Vec<PassStatus>> {
+        conn.query_map(
             "SELECT p.name, p.key, p.state, p.tasks_done, p.tasks_total, c.job_id, c.bytes, p.summary
              FROM passes p LEFT JOIN cache c ON c.key = p.key
              WHERE p.job_id = ?1 ORDER BY p.step",
-        )?;
-        let out = stmt
-            .query_map([job], |r| {
+            params![job],
+            |r| {
                 Ok(PassStatus {
                     name: r.get(0)?,
                     key: r.get(1)?,
                     state: r.get(2)?,
-                    tasks_done: r.get::<_, i64>(3)? as u64,
-                    tasks_total: r.get::<_, i64>(4)? as u64,
+                    tasks_done: r.get::<i64>(3)? as u64,
+                    tasks_total: r.get::<i64>(4)? as u64,
                     built_by: r.get(5)?,
-                    bytes: r.get::<_, Option<i64>>(6)?.map(|b| b as u64),
+                    bytes: r.get::<Option<i64>>(6)?.map(|b| b as u64),
                     summary: r.get(7)?,
                 })
-            })?
-            .collect::<rusqlite::Result<_>>()?;
-        Ok(out)
+            },
+        )
     }
 }
 

@@ -1,6 +1,6 @@
 //! Tasks in the store: the queue, fenced leases, results, retries, and a frame's steps.
 
-use rusqlite::{OptionalExtension, Transaction, params};
+use super::db::{Conn, Optional, params};
 
 use super::{Result, SPEC_COLUMNS, Store, StoreError, from_json, task_spec};
 use crate::job::TaskSpec;
@@ -55,13 +55,13 @@ pub struct Gauges {
 pub type StepTask = (i64, String, Option<i64>, TaskSpec);
 
 impl Store {
-    fn upsert_worker(tx: &Transaction, w: &WorkerInfo, now: i64) -> Result<()> {
+    fn upsert_worker(tx: &Conn, w: &WorkerInfo, now: i64) -> Result<()> {
         tx.execute(
             "INSERT INTO workers (id, name, host, pid, slots, version, first_seen_ms, last_seen_ms,
                 scene_builds, tags, cpu)
              VALUES (?1, ?2, ?3, ?8, ?4, ?5, ?6, ?6, ?7, ?9, ?10)
              ON CONFLICT (id) DO UPDATE SET last_seen_ms = ?6, scene_builds = ?7, slots = ?4,
-                tags = ?9, cpu = COALESCE(?10, cpu)",
+                tags = ?9, cpu = COALESCE(?10, workers.cpu)",
             params![
                 w.id,
                 w.name,
@@ -80,30 +80,33 @@ impl Store {
 
     /// The next queued task `worker` may take: of the jobs not paused, not blocklisting it
     /// and requiring no tag it lacks, by priority, then job age, then task order.
-    fn next_task(tx: &Transaction, worker: &WorkerInfo) -> Result<Option<(i64, i64)>> {
+    fn next_task(tx: &Conn, worker: &WorkerInfo) -> Result<Option<(i64, i64)>> {
         let excluded = Self::excluded_jobs(tx, &worker.id, &worker.tags)?;
         if excluded.is_empty() {
             return Ok(tx
                 .query_row(
                     "SELECT id, job_id FROM tasks WHERE state = 'queued'
                      ORDER BY priority DESC, job_id, id LIMIT 1",
-                    [],
+                    params![],
                     |r| Ok((r.get(0)?, r.get(1)?)),
                 )
                 .optional()?);
         }
         // Job by job, so that a large job it may not take costs one look, not a scan.
-        let mut jobs = tx.prepare_cached(
+        let ids: Vec<i64> = tx.query_map(
             "SELECT id FROM jobs WHERE state IN ('queued', 'running') ORDER BY priority DESC, id",
+            params![],
+            |r| r.get(0),
         )?;
-        let mut first = tx.prepare_cached(
-            "SELECT id FROM tasks WHERE job_id = ?1 AND state = 'queued' ORDER BY id LIMIT 1",
-        )?;
-        let ids: Vec<i64> = jobs
-            .query_map([], |r| r.get(0))?
-            .collect::<rusqlite::Result<_>>()?;
         for job in ids.into_iter().filter(|j| !excluded.contains(j)) {
-            if let Some(task) = first.query_row([job], |r| r.get(0)).optional()? {
+            if let Some(task) = tx
+                .query_row(
+                    "SELECT id FROM tasks WHERE job_id = ?1 AND state = 'queued' ORDER BY id LIMIT 1",
+                    params![job],
+                    |r| r.get(0),
+                )
+                .optional()?
+            {
                 return Ok(Some((task, job)));
             }
         }
@@ -119,21 +122,18 @@ impl Store {
         now: i64,
         lease_ms: u64,
     ) -> Result<Option<LeaseGrant>> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        Self::upsert_worker(&tx, worker, now)?;
+        self.db.write(|tx| {
+                Self::upsert_worker(tx, worker, now)?;
         let draining: bool = tx.query_row(
             "SELECT draining FROM workers WHERE id = ?1",
-            [&worker.id],
+            params![&worker.id],
             |r| r.get(0),
         )?;
         if draining {
-            tx.commit()?;
             return Ok(None);
         }
         loop {
-            let Some((task_id, job_id)) = Self::next_task(&tx, worker)? else {
-                tx.commit()?;
+            let Some((task_id, job_id)) = Self::next_task(tx, worker)? else {
                 return Ok(None);
             };
             let (bundle, scene, settings, spec): (String, String, String, TaskSpec) = tx
@@ -142,21 +142,21 @@ impl Store {
                         "SELECT j.bundle, j.scene, j.settings, {SPEC_COLUMNS}
                          FROM tasks t JOIN jobs j ON j.id = t.job_id WHERE t.id = ?1"
                     ),
-                    [task_id],
+                    params![task_id],
                     |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, task_spec(r, 3)?)),
                 )?;
             let settings = match from_json(&settings, &format!("settings of job {job_id}")) {
                 Ok(s) => s,
                 Err(e) => {
-                    Self::end_job(&tx, job_id, "failed", Some(&e.to_string()), now)?;
+                    Self::end_job(tx, job_id, "failed", Some(&e.to_string()), now)?;
                     continue;
                 }
             };
-            tx.execute(
-                "INSERT INTO attempts (task_id, worker, started_ms) VALUES (?1, ?2, ?3)",
+            let lease: i64 = tx.query_row(
+                "INSERT INTO attempts (task_id, worker, started_ms) VALUES (?1, ?2, ?3) RETURNING id",
                 params![task_id, worker.id, now],
+                |r| r.get(0),
             )?;
-            let lease = tx.last_insert_rowid();
             tx.execute(
                 "UPDATE tasks SET state = 'leased', attempts = attempts + 1, lease = ?2, worker = ?3,
                     lease_expires_ms = ?4 WHERE id = ?1",
@@ -167,8 +167,7 @@ impl Store {
                  WHERE id = ?1 AND state = 'queued'",
                 params![job_id, now],
             )?;
-            let artifacts = Self::artifacts_for(&tx, job_id, &spec)?;
-            tx.commit()?;
+            let artifacts = Self::artifacts_for(tx, job_id, &spec)?;
             return Ok(Some(LeaseGrant {
                 task_id,
                 lease,
@@ -183,6 +182,7 @@ impl Store {
                 max_result_bytes: None,
             }));
         }
+        })
     }
 
     /// Renews a lease (and notes the worker's CPU use); false if it is no longer the task's
@@ -196,7 +196,7 @@ impl Store {
         now: i64,
         lease_ms: u64,
     ) -> Result<bool> {
-        let conn = self.conn();
+        let conn = self.conn()?;
         conn.execute(
             "UPDATE workers SET last_seen_ms = ?2, cpu = COALESCE(?3, cpu) WHERE id = ?1",
             params![worker, now, cpu],
@@ -212,7 +212,7 @@ impl Store {
     /// The task a lease is for, if the lease is current: (job, spec).
     pub fn current_lease(&self, task: i64, lease: i64) -> Result<Option<(i64, TaskSpec)>> {
         Ok(self
-            .conn()
+            .conn()?
             .query_row(
                 &format!(
                     "SELECT job_id, {SPEC_COLUMNS} FROM tasks
@@ -233,9 +233,8 @@ impl Store {
         sizes: (u64, u64),
         now: i64,
     ) -> Result<Completion> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let n = tx.execute(
+        self.db.write(|tx| {
+                let n = tx.execute(
             "UPDATE tasks SET state = 'done', seconds = ?3, lease_expires_ms = NULL,
                 result_bytes = ?4, payload_bytes = ?5
              WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
@@ -246,7 +245,6 @@ impl Store {
                 "UPDATE attempts SET ended_ms = ?2, outcome = 'stale' WHERE id = ?1 AND outcome IS NULL",
                 params![lease, now],
             )?;
-            tx.commit()?;
             return Ok(Completion::Stale);
         }
         tx.execute(
@@ -264,7 +262,7 @@ impl Store {
         )?;
         let (job, frame, step): (i64, u32, u32) = tx.query_row(
             "SELECT job_id, frame, step FROM tasks WHERE id = ?1",
-            [task],
+            params![task],
             |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
         )?;
         if frame == 0 {
@@ -284,10 +282,10 @@ impl Store {
             params![job, frame, step],
             |r| r.get(0),
         )?;
-        tx.commit()?;
         Ok(Completion::Accepted {
             step: StepKey { job, frame, step },
             complete: open == 0,
+        })
         })
     }
 
@@ -297,7 +295,7 @@ impl Store {
     /// failed `max_attempts` times on workers not blocklisted for it, or when no worker that
     /// could run it is left.
     fn retry(
-        tx: &Transaction,
+        tx: &Conn,
         task: i64,
         lease: i64,
         outcome: &str,
@@ -384,59 +382,58 @@ impl Store {
         now: i64,
         policy: &RetryPolicy,
     ) -> Result<Retry> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let r = Self::retry(&tx, task, lease, "failed", error, now, policy)?;
-        tx.commit()?;
-        Ok(r)
+        self.db.write(|tx| {
+            let r = Self::retry(tx, task, lease, "failed", error, now, policy)?;
+            Ok(r)
+        })
     }
 
     /// A done task whose result could not be read back: it is queued again (its attempt
     /// counting), or the job fails once it has had `max_attempts`.
     pub fn redo(&self, task: i64, error: &str, now: i64, policy: &RetryPolicy) -> Result<Retry> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let lease: Option<i64> = tx
-            .query_row(
-                "SELECT lease FROM tasks WHERE id = ?1 AND state = 'done'",
-                [task],
-                |r| r.get(0),
-            )
-            .optional()?
-            .flatten();
-        let Some(lease) = lease else {
-            return Ok(Retry::Stale);
-        };
-        let (job, frame): (i64, u32) = tx.query_row(
-            "SELECT job_id, frame FROM tasks WHERE id = ?1",
-            [task],
-            |r| Ok((r.get(0)?, r.get(1)?)),
-        )?;
-        tx.execute("UPDATE tasks SET state = 'leased' WHERE id = ?1", [task])?;
-        let table = if frame == 0 { "passes" } else { "frames" };
-        let by = if frame == 0 { "step" } else { "frame" };
-        tx.execute(
-            &format!(
-                "UPDATE {table} SET tasks_done = tasks_done - 1 WHERE job_id = ?1
+        self.db.write(|tx| {
+            let lease: Option<i64> = tx
+                .query_row(
+                    "SELECT lease FROM tasks WHERE id = ?1 AND state = 'done'",
+                    params![task],
+                    |r| r.get(0),
+                )
+                .optional()?
+                .flatten();
+            let Some(lease) = lease else {
+                return Ok(Retry::Stale);
+            };
+            let (job, frame): (i64, u32) = tx.query_row(
+                "SELECT job_id, frame FROM tasks WHERE id = ?1",
+                params![task],
+                |r| Ok((r.get(0)?, r.get(1)?)),
+            )?;
+            tx.execute(
+                "UPDATE tasks SET state = 'leased' WHERE id = ?1",
+                params![task],
+            )?;
+            let table = if frame == 0 { "passes" } else { "frames" };
+            let by = if frame == 0 { "step" } else { "frame" };
+            tx.execute(
+                &format!(
+                    "UPDATE {table} SET tasks_done = tasks_done - 1 WHERE job_id = ?1
                  AND {by} = (SELECT {by} FROM tasks WHERE id = ?2)"
-            ),
-            params![job, task],
-        )?;
-        let r = Self::retry(&tx, task, lease, "unreadable", error, now, policy)?;
-        tx.commit()?;
-        Ok(r)
+                ),
+                params![job, task],
+            )?;
+            let r = Self::retry(tx, task, lease, "unreadable", error, now, policy)?;
+            Ok(r)
+        })
     }
 
     /// Takes back every lease that expired before `now`. Returns what became of each.
     pub fn expire(&self, now: i64, policy: &RetryPolicy) -> Result<Vec<(i64, Retry)>> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let expired: Vec<(i64, i64)> = tx
-            .prepare(
-                "SELECT id, lease FROM tasks WHERE state = 'leased' AND lease_expires_ms < ?1",
-            )?
-            .query_map([now], |r| Ok((r.get(0)?, r.get(1)?)))?
-            .collect::<rusqlite::Result<_>>()?;
+        self.db.write(|tx| {
+                let expired: Vec<(i64, i64)> = tx.query_map(
+            "SELECT id, lease FROM tasks WHERE state = 'leased' AND lease_expires_ms < ?1",
+            params![now],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )?;
         let mut out = Vec::with_capacity(expired.len());
         for (task, lease) in expired {
             let r = Self::retry(
@@ -450,14 +447,14 @@ impl Store {
             )?;
             out.push((task, r));
         }
-        tx.commit()?;
         Ok(out)
+        })
     }
 
     /// Ends a job that has not ended (`cancelled` or `failed`, with an error), cancelling its
     /// open tasks; false if it had ended.
     pub(super) fn end_job(
-        tx: &Transaction,
+        tx: &Conn,
         job: i64,
         state: &str,
         error: Option<&str>,
@@ -472,7 +469,7 @@ impl Store {
             tx.execute(
                 "UPDATE tasks SET state = 'cancelled', lease_expires_ms = NULL
                  WHERE job_id = ?1 AND state IN ('queued', 'leased')",
-                [job],
+                params![job],
             )?;
         }
         Ok(n == 1)
@@ -480,20 +477,18 @@ impl Store {
 
     /// Cancels a job that has not ended; false if it had.
     pub fn cancel(&self, job: i64, now: i64) -> Result<bool> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let ended = Self::end_job(&tx, job, "cancelled", None, now)?;
-        tx.commit()?;
-        Ok(ended)
+        self.db.write(|tx| {
+            let ended = Self::end_job(tx, job, "cancelled", None, now)?;
+            Ok(ended)
+        })
     }
 
     /// Fails a job that has not ended (a frame that could not be written, say).
     pub fn fail_job(&self, job: i64, error: &str, now: i64) -> Result<()> {
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        Self::end_job(&tx, job, "failed", Some(error), now)?;
-        tx.commit()?;
-        Ok(())
+        self.db.write(|tx| {
+            Self::end_job(tx, job, "failed", Some(error), now)?;
+            Ok(())
+        })
     }
 
     /// Queues a frame's next step (its tasks all carry the step's number) and moves the frame
@@ -508,31 +503,38 @@ impl Store {
                 "a step of frame {frame} whose tasks are not all of frame {frame}, step {step}"
             )));
         }
-        let mut conn = self.conn();
-        let tx = conn.transaction()?;
-        let running: bool = tx
-            .prepare(
-                "SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
-            )?
-            .exists([job])?;
-        let exists: bool = tx
-            .prepare("SELECT 1 FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3")?
-            .exists(params![job, frame, step])?;
-        if running && !exists {
-            Self::insert_tasks(&tx, job, tasks)?;
-            tx.execute(
-                "UPDATE frames SET step = ?3 WHERE job_id = ?1 AND frame = ?2",
-                params![job, frame, step],
-            )?;
-        }
-        tx.commit()?;
-        Ok(())
+        self.db.write(|tx| {
+            let running = tx
+                .query_row(
+                    "SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
+                    params![job],
+                    |_| Ok(()),
+                )
+                .optional()?
+                .is_some();
+            let exists = tx
+                .query_row(
+                    "SELECT 1 FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3 LIMIT 1",
+                    params![job, frame, step],
+                    |_| Ok(()),
+                )
+                .optional()?
+                .is_some();
+            if running && !exists {
+                Self::insert_tasks(tx, job, tasks)?;
+                tx.execute(
+                    "UPDATE frames SET step = ?3 WHERE job_id = ?1 AND frame = ?2",
+                    params![job, frame, step],
+                )?;
+            }
+            Ok(())
+        })
     }
 
     /// A frame's current step.
     pub fn frame_step(&self, job: i64, frame: u32) -> Result<Option<u32>> {
         Ok(self
-            .conn()
+            .conn()?
             .query_row(
                 "SELECT step FROM frames WHERE job_id = ?1 AND frame = ?2",
                 params![job, frame],
@@ -549,56 +551,48 @@ impl Store {
         from: usize,
         limit: usize,
     ) -> Result<(Vec<StepTask>, usize)> {
-        let conn = self.conn();
-        let mut stmt = conn.prepare_cached(&format!(
-            "SELECT id, state, lease, {SPEC_COLUMNS} FROM tasks
-             WHERE job_id = ?1 AND frame = ?2 AND step = ?3 ORDER BY idx LIMIT ?4 OFFSET ?5"
-        ))?;
-        let out = stmt
-            .query_map(
-                params![key.job, key.frame, key.step, limit as i64, from as i64],
-                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, task_spec(r, 3)?)),
-            )?
-            .collect::<rusqlite::Result<_>>()?;
-        let total: i64 = conn
-            .prepare_cached(
-                "SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3",
-            )?
-            .query_row(params![key.job, key.frame, key.step], |r| r.get(0))?;
+        let conn = self.conn()?;
+        let out = conn.query_map(
+            &format!(
+                "SELECT id, state, lease, {SPEC_COLUMNS} FROM tasks
+                 WHERE job_id = ?1 AND frame = ?2 AND step = ?3 ORDER BY idx LIMIT ?4 OFFSET ?5"
+            ),
+            params![key.job, key.frame, key.step, limit as i64, from as i64],
+            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, task_spec(r, 3)?)),
+        )?;
+        let total: i64 = conn.query_row(
+            "SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3",
+            params![key.job, key.frame, key.step],
+            |r| r.get(0),
+        )?;
         Ok((out, total as usize))
     }
 
     /// The results of a step's done tasks: (task id, lease).
     pub fn step_results(&self, key: StepKey) -> Result<Vec<(i64, i64)>> {
-        let conn = self.conn();
-        let mut stmt = conn.prepare(
+        let conn = self.conn()?;
+        conn.query_map(
             "SELECT id, lease FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3 AND state = 'done'",
-        )?;
-        let out = stmt
-            .query_map(params![key.job, key.frame, key.step], |r| {
-                Ok((r.get(0)?, r.get(1)?))
-            })?
-            .collect::<rusqlite::Result<_>>()?;
-        Ok(out)
+            params![key.job, key.frame, key.step],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )
     }
 
     /// The done results of a job's tasks as (task, lease), for deleting their files.
     pub fn results_of(&self, job: i64, frame: u32) -> Result<Vec<(i64, i64)>> {
-        let conn = self.conn();
-        let mut stmt = conn.prepare(
+        let conn = self.conn()?;
+        conn.query_map(
             "SELECT id, lease FROM tasks WHERE job_id = ?1 AND frame = ?2 AND state = 'done'",
-        )?;
-        let out = stmt
-            .query_map(params![job, frame], |r| Ok((r.get(0)?, r.get(1)?)))?
-            .collect::<rusqlite::Result<_>>()?;
-        Ok(out)
+            params![job, frame],
+            |r| Ok((r.get(0)?, r.get(1)?)),
+        )
     }
 
     /// Steps of running jobs whose tasks are all done but which were not folded on (a restart
     /// in between): frames at their current step, and passes still running.
     pub fn finished_steps(&self) -> Result<Vec<StepKey>> {
-        let conn = self.conn();
-        let mut stmt = conn.prepare(
+        let conn = self.conn()?;
+        conn.query_map(
             "SELECT f.job_id, f.frame, f.step FROM frames f JOIN jobs j ON j.id = f.job_id
              WHERE f.state != 'done' AND j.state IN ('queued', 'running', 'paused')
                AND EXISTS (SELECT 1 FROM tasks t WHERE t.job_id = f.job_id AND t.frame = f.frame AND t.step = f.step)
@@ -608,32 +602,31 @@ impl Store {
              SELECT p.job_id, 0, p.step FROM passes p JOIN jobs j ON j.id = p.job_id
              WHERE p.state = 'running' AND p.tasks_done = p.tasks_total
                AND j.state IN ('queued', 'running', 'paused')",
-        )?;
-        let out = stmt
-            .query_map([], |r| {
+            params![],
+            |r| {
                 Ok(StepKey {
                     job: r.get(0)?,
                     frame: r.get(1)?,
                     step: r.get(2)?,
                 })
-            })?
-            .collect::<rusqlite::Result<_>>()?;
-        Ok(out)
+            },
+        )
     }
 
     /// Tasks queued and leased over all jobs, and jobs by state.
     pub fn gauges(&self) -> Result<Gauges> {
-        let conn = self.conn();
+        let conn = self.conn()?;
         let (queued, leased): (i64, i64) = conn.query_row(
             "SELECT (SELECT COUNT(*) FROM tasks WHERE state = 'queued'),
                     (SELECT COUNT(*) FROM tasks WHERE state = 'leased')",
-            [],
+            params![],
             |r| Ok((r.get(0)?, r.get(1)?)),
         )?;
-        let mut stmt = conn.prepare("SELECT state, COUNT(*) FROM jobs GROUP BY state")?;
-        let jobs = stmt
-            .query_map([], |r| Ok((r.get(0)?, r.get::<_, i64>(1)? as u64)))?
-            .collect::<rusqlite::Result<_>>()?;
+        let jobs = conn.query_map(
+            "SELECT state, COUNT(*) FROM jobs GROUP BY state",
+            params![],
+            |r| Ok((r.get(0)?, r.get::<i64>(1)? as u64)),
+        )?;
         Ok(Gauges {
             queued: queued as u64,
             leased: leased as u64,

@@ -1,0 +1,822 @@
+//! The SQL the store speaks, on either database: the embedded SQLite (one connection behind a
+//! mutex) or PostgreSQL (a pool of connections, driven by `tokio-postgres` on a runtime of the
+//! store's own, so the store stays synchronous and callable from anywhere).
+//!
+//! Statements are written once, in the SQL both databases read (`?N` parameters, `ON CONFLICT`,
+//! `RETURNING`); for PostgreSQL `?N` becomes `$N`, and the schema's `INTEGER` / `REAL` /
+//! `AUTOINCREMENT` become `BIGINT` / `DOUBLE PRECISION` / identity columns ([`Dialect::ddl`]).
+//! Rows come back as [`Value`]s, so a caller reads them the same way from either.
+//!
+//! A write is a closure run in one transaction ([`Db::write`]). On PostgreSQL it runs at
+//! SERIALIZABLE isolation and is run again when the database reports a serialization failure
+//! or a deadlock, so several coordinators sharing a database see the same one-at-a-time store
+//! the embedded SQLite gives one coordinator.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::Duration;
+
+use super::{Result, StoreError};
+
+/// A value bound to a parameter or read from a column.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Value {
+    Null,
+    Int(i64),
+    Real(f64),
+    Text(String),
+}
+
+/// A Rust value as a parameter.
+pub trait ToValue {
+    fn to_value(&self) -> Value;
+}
+
+macro_rules! int_to_value {
+    ($($t:ty),*) => {$(
+        impl ToValue for $t {
+            fn to_value(&self) -> Value {
+                Value::Int(*self as i64)
+            }
+        }
+    )*};
+}
+int_to_value!(i64, i32, u32, u16, u8, usize, u64);
+
+impl ToValue for bool {
+    fn to_value(&self) -> Value {
+        Value::Int(*self as i64)
+    }
+}
+impl ToValue for f64 {
+    fn to_value(&self) -> Value {
+        Value::Real(*self)
+    }
+}
+impl ToValue for f32 {
+    fn to_value(&self) -> Value {
+        Value::Real(*self as f64)
+    }
+}
+impl ToValue for str {
+    fn to_value(&self) -> Value {
+        Value::Text(self.to_owned())
+    }
+}
+impl ToValue for String {
+    fn to_value(&self) -> Value {
+        Value::Text(self.clone())
+    }
+}
+impl ToValue for Value {
+    fn to_value(&self) -> Value {
+        self.clone()
+    }
+}
+impl<T: ToValue + ?Sized> ToValue for &T {
+    fn to_value(&self) -> Value {
+        (**self).to_value()
+    }
+}
+impl<T: ToValue> ToValue for Option<T> {
+    fn to_value(&self) -> Value {
+        self.as_ref().map_or(Value::Null, ToValue::to_value)
+    }
+}
+
+/// Parameters of a statement: `params![a, b, c]`.
+macro_rules! params {
+    () => { &[] as &[&dyn $crate::store::db::ToValue] };
+    ($($p:expr),+ $(,)?) => { &[$(&$p as &dyn $crate::store::db::ToValue),+] as &[&dyn $crate::store::db::ToValue] };
+}
+pub(crate) use params;
+
+/// A column's value as a Rust value.
+pub trait FromValue: Sized {
+    fn from_value(v: &Value) -> std::result::Result<Self, String>;
+}
+
+macro_rules! int_from_value {
+    ($($t:ty),*) => {$(
+        impl FromValue for $t {
+            fn from_value(v: &Value) -> std::result::Result<Self, String> {
+                match v {
+                    Value::Int(i) => <$t>::try_from(*i).map_err(|_| format!("{i} is out of range")),
+                    Value::Real(r) if r.fract() == 0.0 => <$t>::try_from(*r as i64)
+                        .map_err(|_| format!("{r} is out of range")),
+                    other => Err(format!("expected an integer, found {other:?}")),
+                }
+            }
+        }
+    )*};
+}
+int_from_value!(i64, i32, u32, u16, u8, usize, u64);
+
+impl FromValue for bool {
+    fn from_value(v: &Value) -> std::result::Result<Self, String> {
+        i64::from_value(v).map(|i| i != 0)
+    }
+}
+impl FromValue for f64 {
+    fn from_value(v: &Value) -> std::result::Result<Self, String> {
+        match v {
+            Value::Int(i) => Ok(*i as f64),
+            Value::Real(r) => Ok(*r),
+            other => Err(format!("expected a number, found {other:?}")),
+        }
+    }
+}
+impl FromValue for f32 {
+    fn from_value(v: &Value) -> std::result::Result<Self, String> {
+        f64::from_value(v).map(|f| f as f32)
+    }
+}
+impl FromValue for String {
+    fn from_value(v: &Value) -> std::result::Result<Self, String> {
+        match v {
+            Value::Text(s) => Ok(s.clone()),
+            other => Err(format!("expected text, found {other:?}")),
+        }
+    }
+}
+impl<T: FromValue> FromValue for Option<T> {
+    fn from_value(v: &Value) -> std::result::Result<Self, String> {
+        match v {
+            Value::Null => Ok(None),
+            v => T::from_value(v).map(Some),
+        }
+    }
+}
+
+/// One row of a result.
+#[derive(Debug)]
+pub struct Row {
+    values: Vec<Value>,
+}
+
+impl Row {
+    /// Column `i` (from 0) as a `T`; an error naming the column when it is not one.
+    pub fn get<T: FromValue>(&self, i: usize) -> Result<T> {
+        let v = self
+            .values
+            .get(i)
+            .ok_or_else(|| StoreError::Corrupt(format!("no column {i} in a row")))?;
+        T::from_value(v).map_err(|e| StoreError::Corrupt(format!("column {i}: {e}")))
+    }
+}
+
+/// `query_row(…).optional()`: no row is `None` rather than an error.
+pub trait Optional<T> {
+    fn optional(self) -> Result<Option<T>>;
+}
+
+impl<T> Optional<T> for Result<T> {
+    fn optional(self) -> Result<Option<T>> {
+        match self {
+            Ok(t) => Ok(Some(t)),
+            Err(StoreError::NoRow) => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dialect {
+    Sqlite,
+    Postgres,
+}
+
+impl Dialect {
+    /// Schema text written for SQLite, in this dialect.
+    pub fn ddl(self, sql: &str) -> String {
+        match self {
+            Dialect::Sqlite => sql.to_owned(),
+            Dialect::Postgres => sql
+                .replace(
+                    "INTEGER PRIMARY KEY AUTOINCREMENT",
+                    "BIGINT GENERATED BY DEFAULT AS IDENTITY PRIMARY KEY",
+                )
+                .replace(" INTEGER", " BIGINT")
+                .replace(" REAL", " DOUBLE PRECISION"),
+        }
+    }
+
+    /// A statement written with `?N` parameters, in this dialect.
+    fn statement(self, sql: &str) -> String {
+        match self {
+            Dialect::Sqlite => sql.to_owned(),
+            Dialect::Postgres => {
+                let mut out = String::with_capacity(sql.len());
+                let mut chars = sql.chars().peekable();
+                while let Some(c) = chars.next() {
+                    if c == '?' && chars.peek().is_some_and(|d| d.is_ascii_digit()) {
+                        out.push('$');
+                    } else {
+                        out.push(c);
+                    }
+                }
+                out
+            }
+        }
+    }
+}
+
+/// The store's database.
+pub struct Db {
+    backend: Backend,
+}
+
+enum Backend {
+    Sqlite(Mutex<rusqlite::Connection>),
+    Postgres(pg::Pool),
+}
+
+/// A connection lent for one operation: statements in autocommit, or in a transaction when
+/// given by [`Db::write`].
+pub struct Conn<'a> {
+    inner: ConnInner<'a>,
+}
+
+enum ConnInner<'a> {
+    Sqlite(MutexGuard<'a, rusqlite::Connection>),
+    Postgres(pg::Lent<'a>),
+}
+
+impl Db {
+    pub fn sqlite(conn: rusqlite::Connection) -> Db {
+        conn.set_prepared_statement_cache_capacity(64);
+        Db {
+            backend: Backend::Sqlite(Mutex::new(conn)),
+        }
+    }
+
+    /// Connects to PostgreSQL at `url` (a libpq URL or key=value string).
+    pub fn postgres(url: &str) -> Result<Db> {
+        Ok(Db {
+            backend: Backend::Postgres(pg::Pool::connect(url)?),
+        })
+    }
+
+    pub fn dialect(&self) -> Dialect {
+        match self.backend {
+            Backend::Sqlite(_) => Dialect::Sqlite,
+            Backend::Postgres(_) => Dialect::Postgres,
+        }
+    }
+
+    /// A connection for statements that need no transaction of their own.
+    pub fn conn(&self) -> Result<Conn<'_>> {
+        Ok(Conn {
+            inner: match &self.backend {
+                // A panic while holding the lock leaves SQLite consistent (transactions roll
+                // back).
+                Backend::Sqlite(m) => {
+                    ConnInner::Sqlite(m.lock().unwrap_or_else(|e| e.into_inner()))
+                }
+                Backend::Postgres(p) => ConnInner::Postgres(p.lend()?),
+            },
+        })
+    }
+
+    /// Runs `f` in one transaction: committed when it returns `Ok`, rolled back when it
+    /// returns an error. On PostgreSQL (SERIALIZABLE) `f` runs again, on a new transaction,
+    /// when the database could not serialise it with another coordinator's.
+    pub fn write<T>(&self, mut f: impl FnMut(&Conn) -> Result<T>) -> Result<T> {
+        let conn = self.conn()?;
+        let begin = match self.dialect() {
+            Dialect::Sqlite => "BEGIN",
+            Dialect::Postgres => "BEGIN ISOLATION LEVEL SERIALIZABLE",
+        };
+        let mut attempt = 0u32;
+        loop {
+            conn.execute_batch(begin)?;
+            let r = f(&conn).and_then(|t| conn.execute_batch("COMMIT").map(|()| t));
+            match r {
+                Ok(t) => return Ok(t),
+                Err(e) => {
+                    // Rolling back a transaction the database already ended is harmless.
+                    let _ = conn.execute_batch("ROLLBACK");
+                    attempt += 1;
+                    if e.is_serialization_failure() && attempt < 50 {
+                        std::thread::sleep(Duration::from_millis(
+                            (1 + (attempt as u64 * 7919 + std::process::id() as u64) % 20)
+                                * attempt.min(5) as u64,
+                        ));
+                        continue;
+                    }
+                    return Err(e);
+                }
+            }
+        }
+    }
+}
+
+impl Conn<'_> {
+    pub fn dialect(&self) -> Dialect {
+        match self.inner {
+            ConnInner::Sqlite(_) => Dialect::Sqlite,
+            ConnInner::Postgres(_) => Dialect::Postgres,
+        }
+    }
+
+    /// Runs statements without parameters (separated by `;`).
+    pub fn execute_batch(&self, sql: &str) -> Result<()> {
+        match &self.inner {
+            ConnInner::Sqlite(c) => Ok(c.execute_batch(sql)?),
+            ConnInner::Postgres(c) => c.batch(sql),
+        }
+    }
+
+    /// Runs a statement; the number of rows it changed.
+    pub fn execute(&self, sql: &str, params: &[&dyn ToValue]) -> Result<usize> {
+        match &self.inner {
+            ConnInner::Sqlite(c) => {
+                let mut stmt = c.prepare_cached(sql)?;
+                Ok(stmt.execute(rusqlite::params_from_iter(
+                    params.iter().map(|p| p.to_value()),
+                ))?)
+            }
+            ConnInner::Postgres(c) => c.execute(&self.dialect().statement(sql), values(params)),
+        }
+    }
+
+    /// Every row of a query, each read by `f`.
+    pub fn query_map<T>(
+        &self,
+        sql: &str,
+        params: &[&dyn ToValue],
+        mut f: impl FnMut(&Row) -> Result<T>,
+    ) -> Result<Vec<T>> {
+        self.rows(sql, params)?.iter().map(&mut f).collect()
+    }
+
+    /// The first row of a query, read by `f`; [`StoreError::NoRow`] when there is none (see
+    /// [`Optional::optional`]).
+    pub fn query_row<T>(
+        &self,
+        sql: &str,
+        params: &[&dyn ToValue],
+        f: impl FnOnce(&Row) -> Result<T>,
+    ) -> Result<T> {
+        match self.rows(sql, params)?.first() {
+            Some(row) => f(row),
+            None => Err(StoreError::NoRow),
+        }
+    }
+
+    fn rows(&self, sql: &str, params: &[&dyn ToValue]) -> Result<Vec<Row>> {
+        match &self.inner {
+            ConnInner::Sqlite(c) => {
+                let mut stmt = c.prepare_cached(sql)?;
+                let n = stmt.column_count();
+                let mut rows = stmt.query(rusqlite::params_from_iter(
+                    params.iter().map(|p| p.to_value()),
+                ))?;
+                let mut out = Vec::new();
+                while let Some(r) = rows.next()? {
+                    let mut values = Vec::with_capacity(n);
+                    for i in 0..n {
+                        use rusqlite::types::ValueRef;
+                        values.push(match r.get_ref(i)? {
+                            ValueRef::Null => Value::Null,
+                            ValueRef::Integer(i) => Value::Int(i),
+                            ValueRef::Real(f) => Value::Real(f),
+                            ValueRef::Text(t) => {
+                                Value::Text(String::from_utf8_lossy(t).into_owned())
+                            }
+                            ValueRef::Blob(_) => {
+                                return Err(StoreError::Corrupt(format!(
+                                    "column {i} of `{sql}` holds a blob"
+                                )));
+                            }
+                        });
+                    }
+                    out.push(Row { values });
+                }
+                Ok(out)
+            }
+            ConnInner::Postgres(c) => c.query(&self.dialect().statement(sql), values(params)),
+        }
+    }
+}
+
+fn values(params: &[&dyn ToValue]) -> Vec<Value> {
+    params.iter().map(|p| p.to_value()).collect()
+}
+
+impl rusqlite::ToSql for Value {
+    fn to_sql(&self) -> rusqlite::Result<rusqlite::types::ToSqlOutput<'_>> {
+        use rusqlite::types::{ToSqlOutput, ValueRef};
+        Ok(ToSqlOutput::Borrowed(match self {
+            Value::Null => ValueRef::Null,
+            Value::Int(i) => ValueRef::Integer(*i),
+            Value::Real(f) => ValueRef::Real(*f),
+            Value::Text(s) => ValueRef::Text(s.as_bytes()),
+        }))
+    }
+}
+
+impl StoreError {
+    /// Whether running the transaction again may succeed (PostgreSQL's serialization failure
+    /// or deadlock).
+    fn is_serialization_failure(&self) -> bool {
+        use tokio_postgres::error::SqlState;
+        match self {
+            StoreError::Postgres(e) | StoreError::Statement { source: e, .. } => {
+                e.code().is_some_and(|c| {
+                    *c == SqlState::T_R_SERIALIZATION_FAILURE
+                        || *c == SqlState::T_R_DEADLOCK_DETECTED
+                })
+            }
+            _ => false,
+        }
+    }
+}
+
+/// PostgreSQL: a pool of `tokio-postgres` connections on the store's own runtime.
+mod pg {
+    use super::*;
+    use bytes::BytesMut;
+    use tokio_postgres::types::{IsNull, ToSql, Type, to_sql_checked};
+
+    /// Connections at most (each coordinator).
+    const MAX_CONNECTIONS: usize = 8;
+    /// How long an operation waits for a connection when all are in use.
+    const WAIT: Duration = Duration::from_secs(30);
+
+    pub struct Pool {
+        /// Dropped without blocking (see `Drop`): the store may be dropped inside a runtime.
+        rt: Option<tokio::runtime::Runtime>,
+        config: tokio_postgres::Config,
+        /// Where, for errors: the URL's host and database, never its password.
+        place: String,
+        idle: Mutex<Idle>,
+        freed: Condvar,
+    }
+
+    struct Idle {
+        conns: Vec<Arc<PgConn>>,
+        open: usize,
+    }
+
+    struct PgConn {
+        client: tokio_postgres::Client,
+        statements: Mutex<HashMap<String, tokio_postgres::Statement>>,
+    }
+
+    /// A connection lent from the pool; back to it when dropped.
+    pub struct Lent<'a> {
+        pool: &'a Pool,
+        conn: Option<Arc<PgConn>>,
+    }
+
+    impl Drop for Pool {
+        fn drop(&mut self) {
+            if let Some(rt) = self.rt.take() {
+                rt.shutdown_background();
+            }
+        }
+    }
+
+    impl Drop for Lent<'_> {
+        fn drop(&mut self) {
+            if let Some(c) = self.conn.take() {
+                let mut idle = self.pool.idle.lock().unwrap_or_else(|e| e.into_inner());
+                if c.client.is_closed() {
+                    idle.open -= 1;
+                } else {
+                    idle.conns.push(c);
+                }
+                self.pool.freed.notify_one();
+            }
+        }
+    }
+
+    impl Pool {
+        pub fn connect(url: &str) -> Result<Pool> {
+            let mut config: tokio_postgres::Config = url.parse().map_err(|e| {
+                StoreError::Config(format!("the store URL is not a PostgreSQL URL: {e}"))
+            })?;
+            if config.get_connect_timeout().is_none() {
+                config.connect_timeout(Duration::from_secs(10));
+            }
+            config.keepalives_idle(Duration::from_secs(30));
+            let hosts: Vec<String> = config
+                .get_hosts()
+                .iter()
+                .map(|h| match h {
+                    tokio_postgres::config::Host::Tcp(h) => h.clone(),
+                    tokio_postgres::config::Host::Unix(p) => p.display().to_string(),
+                })
+                .collect();
+            let place = format!(
+                "PostgreSQL database {:?} on {} as user {:?}",
+                config.get_dbname().unwrap_or("(the user's)"),
+                if hosts.is_empty() {
+                    "localhost".to_owned()
+                } else {
+                    hosts.join(",")
+                },
+                config.get_user().unwrap_or("(the OS user)"),
+            );
+            let rt = tokio::runtime::Builder::new_multi_thread()
+                .worker_threads(2)
+                .thread_name("store-postgres")
+                .enable_all()
+                .build()
+                .map_err(|e| StoreError::Config(format!("starting the store's runtime: {e}")))?;
+            let pool = Pool {
+                rt: Some(rt),
+                config,
+                place,
+                idle: Mutex::new(Idle {
+                    conns: Vec::new(),
+                    open: 0,
+                }),
+                freed: Condvar::new(),
+            };
+            // Connect once now, so that a wrong URL or password fails at start-up.
+            drop(pool.lend()?);
+            Ok(pool)
+        }
+
+        /// Runs `fut` on the store's runtime and waits for it (from any thread, in a runtime
+        /// or not).
+        fn run<T: Send + 'static>(
+            &self,
+            fut: impl std::future::Future<Output = T> + Send + 'static,
+        ) -> Result<T> {
+            let (tx, rx) = std::sync::mpsc::sync_channel(1);
+            let rt = self
+                .rt
+                .as_ref()
+                .ok_or_else(|| StoreError::Config("the store is closed".into()))?;
+            rt.spawn(async move {
+                let _ = tx.send(fut.await);
+            });
+            rx.recv()
+                .map_err(|_| StoreError::Config("the store's runtime stopped".into()))
+        }
+
+        pub fn lend(&self) -> Result<Lent<'_>> {
+            let deadline = std::time::Instant::now() + WAIT;
+            let mut idle = self.idle.lock().unwrap_or_else(|e| e.into_inner());
+            loop {
+                while let Some(c) = idle.conns.pop() {
+                    if !c.client.is_closed() {
+                        return Ok(Lent {
+                            pool: self,
+                            conn: Some(c),
+                        });
+                    }
+                    idle.open -= 1;
+                }
+                if idle.open < MAX_CONNECTIONS {
+                    idle.open += 1;
+                    drop(idle);
+                    return match self.open() {
+                        Ok(c) => Ok(Lent {
+                            pool: self,
+                            conn: Some(Arc::new(c)),
+                        }),
+                        Err(e) => {
+                            self.idle.lock().unwrap_or_else(|e| e.into_inner()).open -= 1;
+                            Err(e)
+                        }
+                    };
+                }
+                let now = std::time::Instant::now();
+                if now >= deadline {
+                    return Err(StoreError::Config(format!(
+                        "all {MAX_CONNECTIONS} connections to the {} stayed busy for {} s",
+                        self.place,
+                        WAIT.as_secs()
+                    )));
+                }
+                idle = self
+                    .freed
+                    .wait_timeout(idle, deadline - now)
+                    .unwrap_or_else(|e| e.into_inner())
+                    .0;
+            }
+        }
+
+        fn open(&self) -> Result<PgConn> {
+            let config = self.config.clone();
+            let (client, connection) = self
+                .run(async move { config.connect(tokio_postgres::NoTls).await })?
+                .map_err(|e| StoreError::Connect {
+                    place: self.place.clone(),
+                    source: e,
+                })?;
+            let rt = self.rt.as_ref().expect("running");
+            rt.spawn(async move {
+                if let Err(e) = connection.await {
+                    tracing::warn!(error = %e, "a connection to the job store ended");
+                }
+            });
+            Ok(PgConn {
+                client,
+                statements: Mutex::new(HashMap::new()),
+            })
+        }
+    }
+
+    impl Lent<'_> {
+        fn conn(&self) -> Arc<PgConn> {
+            self.conn.clone().expect("lent until dropped")
+        }
+
+        pub fn batch(&self, sql: &str) -> Result<()> {
+            let c = self.conn();
+            let sql = sql.to_owned();
+            Ok(self
+                .pool
+                .run(async move { c.client.batch_execute(&sql).await })??)
+        }
+
+        pub fn execute(&self, sql: &str, params: Vec<Value>) -> Result<usize> {
+            let c = self.conn();
+            let sql_ = sql;
+            let sql = sql.to_owned();
+            let n = self
+                .pool
+                .run(async move {
+                    let stmt = c.prepared(&sql).await?;
+                    let refs: Vec<&(dyn ToSql + Sync)> =
+                        params.iter().map(|p| p as &(dyn ToSql + Sync)).collect();
+                    c.client.execute(&stmt, &refs).await
+                })?
+                .map_err(|e| StoreError::statement(&sql_, e))?;
+            Ok(n as usize)
+        }
+
+        pub fn query(&self, sql: &str, params: Vec<Value>) -> Result<Vec<Row>> {
+            let c = self.conn();
+            let sql_ = sql;
+            let sql = sql.to_owned();
+            let rows = self
+                .pool
+                .run(async move {
+                    let stmt = c.prepared(&sql).await?;
+                    let refs: Vec<&(dyn ToSql + Sync)> =
+                        params.iter().map(|p| p as &(dyn ToSql + Sync)).collect();
+                    c.client.query(&stmt, &refs).await
+                })?
+                .map_err(|e| StoreError::statement(&sql_, e))?;
+            rows.iter().map(row).collect()
+        }
+    }
+
+    impl PgConn {
+        async fn prepared(
+            &self,
+            sql: &str,
+        ) -> std::result::Result<tokio_postgres::Statement, tokio_postgres::Error> {
+            if let Some(s) = self
+                .statements
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .get(sql)
+            {
+                return Ok(s.clone());
+            }
+            let s = self.client.prepare(sql).await?;
+            self.statements
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .insert(sql.to_owned(), s.clone());
+            Ok(s)
+        }
+    }
+
+    fn row(r: &tokio_postgres::Row) -> Result<Row> {
+        let mut values = Vec::with_capacity(r.len());
+        for (i, col) in r.columns().iter().enumerate() {
+            let t = col.type_();
+            let v = match *t {
+                Type::INT8 => r.try_get::<_, Option<i64>>(i)?.map(Value::Int),
+                Type::INT4 => r
+                    .try_get::<_, Option<i32>>(i)?
+                    .map(|v| Value::Int(v.into())),
+                Type::INT2 => r
+                    .try_get::<_, Option<i16>>(i)?
+                    .map(|v| Value::Int(v.into())),
+                Type::BOOL => r
+                    .try_get::<_, Option<bool>>(i)?
+                    .map(|v| Value::Int(v.into())),
+                Type::FLOAT8 => r.try_get::<_, Option<f64>>(i)?.map(Value::Real),
+                Type::FLOAT4 => r
+                    .try_get::<_, Option<f32>>(i)?
+                    .map(|v| Value::Real(v.into())),
+                Type::NUMERIC => r.try_get::<_, Option<Numeric>>(i)?.map(|n| n.0),
+                Type::TEXT | Type::VARCHAR | Type::BPCHAR | Type::NAME => {
+                    r.try_get::<_, Option<String>>(i)?.map(Value::Text)
+                }
+                _ => {
+                    return Err(StoreError::Corrupt(format!(
+                        "column {:?} has PostgreSQL type {t}, which the store does not read",
+                        col.name()
+                    )));
+                }
+            };
+            values.push(v.unwrap_or(Value::Null));
+        }
+        Ok(Row { values })
+    }
+
+    /// PostgreSQL's `numeric` (what `SUM` of integers gives): an integer when it has no
+    /// fraction digits, else a float.
+    struct Numeric(Value);
+
+    impl<'a> tokio_postgres::types::FromSql<'a> for Numeric {
+        fn from_sql(
+            _: &Type,
+            raw: &'a [u8],
+        ) -> std::result::Result<Self, Box<dyn std::error::Error + Sync + Send>> {
+            // Binary format: ndigits, weight, sign, dscale (i16 each), then base-10000 digits.
+            let word =
+                |i: usize| -> std::result::Result<i16, Box<dyn std::error::Error + Sync + Send>> {
+                    raw.get(2 * i..2 * i + 2)
+                        .map(|b| i16::from_be_bytes([b[0], b[1]]))
+                        .ok_or_else(|| "a numeric value ends early".into())
+                };
+            let (ndigits, weight, sign, dscale) = (word(0)?, word(1)?, word(2)? as u16, word(3)?);
+            if sign == 0xC000 {
+                return Ok(Numeric(Value::Real(f64::NAN)));
+            }
+            let mut x = 0f64;
+            for d in 0..ndigits as usize {
+                x += word(4 + d)? as f64 * 10000f64.powi(weight as i32 - d as i32);
+            }
+            if sign == 0x4000 {
+                x = -x;
+            }
+            Ok(Numeric(if dscale == 0 && x.abs() < 9.0e15 {
+                Value::Int(x.round() as i64)
+            } else {
+                Value::Real(x)
+            }))
+        }
+
+        fn accepts(ty: &Type) -> bool {
+            *ty == Type::NUMERIC
+        }
+    }
+
+    impl ToSql for Value {
+        fn to_sql(
+            &self,
+            ty: &Type,
+            out: &mut BytesMut,
+        ) -> std::result::Result<IsNull, Box<dyn std::error::Error + Sync + Send>> {
+            let int = |i: i64, out: &mut BytesMut| match *ty {
+                Type::INT8 => i.to_sql(ty, out),
+                Type::INT4 => i32::try_from(i)?.to_sql(ty, out),
+                Type::INT2 => i16::try_from(i)?.to_sql(ty, out),
+                Type::FLOAT8 => (i as f64).to_sql(ty, out),
+                Type::FLOAT4 => (i as f32).to_sql(ty, out),
+                Type::BOOL => (i != 0).to_sql(ty, out),
+                _ => i.to_string().to_sql(&Type::TEXT, out),
+            };
+            match self {
+                Value::Null => Ok(IsNull::Yes),
+                Value::Int(i) => int(*i, out),
+                Value::Real(f) => match *ty {
+                    Type::FLOAT8 => f.to_sql(ty, out),
+                    Type::FLOAT4 => (*f as f32).to_sql(ty, out),
+                    Type::INT8 | Type::INT4 | Type::INT2 | Type::BOOL if f.fract() == 0.0 => {
+                        int(*f as i64, out)
+                    }
+                    _ => f.to_string().to_sql(&Type::TEXT, out),
+                },
+                Value::Text(s) => s.to_sql(&Type::TEXT, out),
+            }
+        }
+
+        fn accepts(_: &Type) -> bool {
+            true
+        }
+
+        to_sql_checked!();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn statements_and_schema_in_postgres_dialect() {
+        assert_eq!(
+            Dialect::Postgres.statement("SELECT a FROM t WHERE b = ?1 AND c = ?12 AND d = '?'"),
+            "SELECT a FROM t WHERE b = $1 AND c = $12 AND d = '?'"
+        );
+        assert_eq!(
+            Dialect::Postgres.ddl(
+                "CREATE TABLE t (id INTEGER PRIMARY KEY AUTOINCREMENT, n INTEGER NOT NULL, x REAL)"
+            ),
+            "CREATE TABLE t (id BIGINT GENERATED BY DEFAULT AS IDENTITY PRIMARY KEY, n BIGINT NOT NULL, x DOUBLE PRECISION)"
+        );
+    }
+}
