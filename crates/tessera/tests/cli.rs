@@ -414,3 +414,58 @@ fn export_writes_mitsuba_xml_and_refuses_what_mitsuba_lacks() {
         stderr(&o)
     );
 }
+
+/// `tessera serve --store URL` with everything else valid, in a new data directory.
+fn serve_with_store(url: &str) -> Output {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let data = dir.path().join("data");
+    tessera(&[
+        "serve",
+        "--listen",
+        "127.0.0.1:0",
+        "--data",
+        data.to_str().expect("utf-8 temp path"),
+        "--store",
+        url,
+    ])
+}
+
+#[test]
+fn serve_refuses_a_job_store_it_cannot_use_naming_it() {
+    let o = serve_with_store("mysql://tessera@127.0.0.1/tessera");
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("--store") && err.contains("PostgreSQL URL"),
+        "{err}"
+    );
+
+    // Nothing listens on port 1: the coordinator exits naming the database and the host.
+    let o = serve_with_store("postgres://tessera:tessera@127.0.0.1:1/farm");
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("job store")
+            && err.contains("\"farm\"")
+            && err.contains("127.0.0.1")
+            && err.to_lowercase().contains("refused"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+
+    // Wrong credentials, where the suite runs on PostgreSQL (CI's second run).
+    let Ok(base) = std::env::var("TESSERA_TEST_POSTGRES") else {
+        eprintln!("wrong credentials: not checked (TESSERA_TEST_POSTGRES is not set)");
+        return;
+    };
+    let (scheme, rest) = base.split_once("://").expect("a URL");
+    let (userinfo, host) = rest.split_once('@').expect("a URL with a user");
+    let user = userinfo.split(':').next().unwrap_or(userinfo);
+    let o = serve_with_store(&format!("{scheme}://{user}:not-the-password@{host}"));
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("password authentication failed") && err.contains(user),
+        "{err}"
+    );
+}

@@ -318,7 +318,7 @@ async fn submit_job(
     let id = app.store.insert_job(&new, now_ms())?;
     let tasks: usize = new.tasks.iter().map(Vec::len).sum();
     tracing::info!(job = id, name = %new.name, method = %new.method, frames = %new.frames, tasks, "job queued");
-    app.work.notify_waiters();
+    app.wake_workers();
     app.emit(Event::Job { id });
     let status = app
         .store
@@ -463,9 +463,11 @@ async fn frame_exr(
 }
 
 /// A PNG preview of a frame: what its results folded so far make, or the finished frame.
+/// With several coordinators, the one folding the frame has it; another answers 409 naming it.
 #[utoipa::path(get, path = "/v1/jobs/{id}/frames/{frame}/preview.png", tag = "clients",
     params(("id" = i64, Path), ("frame" = u32, Path)),
-    responses((status = 200, content_type = "image/png", body = Vec<u8>), (status = 404, body = ErrorBody)),
+    responses((status = 200, content_type = "image/png", body = Vec<u8>), (status = 404, body = ErrorBody),
+        (status = 409, description = "another coordinator folds the frame", body = ErrorBody)),
     security(("token" = [])))]
 async fn frame_preview(
     State(app): State<Arc<App>>,
@@ -475,10 +477,12 @@ async fn frame_preview(
     let bytes = if state == "done" {
         tokio::fs::read(app.frame_path(id, frame).with_extension("png")).await?
     } else {
-        let image = app
-            .preview_of(id, frame)
-            .await
-            .map_err(|e| AppError::internal(format!("{e:#}")))?;
+        let image = app.preview_of(id, frame).await.map_err(|e| match e
+            .downcast_ref::<super::fold::FoldedElsewhere>()
+        {
+            Some(elsewhere) => AppError::conflict(elsewhere.to_string()),
+            None => AppError::internal(format!("{e:#}")),
+        })?;
         tokio::task::spawn_blocking(move || tessera_render::output::encode_png(&image))
             .await?
             .map_err(AppError::internal)?

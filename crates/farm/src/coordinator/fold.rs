@@ -22,7 +22,7 @@ use tessera_render::wire::{self, Header};
 use super::{App, JobPlan, now_ms, replace_file};
 use crate::job;
 use crate::protocol::Event;
-use crate::store::{Artifact, CacheEntry, StepKey};
+use crate::store::{Artifact, CacheEntry, Claim, StepKey};
 
 /// Frames folded in memory at once (each may hold a few bytes per pixel × 100).
 const FRAMES_IN_MEMORY: usize = 2;
@@ -58,6 +58,16 @@ impl Folds {
         self.inner.lock().unwrap_or_else(|e| e.into_inner())
     }
 
+    /// Drops what is held of a frame (`key.frame` ≥ 1) or a pass.
+    fn forget(&self, key: StepKey) {
+        let mut inner = self.lock();
+        if key.frame == 0 {
+            inner.passes.remove(&(key.job, key.step));
+        } else {
+            inner.frames.retain(|(k, _)| *k != (key.job, key.frame));
+        }
+    }
+
     pub fn forget_job(&self, job: i64) {
         let mut inner = self.lock();
         inner.frames.retain(|((j, _), _)| *j != job);
@@ -88,6 +98,41 @@ fn read_result(
         .with_context(|| format!("{}: the result of task {id}", path.display()))?;
     Ok(partial)
 }
+
+/// The claim under which one coordinator folds a frame (`key.frame` ≥ 1, whatever its step)
+/// or a pass.
+pub(super) fn claim_name(key: StepKey) -> String {
+    if key.frame == 0 {
+        format!("pass {} {}", key.job, key.step)
+    } else {
+        format!("frame {} {}", key.job, key.frame)
+    }
+}
+
+/// The step a claim of [`claim_name`] is for (a frame's at step 0: the fold reads its step).
+pub(super) fn claimed_step(name: &str) -> Option<StepKey> {
+    let mut words = name.split(' ');
+    let (kind, job, n) = (words.next()?, words.next()?, words.next()?);
+    let (job, n) = (job.parse().ok()?, n.parse().ok()?);
+    match kind {
+        "pass" => Some(StepKey {
+            job,
+            frame: 0,
+            step: n,
+        }),
+        "frame" => Some(StepKey {
+            job,
+            frame: n,
+            step: 0,
+        }),
+        _ => None,
+    }
+}
+
+/// A frame another coordinator folds (and so holds the preview of).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub(super) struct FoldedElsewhere(String);
 
 /// What the fold thread is asked.
 pub(super) enum FoldRequest {
@@ -154,6 +199,14 @@ impl App {
 
     fn fold_or_fail(&self, key: StepKey) {
         if let Err(e) = self.fold(key) {
+            // A coordinator that lost its claim (it lapsed while this one stalled) leaves the
+            // frame to the one that took it over: its own view may be stale.
+            let name = claim_name(key);
+            if !self.store.holds(&name, &self.id, now_ms()).unwrap_or(false) {
+                tracing::warn!(job = key.job, claim = %name, error = %format!("{e:#}"), "fold given up: its claim lapsed");
+                self.folds.forget(key);
+                return;
+            }
             let place = if key.frame == 0 {
                 format!("pass {}", key.step)
             } else {
@@ -168,8 +221,19 @@ impl App {
 
     /// Folds what can be folded of `key`'s frame or pass (blocking).
     pub(super) fn fold(&self, key: StepKey) -> anyhow::Result<()> {
+        let name = claim_name(key);
         if self.store.job_state(key.job)?.is_none_or(|s| s.is_final()) {
+            self.store.release(&name, &self.id)?;
             return Ok(());
+        }
+        // One coordinator folds a frame or a pass; another's results wait for it.
+        match self
+            .store
+            .claim(&name, &self.id, now_ms(), self.claim_ms())?
+        {
+            Claim::Refused(_) => return Ok(()),
+            Claim::Taken => self.folds.forget(key),
+            Claim::Held => {}
         }
         let job = self.job_plan(key.job)?;
         let mut inner = self.folds.lock();
@@ -184,6 +248,25 @@ impl App {
     /// The frame as it stands, folded as far as its results allow (blocking).
     fn preview(&self, job_id: i64, frame: u32) -> anyhow::Result<tessera_render::Image> {
         let job = self.job_plan(job_id)?;
+        let key = StepKey {
+            job: job_id,
+            frame,
+            step: 0,
+        };
+        match self
+            .store
+            .claim(&claim_name(key), &self.id, now_ms(), self.claim_ms())?
+        {
+            // Another coordinator folds this frame: it has the preview.
+            Claim::Refused(owner) => {
+                return Err(FoldedElsewhere(format!(
+                    "frame {frame} of job {job_id} is being folded by coordinator {owner}: its preview is there"
+                ))
+                .into());
+            }
+            Claim::Taken => self.folds.forget(key),
+            Claim::Held => {}
+        }
         let mut inner = self.folds.lock();
         self.fold_frame(&mut inner, &job, job_id, frame)?;
         Ok(
@@ -233,7 +316,14 @@ impl App {
                     Err(e) => return Err(e).context(path.display().to_string()),
                 };
                 if inner.frames.len() >= FRAMES_IN_MEMORY {
-                    inner.frames.remove(0);
+                    // Rebuilt from its checkpoint when next folded, here or elsewhere.
+                    let ((j, f), _) = inner.frames.remove(0);
+                    let evicted = StepKey {
+                        job: j,
+                        frame: f,
+                        step: 0,
+                    };
+                    self.store.release(&claim_name(evicted), &self.id)?;
                 }
                 ((job_id, frame), fold)
             }
@@ -330,7 +420,7 @@ impl App {
                     );
                     f.step = number;
                     f.next = 0;
-                    self.work.notify_waiters();
+                    self.wake_workers();
                 }
                 Next::Done(done) => {
                     let path = self.frame_path(job_id, frame);
@@ -359,6 +449,14 @@ impl App {
                     )?;
                     inner.frames.retain(|(k, _)| *k != (job_id, frame));
                     self.remove_frame_files(job_id, frame)?;
+                    self.store.release(
+                        &claim_name(StepKey {
+                            job: job_id,
+                            frame,
+                            step: 0,
+                        }),
+                        &self.id,
+                    )?;
                     tracing::info!(job = job_id, frame, path = %path.display(), job_done, "frame written");
                     self.emit(Event::Job { id: job_id });
                     if job_done {
@@ -384,7 +482,7 @@ impl App {
         tracing::warn!(task, error = %message, "task queued again");
         self.store
             .redo(task, &message, now_ms(), &self.config.retry_policy())?;
-        self.work.notify_waiters();
+        self.wake_workers();
         Ok(false)
     }
 
@@ -462,9 +560,10 @@ impl App {
         for (id, lease) in self.store.step_results(key)? {
             let _ = std::fs::remove_file(self.result_path(key.job, id, lease));
         }
+        self.store.release(&claim_name(key), &self.id)?;
         tracing::info!(job = key.job, pass = pass.name(), key = %pass.key(), bytes = entry.bytes, frames_queued, "{summary}");
         self.enforce_cache_cap();
-        self.work.notify_waiters();
+        self.wake_workers();
         Ok(())
     }
 

@@ -116,6 +116,8 @@ impl Config {
 pub struct App {
     pub config: Config,
     pub store: Store,
+    /// This coordinator among those sharing the store: the owner of its claims.
+    pub id: String,
     metrics: Metrics,
     /// Woken when tasks are queued, for long-polling lease requests.
     work: Notify,
@@ -261,12 +263,66 @@ impl App {
                         Retry::JobFailed(msg) => tracing::warn!(task, error = %msg, "job failed"),
                         _ => tracing::warn!(task, "lease expired; task requeued"),
                     }
-                    self.work.notify_waiters();
+                    self.wake_workers();
                 }
             }
             Err(e) => tracing::error!(error = %e, "expiring leases"),
         }
+        self.tend_claims();
     }
+
+    /// Wakes the workers waiting for a lease, here and (through the store) at every
+    /// coordinator sharing it: work was queued, or a job may lease again.
+    pub(super) fn wake_workers(&self) {
+        self.work.notify_waiters();
+        if let Err(e) = self.store.announce_work() {
+            tracing::warn!(error = %e, "announcing work to the other coordinators");
+        }
+    }
+
+    /// How long a claim lasts unless renewed (the reaper renews them several times a lease).
+    fn claim_ms(&self) -> i64 {
+        self.config.lease_ms.max(2000) as i64
+    }
+
+    /// Renews this coordinator's claims. With a shared store, also folds what it claims (the
+    /// results that reached other coordinators) and the finished steps nobody folds (a
+    /// coordinator that died left them).
+    fn tend_claims(&self) {
+        let held = match self.store.renew_claims(&self.id, now_ms(), self.claim_ms()) {
+            Ok(held) => held,
+            Err(e) => {
+                tracing::error!(error = %e, "renewing claims");
+                return;
+            }
+        };
+        if !self.store.is_shared() {
+            return;
+        }
+        for key in held.iter().filter_map(|n| fold::claimed_step(n)) {
+            self.spawn_fold(key);
+        }
+        match self.store.finished_steps() {
+            Ok(steps) => {
+                for key in steps {
+                    if !held.contains(&fold::claim_name(key)) {
+                        self.spawn_fold(key);
+                    }
+                }
+            }
+            Err(e) => tracing::error!(error = %e, "looking for finished steps"),
+        }
+    }
+}
+
+fn store_listener(app: &std::sync::Weak<App>) {
+    let Some(strong) = app.upgrade() else { return };
+    let weak = app.clone();
+    strong.store.on_work(Arc::new(move || {
+        if let Some(app) = weak.upgrade() {
+            app.work.notify_waiters();
+        }
+    }));
 }
 
 /// A running coordinator: its address, its state, and a way to stop it.
@@ -340,10 +396,22 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
     let addr = listener.local_addr()?;
     let (shutdown, mut stop) = tokio::sync::watch::channel(false);
     let (fold_tx, fold_rx) = std::sync::mpsc::channel();
+    if !store.is_shared() {
+        // A store only this coordinator opens: the claims in it are its previous run's.
+        store.forget_claims()?;
+    }
+    // Unique among the coordinators alive (no two listen on one host's address), and the
+    // same after a restart, so that a restarted coordinator goes on with its own claims.
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|h| h.trim().to_owned())
+        .unwrap_or_else(|_| "coordinator".into());
+    let id = format!("{host}/{addr}");
+    tracing::info!(coordinator = %id, shared = store.is_shared(), "job store open");
     let app = Arc::new(App {
         stopping: shutdown.subscribe(),
         config,
         store,
+        id,
         metrics: Metrics::default(),
         work: Notify::new(),
         jobs: Mutex::new(HashMap::new()),
@@ -352,6 +420,11 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         events: tokio::sync::broadcast::channel(events::CAPACITY).0,
     });
     fold::start_thread(&app, fold_rx)?;
+    {
+        // Work queued by another coordinator wakes the workers waiting here.
+        let app = Arc::downgrade(&app);
+        store_listener(&app);
+    }
 
     // Resume: steps whose last task arrived just before a restart.
     for key in app.store.finished_steps()? {

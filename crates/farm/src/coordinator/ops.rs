@@ -154,7 +154,7 @@ pub(super) async fn patch_job(
             return Err(job_not_found(id));
         }
         tracing::info!(job = id, priority = p, "priority changed");
-        app.work.notify_waiters();
+        app.wake_workers();
     }
     changed(&app, id)
 }
@@ -186,7 +186,7 @@ pub(super) async fn resume_job(
         return wrong_state(&app, id, "only a paused job can be resumed");
     }
     tracing::info!(job = id, "job resumed");
-    app.work.notify_waiters();
+    app.wake_workers();
     changed(&app, id)
 }
 
@@ -210,7 +210,7 @@ pub(super) async fn requeue_job(
         }
     }
     tracing::info!(job = id, tasks, "job requeued");
-    app.work.notify_waiters();
+    app.wake_workers();
     changed(&app, id)
 }
 
@@ -278,7 +278,7 @@ pub(super) async fn undrain_worker(
         return Err(AppError::not_found(format!("no worker {id}")));
     }
     tracing::info!(worker = %id, "worker takes work again");
-    app.work.notify_waiters();
+    app.wake_workers();
     worker_changed(&app, &id)
 }
 
@@ -303,6 +303,6 @@ pub(super) async fn unblock_worker(
     if let Some(job) = q.job {
         app.emit(Event::Job { id: job });
     }
-    app.work.notify_waiters();
+    app.wake_workers();
     worker_changed(&app, &id)
 }

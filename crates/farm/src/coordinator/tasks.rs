@@ -283,7 +283,7 @@ pub(super) async fn fail_task(
         Retry::Stale => Err(stale(id, f.lease)),
         Retry::Requeued => {
             tracing::warn!(task = id, ?job, worker = %f.worker, error = %f.error, "task failed; requeued");
-            app.work.notify_waiters();
+            app.wake_workers();
             Ok(StatusCode::OK)
         }
         Retry::JobFailed(message) => {

@@ -201,6 +201,16 @@ impl Dialect {
         }
     }
 
+    /// What ends a query for a queue's next row: PostgreSQL locks the row it returns and
+    /// passes over rows another transaction holds (`FOR UPDATE SKIP LOCKED`), so coordinators
+    /// leasing at once take different tasks; SQLite has one writer and needs nothing.
+    pub fn skip_locked(self) -> &'static str {
+        match self {
+            Dialect::Sqlite => "",
+            Dialect::Postgres => " FOR UPDATE SKIP LOCKED",
+        }
+    }
+
     /// A statement written with `?N` parameters, in this dialect.
     fn statement(self, sql: &str) -> String {
         match self {
@@ -261,6 +271,15 @@ impl Db {
         match self.backend {
             Backend::Sqlite(_) => Dialect::Sqlite,
             Backend::Postgres(_) => Dialect::Postgres,
+        }
+    }
+
+    /// Calls `on` whenever a `NOTIFY channel` is sent by anyone sharing the database (and once
+    /// after each (re)connection, for what was sent while disconnected); nothing on SQLite,
+    /// which nobody shares.
+    pub fn listen(&self, channel: &'static str, on: Arc<dyn Fn() + Send + Sync>) {
+        if let Backend::Postgres(p) = &self.backend {
+            p.listen(channel, on);
         }
     }
 
@@ -599,6 +618,46 @@ mod pg {
                     .unwrap_or_else(|e| e.into_inner())
                     .0;
             }
+        }
+
+        /// A connection of its own that listens on `channel` for as long as the pool lives,
+        /// reconnecting after a second when it drops.
+        pub fn listen(&self, channel: &'static str, on: Arc<dyn Fn() + Send + Sync>) {
+            let Some(rt) = self.rt.as_ref() else { return };
+            let config = self.config.clone();
+            rt.spawn(async move {
+                loop {
+                    match config.connect(tokio_postgres::NoTls).await {
+                        Ok((client, mut connection)) => {
+                            let heard = on.clone();
+                            let poll = tokio::spawn(async move {
+                                loop {
+                                    match std::future::poll_fn(|cx| connection.poll_message(cx))
+                                        .await
+                                    {
+                                        Some(Ok(tokio_postgres::AsyncMessage::Notification(_))) => {
+                                            heard()
+                                        }
+                                        Some(Ok(_)) => {}
+                                        Some(Err(e)) => {
+                                            tracing::warn!(error = %e, channel, "listening to the job store");
+                                            break;
+                                        }
+                                        None => break,
+                                    }
+                                }
+                            });
+                            match client.batch_execute(&format!("LISTEN {channel}")).await {
+                                Ok(()) => on(),
+                                Err(e) => tracing::warn!(error = %e, channel, "LISTEN"),
+                            }
+                            let _ = poll.await;
+                        }
+                        Err(e) => tracing::warn!(error = %e, channel, "connecting to listen"),
+                    }
+                    tokio::time::sleep(Duration::from_secs(1)).await;
+                }
+            });
         }
 
         fn open(&self) -> Result<PgConn> {

@@ -9,6 +9,7 @@
 //! the store knows one rendering method from another: tasks are (frame, step, index) with the
 //! core's task description.
 
+mod claims;
 pub(crate) mod db;
 mod jobs;
 mod ops;
@@ -20,6 +21,7 @@ use std::path::Path;
 
 use db::{Conn, Db, Dialect, Optional, params};
 
+pub use claims::Claim;
 pub use jobs::{Artifact, JobFilter, NewJob};
 pub use ops::Blocklisting;
 pub use passes::{CacheEntry, NewPass, PassStart};
@@ -122,6 +124,14 @@ CREATE TABLE IF NOT EXISTS sessions (
     id TEXT PRIMARY KEY,
     csrf TEXT NOT NULL,
     created_ms INTEGER NOT NULL,
+    expires_ms INTEGER NOT NULL
+);
+"#,
+    // 4: claims — work one coordinator of several does alone (see `claims`).
+    r#"
+CREATE TABLE IF NOT EXISTS claims (
+    name TEXT PRIMARY KEY,
+    owner TEXT NOT NULL,
     expires_ms INTEGER NOT NULL
 );
 "#,
@@ -246,6 +256,9 @@ CREATE TABLE IF NOT EXISTS workers (
 pub struct Store {
     db: Db,
 }
+
+/// The PostgreSQL channel of [`Store::announce_work`].
+const WORK_CHANNEL: &str = "tessera_work";
 
 /// The PostgreSQL advisory lock held while a coordinator creates or migrates the schema.
 const MIGRATION_LOCK: i64 = 0x7465_7373_6572_6101;
@@ -417,6 +430,26 @@ impl Store {
             }
         }
         Ok(())
+    }
+
+    /// Calls `on` when any coordinator sharing the store queues work ([`Store::announce_work`]).
+    pub fn on_work(&self, on: std::sync::Arc<dyn Fn() + Send + Sync>) {
+        self.db.listen(WORK_CHANNEL, on);
+    }
+
+    /// Tells the coordinators sharing the store that work was queued (their workers waiting
+    /// for a lease look again).
+    pub fn announce_work(&self) -> Result<()> {
+        if self.is_shared() {
+            self.conn()?
+                .execute_batch(&format!("NOTIFY {WORK_CHANNEL}"))?;
+        }
+        Ok(())
+    }
+
+    /// Whether other coordinators may share this store (PostgreSQL).
+    pub fn is_shared(&self) -> bool {
+        self.db.dialect() == Dialect::Postgres
     }
 
     /// A connection for statements outside a transaction of their own.

@@ -85,8 +85,11 @@ impl Store {
         if excluded.is_empty() {
             return Ok(tx
                 .query_row(
-                    "SELECT id, job_id FROM tasks WHERE state = 'queued'
-                     ORDER BY priority DESC, job_id, id LIMIT 1",
+                    &format!(
+                        "SELECT id, job_id FROM tasks WHERE state = 'queued'
+                         ORDER BY priority DESC, job_id, id LIMIT 1{}",
+                        tx.dialect().skip_locked()
+                    ),
                     params![],
                     |r| Ok((r.get(0)?, r.get(1)?)),
                 )
@@ -101,7 +104,10 @@ impl Store {
         for job in ids.into_iter().filter(|j| !excluded.contains(j)) {
             if let Some(task) = tx
                 .query_row(
-                    "SELECT id FROM tasks WHERE job_id = ?1 AND state = 'queued' ORDER BY id LIMIT 1",
+                    &format!(
+                        "SELECT id FROM tasks WHERE job_id = ?1 AND state = 'queued' ORDER BY id LIMIT 1{}",
+                        tx.dialect().skip_locked()
+                    ),
                     params![job],
                     |r| r.get(0),
                 )
