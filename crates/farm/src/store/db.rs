@@ -300,11 +300,29 @@ impl Db {
     /// Runs `f` in one transaction: committed when it returns `Ok`, rolled back when it
     /// returns an error. On PostgreSQL (SERIALIZABLE) `f` runs again, on a new transaction,
     /// when the database could not serialise it with another coordinator's.
-    pub fn write<T>(&self, mut f: impl FnMut(&Conn) -> Result<T>) -> Result<T> {
+    pub fn write<T>(&self, f: impl FnMut(&Conn) -> Result<T>) -> Result<T> {
+        self.transaction("BEGIN ISOLATION LEVEL SERIALIZABLE", f)
+    }
+
+    /// [`Db::write`] for a transaction that orders itself with row locks, on PostgreSQL at READ
+    /// COMMITTED (where each statement sees what committed before it): taking a queue's next
+    /// row locked as it is read (`FOR UPDATE SKIP LOCKED`, [`Dialect::skip_locked`]), so that
+    /// transactions taking rows at once take different ones; or updating a counter row before
+    /// reading what the counter counts, so that transactions updating it at once wait for each
+    /// other instead of failing each other (SERIALIZABLE fails all but one of them).
+    pub fn write_row_locked<T>(&self, f: impl FnMut(&Conn) -> Result<T>) -> Result<T> {
+        self.transaction("BEGIN ISOLATION LEVEL READ COMMITTED", f)
+    }
+
+    fn transaction<T>(
+        &self,
+        postgres_begin: &str,
+        mut f: impl FnMut(&Conn) -> Result<T>,
+    ) -> Result<T> {
         let conn = self.conn()?;
         let begin = match self.dialect() {
             Dialect::Sqlite => "BEGIN",
-            Dialect::Postgres => "BEGIN ISOLATION LEVEL SERIALIZABLE",
+            Dialect::Postgres => postgres_begin,
         };
         let mut attempt = 0u32;
         loop {
@@ -459,7 +477,7 @@ mod pg {
     use tokio_postgres::types::{IsNull, ToSql, Type, to_sql_checked};
 
     /// Connections at most (each coordinator).
-    const MAX_CONNECTIONS: usize = 8;
+    const MAX_CONNECTIONS: usize = 16;
     /// How long an operation waits for a connection when all are in use.
     const WAIT: Duration = Duration::from_secs(30);
 
@@ -573,7 +591,7 @@ mod pg {
             rt.spawn(async move {
                 let _ = tx.send(fut.await);
             });
-            rx.recv()
+            blocking(|| rx.recv())
                 .map_err(|_| StoreError::Config("the store's runtime stopped".into()))
         }
 
@@ -612,9 +630,7 @@ mod pg {
                         WAIT.as_secs()
                     )));
                 }
-                idle = self
-                    .freed
-                    .wait_timeout(idle, deadline - now)
+                idle = blocking(|| self.freed.wait_timeout(idle, deadline - now))
                     .unwrap_or_else(|e| e.into_inner())
                     .0;
             }
@@ -746,6 +762,19 @@ mod pg {
                 .unwrap_or_else(|e| e.into_inner())
                 .insert(sql.to_owned(), s.clone());
             Ok(s)
+        }
+    }
+
+    /// Runs `f`, which waits for the database, telling a multi-threaded tokio runtime that
+    /// this thread blocks so that it moves its other tasks to another thread: a coordinator's
+    /// requests wait for PostgreSQL side by side rather than one per core.
+    fn blocking<T>(f: impl FnOnce() -> T) -> T {
+        use tokio::runtime::{Handle, RuntimeFlavor};
+        match Handle::try_current() {
+            Ok(h) if h.runtime_flavor() == RuntimeFlavor::MultiThread => {
+                tokio::task::block_in_place(f)
+            }
+            _ => f(),
         }
     }
 

@@ -455,32 +455,32 @@ impl Store {
         now: i64,
     ) -> Result<bool> {
         self.db.write(|tx| {
-                for a in files {
+            for a in files {
+                tx.execute(
+                    "INSERT INTO artifacts (job_id, frame, kind, path, bytes, sha256, created_ms)
+                     VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)
+                     ON CONFLICT (job_id, frame, kind) DO UPDATE SET path = excluded.path,
+                        bytes = excluded.bytes, sha256 = excluded.sha256, created_ms = excluded.created_ms",
+                    params![job, frame, a.kind, a.path, a.bytes as i64, a.sha256, now],
+                )?;
+            }
             tx.execute(
-                "INSERT INTO artifacts (job_id, frame, kind, path, bytes, sha256, created_ms)
-                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)
-                 ON CONFLICT (job_id, frame, kind) DO UPDATE SET path = excluded.path,
-                    bytes = excluded.bytes, sha256 = excluded.sha256, created_ms = excluded.created_ms",
-                params![job, frame, a.kind, a.path, a.bytes as i64, a.sha256, now],
+                "UPDATE frames SET state = 'done', finished_ms = ?3, estimated_rel_mse = ?4
+                 WHERE job_id = ?1 AND frame = ?2",
+                params![job, frame, now, estimated_rel_mse],
             )?;
-        }
-        tx.execute(
-            "UPDATE frames SET state = 'done', finished_ms = ?3, estimated_rel_mse = ?4
-             WHERE job_id = ?1 AND frame = ?2",
-            params![job, frame, now, estimated_rel_mse],
-        )?;
-        let left: i64 = tx.query_row(
-            "SELECT COUNT(*) FROM frames WHERE job_id = ?1 AND state != 'done'",
-            params![job],
-            |r| r.get(0),
-        )?;
-        let done = left == 0
-            && tx.execute(
-                "UPDATE jobs SET state = 'done', finished_ms = ?2
-                 WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
-                params![job, now],
-            )? == 1;
-        Ok(done)
+            let left: i64 = tx.query_row(
+                "SELECT COUNT(*) FROM frames WHERE job_id = ?1 AND state != 'done'",
+                params![job],
+                |r| r.get(0),
+            )?;
+            let done = left == 0
+                && tx.execute(
+                    "UPDATE jobs SET state = 'done', finished_ms = ?2
+                     WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
+                    params![job, now],
+                )? == 1;
+            Ok(done)
         })
     }
 

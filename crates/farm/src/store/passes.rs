@@ -143,68 +143,68 @@ impl Store {
         now: i64,
     ) -> Result<bool> {
         self.db.write(|tx| {
-                tx.execute(
-            "INSERT INTO cache (key, name, path, bytes, sha256, job_id, created_ms, used_ms)
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?7)
-             ON CONFLICT (key) DO UPDATE SET name = excluded.name, path = excluded.path,
-                bytes = excluded.bytes, sha256 = excluded.sha256, job_id = excluded.job_id,
-                created_ms = excluded.created_ms, used_ms = excluded.used_ms",
-            params![
-                entry.key,
-                entry.name,
-                entry.path,
-                entry.bytes as i64,
-                entry.sha256,
-                job,
-                now
-            ],
-        )?;
-        // A pass is built once: a second fold of it (a late request) queues nothing again.
-        let changed = tx.execute(
-            "UPDATE passes SET state = 'built', summary = ?3 WHERE job_id = ?1 AND step = ?2 AND state = 'running'",
-            params![job, step, summary],
-        )?;
-        if changed == 0 {
-            return Ok(false);
-        }
-        // Only a job still running gets more tasks.
-        let running = tx
-            .query_row(
-                "SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
-                params![job],
-                |_| Ok(()),
-            )
-            .optional()?
-            .is_some();
-        let waiting: Option<u32> = tx
-            .query_row(
-                "SELECT step FROM passes WHERE job_id = ?1 AND state = 'waiting' ORDER BY step LIMIT 1",
-                params![job],
-                |r| r.get(0),
-            )
-            .optional()?;
-        let mut frames_queued = false;
-        if running {
-            match waiting {
-                Some(next) => {
-                    tx.execute(
-                        "UPDATE passes SET state = 'running' WHERE job_id = ?1 AND step = ?2",
-                        params![job, next],
-                    )?;
-                    tx.execute(
-                        "UPDATE tasks SET state = 'queued' WHERE job_id = ?1 AND frame = 0 AND step = ?2 AND state = 'waiting'",
-                        params![job, next],
-                    )?;
-                }
-                None => {
-                    for tasks in frames {
-                        Self::insert_tasks(tx, job, tasks)?;
+            tx.execute(
+                "INSERT INTO cache (key, name, path, bytes, sha256, job_id, created_ms, used_ms)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?7)
+                 ON CONFLICT (key) DO UPDATE SET name = excluded.name, path = excluded.path,
+                    bytes = excluded.bytes, sha256 = excluded.sha256, job_id = excluded.job_id,
+                    created_ms = excluded.created_ms, used_ms = excluded.used_ms",
+                params![
+                    entry.key,
+                    entry.name,
+                    entry.path,
+                    entry.bytes as i64,
+                    entry.sha256,
+                    job,
+                    now
+                ],
+            )?;
+            // A pass is built once: a second fold of it (a late request) queues nothing again.
+            let changed = tx.execute(
+                "UPDATE passes SET state = 'built', summary = ?3 WHERE job_id = ?1 AND step = ?2 AND state = 'running'",
+                params![job, step, summary],
+            )?;
+            if changed == 0 {
+                return Ok(false);
+            }
+            // Only a job still running gets more tasks.
+            let running = tx
+                .query_row(
+                    "SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
+                    params![job],
+                    |_| Ok(()),
+                )
+                .optional()?
+                .is_some();
+            let waiting: Option<u32> = tx
+                .query_row(
+                    "SELECT step FROM passes WHERE job_id = ?1 AND state = 'waiting' ORDER BY step LIMIT 1",
+                    params![job],
+                    |r| r.get(0),
+                )
+                .optional()?;
+            let mut frames_queued = false;
+            if running {
+                match waiting {
+                    Some(next) => {
+                        tx.execute(
+                            "UPDATE passes SET state = 'running' WHERE job_id = ?1 AND step = ?2",
+                            params![job, next],
+                        )?;
+                        tx.execute(
+                            "UPDATE tasks SET state = 'queued' WHERE job_id = ?1 AND frame = 0 AND step = ?2 AND state = 'waiting'",
+                            params![job, next],
+                        )?;
                     }
-                    frames_queued = true;
+                    None => {
+                        for tasks in frames {
+                            Self::insert_tasks(tx, job, tasks)?;
+                        }
+                        frames_queued = true;
+                    }
                 }
             }
-        }
-        Ok(frames_queued)
+            Ok(frames_queued)
         })
     }
 

@@ -128,66 +128,67 @@ impl Store {
         now: i64,
         lease_ms: u64,
     ) -> Result<Option<LeaseGrant>> {
-        self.db.write(|tx| {
-                Self::upsert_worker(tx, worker, now)?;
-        let draining: bool = tx.query_row(
-            "SELECT draining FROM workers WHERE id = ?1",
-            params![&worker.id],
-            |r| r.get(0),
-        )?;
-        if draining {
-            return Ok(None);
-        }
-        loop {
-            let Some((task_id, job_id)) = Self::next_task(tx, worker)? else {
-                return Ok(None);
-            };
-            let (bundle, scene, settings, spec): (String, String, String, TaskSpec) = tx
-                .query_row(
-                    &format!(
-                        "SELECT j.bundle, j.scene, j.settings, {SPEC_COLUMNS}
-                         FROM tasks t JOIN jobs j ON j.id = t.job_id WHERE t.id = ?1"
-                    ),
-                    params![task_id],
-                    |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, task_spec(r, 3)?)),
-                )?;
-            let settings = match from_json(&settings, &format!("settings of job {job_id}")) {
-                Ok(s) => s,
-                Err(e) => {
-                    Self::end_job(tx, job_id, "failed", Some(&e.to_string()), now)?;
-                    continue;
-                }
-            };
-            let lease: i64 = tx.query_row(
-                "INSERT INTO attempts (task_id, worker, started_ms) VALUES (?1, ?2, ?3) RETURNING id",
-                params![task_id, worker.id, now],
+        // The task is locked as it is taken: coordinators leasing at once take different ones.
+        self.db.write_row_locked(|tx| {
+            Self::upsert_worker(tx, worker, now)?;
+            let draining: bool = tx.query_row(
+                "SELECT draining FROM workers WHERE id = ?1",
+                params![&worker.id],
                 |r| r.get(0),
             )?;
-            tx.execute(
-                "UPDATE tasks SET state = 'leased', attempts = attempts + 1, lease = ?2, worker = ?3,
-                    lease_expires_ms = ?4 WHERE id = ?1",
-                params![task_id, lease, worker.id, now + lease_ms as i64],
-            )?;
-            tx.execute(
-                "UPDATE jobs SET state = 'running', started_ms = COALESCE(started_ms, ?2)
-                 WHERE id = ?1 AND state = 'queued'",
-                params![job_id, now],
-            )?;
-            let artifacts = Self::artifacts_for(tx, job_id, &spec)?;
-            return Ok(Some(LeaseGrant {
-                task_id,
-                lease,
-                lease_ms,
-                job_id,
-                bundle,
-                scene,
-                settings,
-                task: spec,
-                artifacts,
-                input: None,
-                max_result_bytes: None,
-            }));
-        }
+            if draining {
+                return Ok(None);
+            }
+            loop {
+                let Some((task_id, job_id)) = Self::next_task(tx, worker)? else {
+                    return Ok(None);
+                };
+                let (bundle, scene, settings, spec): (String, String, String, TaskSpec) = tx
+                    .query_row(
+                        &format!(
+                            "SELECT j.bundle, j.scene, j.settings, {SPEC_COLUMNS}
+                             FROM tasks t JOIN jobs j ON j.id = t.job_id WHERE t.id = ?1"
+                        ),
+                        params![task_id],
+                        |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, task_spec(r, 3)?)),
+                    )?;
+                let settings = match from_json(&settings, &format!("settings of job {job_id}")) {
+                    Ok(s) => s,
+                    Err(e) => {
+                        Self::end_job(tx, job_id, "failed", Some(&e.to_string()), now)?;
+                        continue;
+                    }
+                };
+                let lease: i64 = tx.query_row(
+                    "INSERT INTO attempts (task_id, worker, started_ms) VALUES (?1, ?2, ?3) RETURNING id",
+                    params![task_id, worker.id, now],
+                    |r| r.get(0),
+                )?;
+                tx.execute(
+                    "UPDATE tasks SET state = 'leased', attempts = attempts + 1, lease = ?2, worker = ?3,
+                        lease_expires_ms = ?4 WHERE id = ?1",
+                    params![task_id, lease, worker.id, now + lease_ms as i64],
+                )?;
+                tx.execute(
+                    "UPDATE jobs SET state = 'running', started_ms = COALESCE(started_ms, ?2)
+                     WHERE id = ?1 AND state = 'queued'",
+                    params![job_id, now],
+                )?;
+                let artifacts = Self::artifacts_for(tx, job_id, &spec)?;
+                return Ok(Some(LeaseGrant {
+                    task_id,
+                    lease,
+                    lease_ms,
+                    job_id,
+                    bundle,
+                    scene,
+                    settings,
+                    task: spec,
+                    artifacts,
+                    input: None,
+                    max_result_bytes: None,
+                }));
+            }
         })
     }
 
@@ -239,58 +240,60 @@ impl Store {
         sizes: (u64, u64),
         now: i64,
     ) -> Result<Completion> {
-        self.db.write(|tx| {
-                let n = tx.execute(
-            "UPDATE tasks SET state = 'done', seconds = ?3, lease_expires_ms = NULL,
-                result_bytes = ?4, payload_bytes = ?5
-             WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
-            params![task, lease, seconds, sizes.0 as i64, sizes.1 as i64],
-        )?;
-        if n == 0 {
+        // Completions of one step wait for each other on its frame's (or pass's) row, which
+        // they update before counting the step's open tasks: the last to commit sees none.
+        self.db.write_row_locked(|tx| {
+            let n = tx.execute(
+                "UPDATE tasks SET state = 'done', seconds = ?3, lease_expires_ms = NULL,
+                    result_bytes = ?4, payload_bytes = ?5
+                 WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
+                params![task, lease, seconds, sizes.0 as i64, sizes.1 as i64],
+            )?;
+            if n == 0 {
+                tx.execute(
+                    "UPDATE attempts SET ended_ms = ?2, outcome = 'stale' WHERE id = ?1 AND outcome IS NULL",
+                    params![lease, now],
+                )?;
+                return Ok(Completion::Stale);
+            }
             tx.execute(
-                "UPDATE attempts SET ended_ms = ?2, outcome = 'stale' WHERE id = ?1 AND outcome IS NULL",
+                "UPDATE attempts SET ended_ms = ?2, outcome = 'done' WHERE id = ?1",
                 params![lease, now],
             )?;
-            return Ok(Completion::Stale);
-        }
-        tx.execute(
-            "UPDATE attempts SET ended_ms = ?2, outcome = 'done' WHERE id = ?1",
-            params![lease, now],
-        )?;
-        // Throughput: pixel samples of the task (pixels × samples; none for a pass's task).
-        tx.execute(
-            "UPDATE workers SET tasks_done = tasks_done + 1, last_seen_ms = ?2,
-                busy_seconds = busy_seconds + ?3,
-                samples_done = samples_done + COALESCE((SELECT (x1 - x0) * (y1 - y0) * (range_end - range_start)
-                                                        FROM tasks WHERE id = ?4 AND frame > 0), 0)
-             WHERE id = (SELECT worker FROM attempts WHERE id = ?1)",
-            params![lease, now, seconds, task],
-        )?;
-        let (job, frame, step): (i64, u32, u32) = tx.query_row(
-            "SELECT job_id, frame, step FROM tasks WHERE id = ?1",
-            params![task],
-            |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
-        )?;
-        if frame == 0 {
+            // Throughput: pixel samples of the task (pixels × samples; none for a pass's task).
             tx.execute(
-                "UPDATE passes SET tasks_done = tasks_done + 1 WHERE job_id = ?1 AND step = ?2",
-                params![job, step],
+                "UPDATE workers SET tasks_done = tasks_done + 1, last_seen_ms = ?2,
+                    busy_seconds = busy_seconds + ?3,
+                    samples_done = samples_done + COALESCE((SELECT (x1 - x0) * (y1 - y0) * (range_end - range_start)
+                                                            FROM tasks WHERE id = ?4 AND frame > 0), 0)
+                 WHERE id = (SELECT worker FROM attempts WHERE id = ?1)",
+                params![lease, now, seconds, task],
             )?;
-        } else {
-            tx.execute(
-                "UPDATE frames SET tasks_done = tasks_done + 1, state = 'running'
-                 WHERE job_id = ?1 AND frame = ?2",
-                params![job, frame],
+            let (job, frame, step): (i64, u32, u32) = tx.query_row(
+                "SELECT job_id, frame, step FROM tasks WHERE id = ?1",
+                params![task],
+                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
             )?;
-        }
-        let open: i64 = tx.query_row(
-            "SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3 AND state != 'done'",
-            params![job, frame, step],
-            |r| r.get(0),
-        )?;
-        Ok(Completion::Accepted {
-            step: StepKey { job, frame, step },
-            complete: open == 0,
+            if frame == 0 {
+                tx.execute(
+                    "UPDATE passes SET tasks_done = tasks_done + 1 WHERE job_id = ?1 AND step = ?2",
+                    params![job, step],
+                )?;
+            } else {
+                tx.execute(
+                    "UPDATE frames SET tasks_done = tasks_done + 1, state = 'running'
+                     WHERE job_id = ?1 AND frame = ?2",
+                    params![job, frame],
+                )?;
+            }
+            let open: i64 = tx.query_row(
+                "SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3 AND state != 'done'",
+                params![job, frame, step],
+                |r| r.get(0),
+            )?;
+            Ok(Completion::Accepted {
+                step: StepKey { job, frame, step },
+                complete: open == 0,
         })
         })
     }
@@ -435,25 +438,25 @@ impl Store {
     /// Takes back every lease that expired before `now`. Returns what became of each.
     pub fn expire(&self, now: i64, policy: &RetryPolicy) -> Result<Vec<(i64, Retry)>> {
         self.db.write(|tx| {
-                let expired: Vec<(i64, i64)> = tx.query_map(
-            "SELECT id, lease FROM tasks WHERE state = 'leased' AND lease_expires_ms < ?1",
-            params![now],
-            |r| Ok((r.get(0)?, r.get(1)?)),
-        )?;
-        let mut out = Vec::with_capacity(expired.len());
-        for (task, lease) in expired {
-            let r = Self::retry(
-                &tx,
-                task,
-                lease,
-                "expired",
-                "the lease expired: the worker stopped renewing it (died, hung or lost the network)",
-                now,
-                policy,
+            let expired: Vec<(i64, i64)> = tx.query_map(
+                "SELECT id, lease FROM tasks WHERE state = 'leased' AND lease_expires_ms < ?1",
+                params![now],
+                |r| Ok((r.get(0)?, r.get(1)?)),
             )?;
-            out.push((task, r));
-        }
-        Ok(out)
+            let mut out = Vec::with_capacity(expired.len());
+            for (task, lease) in expired {
+                let r = Self::retry(
+                    &tx,
+                    task,
+                    lease,
+                    "expired",
+                    "the lease expired: the worker stopped renewing it (died, hung or lost the network)",
+                    now,
+                    policy,
+                )?;
+                out.push((task, r));
+            }
+            Ok(out)
         })
     }
 

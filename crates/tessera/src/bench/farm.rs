@@ -5,9 +5,10 @@
 //!   of the registry (or those given): wall times, whether the two EXRs are byte-identical,
 //!   each method's result bytes per task and per pixel (uploaded and before compression), the
 //!   processes' peak resident memory, and the data directory against the jobs' output.
-//! - `bench leases`: how many leases per second a coordinator grants to many simulated workers
-//!   over loopback HTTP, leasing only and leasing + running the (tiny) task + posting its
-//!   result.
+//! - `bench leases`: how many leases per second coordinators grant to many simulated workers
+//!   over loopback HTTP (the workers spread over the coordinators), and the latency of a lease,
+//!   leasing only and leasing + running the (tiny) task + posting its result; on the embedded
+//!   SQLite store or on PostgreSQL (`--store`), with one or several coordinators sharing it.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -50,6 +51,12 @@ pub struct LeaseArgs {
     /// Tile side: 256×256 with 2-pixel tiles is 16384 tasks.
     #[arg(long, default_value_t = 2)]
     pub tile: u32,
+    /// The job store: a PostgreSQL URL (default: the embedded SQLite).
+    #[arg(long)]
+    pub store: Option<String>,
+    /// Coordinators sharing the store (more than one needs --store), in this process.
+    #[arg(long, default_value_t = 1)]
+    pub coordinators: u32,
 }
 
 /// A coordinator on loopback with `local_workers` supervised workers, once they have all
@@ -380,10 +387,28 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
 }
 
 pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.coordinators >= 1 && (args.coordinators == 1 || args.store.is_some()),
+        "--coordinators: more than one shares a store; give it with --store postgres://…"
+    );
     let dir = tempfile_dir()?;
-    let (running, client) = local_coordinator(dir.join("data"), 0).await?;
-    let worker_token = running.app.config.worker_token.clone();
-    let url = format!("http://{}", running.addr);
+    let (client_token, worker_token) = (coordinator::random_token()?, coordinator::random_token()?);
+    let mut coordinators = Vec::new();
+    for _ in 0..args.coordinators {
+        let mut config = Config::new(
+            "127.0.0.1:0".parse()?,
+            dir.join("data"),
+            client_token.clone(),
+            worker_token.clone(),
+        );
+        config.store = args.store.clone();
+        coordinators.push(coordinator::start(config).await?);
+    }
+    let urls: Vec<String> = coordinators
+        .iter()
+        .map(|c| format!("http://{}", c.addr))
+        .collect();
+    let client = Client::new(&urls[0], &client_token)?;
     let (bundle, desc, scene_name) = Bundle::pack_scene(&args.scene)?;
     let info = client
         .upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?)
@@ -422,7 +447,8 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
         let start = Instant::now();
         let mut handles = Vec::new();
         for i in 0..args.workers {
-            let (url, token, granted) = (url.clone(), worker_token.clone(), granted.clone());
+            let url = urls[i as usize % urls.len()].clone();
+            let (token, granted) = (worker_token.clone(), granted.clone());
             let (plan, scene, desc, dir) =
                 (plan.clone(), scene.clone(), planned.clone(), dir.clone());
             handles.push(tokio::spawn(async move {
@@ -431,7 +457,13 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
                     worker: WorkerInfo::simulated(&format!("sim-{i}")),
                     wait_ms: 0,
                 };
-                while let Some(grant) = client.lease(&req).await? {
+                let mut latencies = Vec::new();
+                loop {
+                    let asked = Instant::now();
+                    let Some(grant) = client.lease(&req).await? else {
+                        break;
+                    };
+                    latencies.push(asked.elapsed().as_secs_f64());
                     granted.fetch_add(1, Relaxed);
                     if complete {
                         let path = dir.join(format!("{}.tswf", grant.task_id));
@@ -442,17 +474,26 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
                         let _ = std::fs::remove_file(&path);
                     }
                 }
-                anyhow::Ok(())
+                anyhow::Ok(latencies)
             }));
         }
+        let mut latencies = Vec::new();
         for h in handles {
-            h.await??;
+            latencies.extend(h.await??);
         }
         let secs = start.elapsed().as_secs_f64();
         let n = granted.load(Relaxed);
         anyhow::ensure!(n == tasks, "granted {n} of {tasks} tasks");
+        latencies.sort_by(f64::total_cmp);
+        let quantile = |q: f64| latencies[((latencies.len() - 1) as f64 * q) as usize] * 1e3;
         crate::print(&format!(
-            "{} simulated workers, {n} tasks, {}: {:.2} s, {:.0} leases/s\n",
+            "{} store, {} coordinator(s), {} simulated workers, {n} tasks, {}: {:.2} s, {:.0} leases/s, lease latency p50 {:.1} ms, p99 {:.1} ms\n",
+            if args.store.is_some() {
+                "PostgreSQL"
+            } else {
+                "SQLite"
+            },
+            args.coordinators,
             args.workers,
             if complete {
                 "lease + run + result"
@@ -460,7 +501,9 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
                 "lease only"
             },
             secs,
-            n as f64 / secs
+            n as f64 / secs,
+            quantile(0.5),
+            quantile(0.99),
         ))?;
         if complete {
             // Let the coordinator fold and write the frame before it stops.
@@ -471,7 +514,9 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
             client.cancel(job.id).await?;
         }
     }
-    running.stop().await?;
+    for c in coordinators {
+        c.stop().await?;
+    }
     let _ = std::fs::remove_dir_all(&dir);
     Ok(())
 }
