@@ -47,6 +47,27 @@ impl App {
         let Some(retain) = self.config.retain else {
             return;
         };
+        self.alone("retention", || self.delete_ended_before(retain));
+    }
+
+    /// Runs `f` unless another coordinator sharing the store is running work of this `name`
+    /// (under a claim, released after).
+    fn alone(&self, name: &str, f: impl FnOnce()) {
+        match self.store.claim(name, &self.id, now_ms(), self.claim_ms()) {
+            Ok(crate::store::Claim::Refused(owner)) => {
+                tracing::debug!(claim = name, %owner, "left to another coordinator");
+            }
+            Ok(_) => {
+                f();
+                if let Err(e) = self.store.release(name, &self.id) {
+                    tracing::warn!(claim = name, error = %e, "releasing a claim");
+                }
+            }
+            Err(e) => tracing::warn!(claim = name, error = %e, "claiming"),
+        }
+    }
+
+    fn delete_ended_before(&self, retain: std::time::Duration) {
         let before = now_ms() - retain.as_millis() as i64;
         match self.store.ended_before(before) {
             Ok(jobs) => {
@@ -63,6 +84,10 @@ impl App {
     /// Evicts the least recently used artifacts until the cache is within `--cache-max-gib`,
     /// keeping those a job that has not ended reads.
     pub(super) fn enforce_cache_cap(&self) {
+        self.alone("cache eviction", || self.evict_over_cap());
+    }
+
+    fn evict_over_cap(&self) {
         let entries = match self.store.cache_entries() {
             Ok(e) => e,
             Err(e) => {
