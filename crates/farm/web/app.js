@@ -119,8 +119,15 @@ function jobActions(j, small) {
   if (["done", "failed", "cancelled"].includes(j.state))
     out.push(b("Delete", () => {
       if (!confirm(`Delete job ${j.id} "${j.name}" with its frames?`)) return;
+      // The job's page asks nothing more of a job being deleted (a question after the delete
+      // would be a 404).
+      const view = app.view && app.view.jobId === j.id ? app.view : null;
+      if (view) view.gone = true;
       act(api(`/v1/jobs/${j.id}`, { method: "DELETE" }).then(() => {
-        if (app.view && app.view.jobId === j.id) { app.view.gone = true; navigate("/"); }
+        if (view) navigate("/");
+      }, (e) => {
+        if (view) view.gone = false;
+        throw e;
       }), `Job ${j.id} deleted`);
     }, "danger"));
   return out;
@@ -133,6 +140,7 @@ function setPriority(j, p) {
 // ---------------------------------------------------------------- jobs list
 
 const STATES = ["running", "queued", "paused", "done", "failed", "cancelled"];
+const ENDED = ["done", "failed", "cancelled"];
 
 class JobsView {
   constructor(params) {
@@ -264,7 +272,8 @@ class JobView {
   onEvent(e) {
     if (e.type === "job_deleted" && e.id === this.jobId) { this.gone = true; return; }
     if (e.type === "job" && e.id === this.jobId) { this.refresh(); this.refreshPreview(); }
-    if (e.type === "worker") this.refresh();
+    // Workers' leases change the tile map of a job that runs; an ended job has none.
+    if (e.type === "worker" && !(this.job && ENDED.includes(this.job.state))) this.refresh();
   }
   async load() {
     if (this.gone || !this.root.isConnected) return;
