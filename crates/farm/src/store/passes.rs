@@ -168,14 +168,7 @@ impl Store {
                 return Ok(false);
             }
             // Only a job still running gets more tasks.
-            let running = tx
-                .query_row(
-                    "SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
-                    params![job],
-                    |_| Ok(()),
-                )
-                .optional()?
-                .is_some();
+            let running = Self::job_open(tx, job)?;
             let waiting: Option<u32> = tx
                 .query_row(
                     "SELECT step FROM passes WHERE job_id = ?1 AND state = 'waiting' ORDER BY step LIMIT 1",

@@ -484,6 +484,18 @@ impl Store {
         Ok(n == 1)
     }
 
+    /// Whether a job exists and has not ended (it may still get tasks).
+    pub(super) fn job_open(tx: &Conn, job: i64) -> Result<bool> {
+        Ok(tx
+            .query_row(
+                "SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
+                params![job],
+                |_| Ok(()),
+            )
+            .optional()?
+            .is_some())
+    }
+
     /// Cancels a job that has not ended; false if it had.
     pub fn cancel(&self, job: i64, now: i64) -> Result<bool> {
         self.db.write(|tx| {
@@ -513,14 +525,7 @@ impl Store {
             )));
         }
         self.db.write(|tx| {
-            let running = tx
-                .query_row(
-                    "SELECT 1 FROM jobs WHERE id = ?1 AND state IN ('queued', 'running', 'paused')",
-                    params![job],
-                    |_| Ok(()),
-                )
-                .optional()?
-                .is_some();
+            let running = Self::job_open(tx, job)?;
             let exists = tx
                 .query_row(
                     "SELECT 1 FROM tasks WHERE job_id = ?1 AND frame = ?2 AND step = ?3 LIMIT 1",
