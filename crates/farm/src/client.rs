@@ -1,5 +1,7 @@
 //! An HTTP client of the coordinator's API, for `tessera submit`, workers and tests.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use std::time::Duration;
 
 use anyhow::Context;
@@ -8,9 +10,13 @@ use serde::de::DeserializeOwned;
 
 use crate::protocol::*;
 
+/// A client of one farm through any of its coordinators: requests go to one of them until it
+/// cannot be reached, then to the next (coordinators sharing a store serve the same API).
 #[derive(Clone)]
 pub struct Client {
-    base: String,
+    bases: Arc<[String]>,
+    /// The index of the coordinator in use, shared by clones.
+    current: Arc<AtomicUsize>,
     token: String,
     http: reqwest::Client,
 }
@@ -28,9 +34,10 @@ impl Client {
         Self::with_ca(base, token, None)
     }
 
-    /// A client of the coordinator at `base` (`http://` or `https://`); `ca` a PEM file of
-    /// a private certificate authority to trust besides the system's (a self-signed
-    /// coordinator's certificate, say).
+    /// A client of the coordinator at `base` (`http://` or `https://`), or of any of several
+    /// separated by commas (`http://a:8720,http://b:8720`); `ca` a PEM file of a private
+    /// certificate authority to trust besides the system's (a self-signed coordinator's
+    /// certificate, say).
     pub fn with_ca(
         base: &str,
         token: &str,
@@ -55,15 +62,63 @@ impl Client {
             }
         }
         let http = builder.build().context("cannot create the HTTP client")?;
+        let bases: Vec<String> = base
+            .split(',')
+            .map(|b| b.trim().trim_end_matches('/').to_string())
+            .filter(|b| !b.is_empty())
+            .collect();
+        anyhow::ensure!(
+            !bases.is_empty(),
+            "the coordinator URL is empty: expected http://host:port (or several, comma-separated)"
+        );
         Ok(Client {
-            base: base.trim_end_matches('/').to_string(),
+            bases: bases.into(),
+            current: Arc::new(AtomicUsize::new(0)),
             token: token.to_string(),
             http,
         })
     }
 
+    /// The coordinator in use.
+    fn base(&self) -> &str {
+        &self.bases[self.current.load(Relaxed) % self.bases.len()]
+    }
+
     pub fn url(&self, path: &str) -> String {
-        format!("{}{path}", self.base)
+        format!("{}{path}", self.base())
+    }
+
+    /// `request` sent to the coordinator in use instead of the one it was made for.
+    fn rebased(&self, mut request: reqwest::Request) -> Option<reqwest::Request> {
+        let url = request.url().as_str();
+        let path = self
+            .bases
+            .iter()
+            .filter(|b| url.starts_with(b.as_str()))
+            .max_by_key(|b| b.len())
+            .map(|b| url[b.len()..].to_string())?;
+        *request.url_mut() = reqwest::Url::parse(&format!("{}{path}", self.base())).ok()?;
+        Some(request)
+    }
+
+    /// After a request to `url` could not reach its coordinator, the next requests go to the
+    /// next one (unless another request has moved on already).
+    fn fail_over(&self, url: Option<&reqwest::Url>) {
+        if self.bases.len() < 2 {
+            return;
+        }
+        let i = self.current.load(Relaxed);
+        let failed = &self.bases[i % self.bases.len()];
+        if url.is_some_and(|u| u.as_str().starts_with(failed.as_str())) {
+            let next = (i + 1) % self.bases.len();
+            if self
+                .current
+                .compare_exchange(i, next, Relaxed, Relaxed)
+                .is_ok()
+            {
+                tracing::warn!(from = %failed, to = %self.bases[next], "coordinator unreachable; using the next");
+            }
+        }
     }
 
     fn request(&self, method: reqwest::Method, path: &str) -> reqwest::RequestBuilder {
@@ -72,9 +127,32 @@ impl Client {
             .bearer_auth(&self.token)
     }
 
-    /// Sends and turns a non-success status into an [`ApiError`] with the JSON message.
-    async fn send(rb: reqwest::RequestBuilder) -> anyhow::Result<reqwest::Response> {
-        let response = rb.send().await?;
+    /// Sends and turns a non-success status into an [`ApiError`] with the JSON message. A
+    /// request that could not connect never reached a coordinator, so it is sent again to the
+    /// next one (each is tried once; a streamed body cannot be sent twice).
+    async fn send(&self, rb: reqwest::RequestBuilder) -> anyhow::Result<reqwest::Response> {
+        let mut request = rb.build()?;
+        let mut tries = self.bases.len();
+        let response = loop {
+            let again = if tries > 1 { request.try_clone() } else { None };
+            match self.http.execute(request).await {
+                Ok(r) => break r,
+                Err(e) if e.is_connect() || e.is_timeout() => {
+                    self.fail_over(e.url());
+                    match again
+                        .filter(|_| e.is_connect())
+                        .and_then(|r| self.rebased(r))
+                    {
+                        Some(next) => {
+                            request = next;
+                            tries -= 1;
+                        }
+                        None => return Err(e.into()),
+                    }
+                }
+                Err(e) => return Err(e.into()),
+            }
+        };
         let status = response.status();
         if status.is_success() {
             return Ok(response);
@@ -86,12 +164,12 @@ impl Client {
         Err(ApiError { status, message }.into())
     }
 
-    async fn json<T: DeserializeOwned>(rb: reqwest::RequestBuilder) -> anyhow::Result<T> {
-        Ok(Self::send(rb).await?.json().await?)
+    async fn json<T: DeserializeOwned>(&self, rb: reqwest::RequestBuilder) -> anyhow::Result<T> {
+        Ok(self.send(rb).await?.json().await?)
     }
 
     pub async fn upload_bundle(&self, tar: Vec<u8>) -> anyhow::Result<BundleInfo> {
-        Self::json(
+        self.json(
             self.request(reqwest::Method::POST, "/v1/bundles")
                 .header("content-type", "application/x-tar")
                 .body(tar),
@@ -100,28 +178,32 @@ impl Client {
     }
 
     pub async fn download_bundle(&self, hash: &str) -> anyhow::Result<Vec<u8>> {
-        let r =
-            Self::send(self.request(reqwest::Method::GET, &format!("/v1/bundles/{hash}"))).await?;
+        let r = self
+            .send(self.request(reqwest::Method::GET, &format!("/v1/bundles/{hash}")))
+            .await?;
         Ok(r.bytes().await?.to_vec())
     }
 
     /// The body of a GET of `path` (an artifact, a step's input).
     pub async fn get_bytes(&self, path: &str) -> anyhow::Result<Vec<u8>> {
-        let r = Self::send(self.request(reqwest::Method::GET, path)).await?;
+        let r = self.send(self.request(reqwest::Method::GET, path)).await?;
         Ok(r.bytes().await?.to_vec())
     }
 
     pub async fn submit(&self, job: &JobRequest) -> anyhow::Result<JobStatus> {
-        Self::json(self.request(reqwest::Method::POST, "/v1/jobs").json(job)).await
+        self.json(self.request(reqwest::Method::POST, "/v1/jobs").json(job))
+            .await
     }
 
     pub async fn job(&self, id: i64) -> anyhow::Result<JobStatus> {
-        Self::json(self.request(reqwest::Method::GET, &format!("/v1/jobs/{id}"))).await
+        self.json(self.request(reqwest::Method::GET, &format!("/v1/jobs/{id}")))
+            .await
     }
 
     /// A page of jobs; `query` as `GET /v1/jobs` takes it (`state=running&limit=20`).
     pub async fn jobs(&self, query: &str) -> anyhow::Result<JobList> {
-        Self::json(self.request(reqwest::Method::GET, &format!("/v1/jobs?{query}"))).await
+        self.json(self.request(reqwest::Method::GET, &format!("/v1/jobs?{query}")))
+            .await
     }
 
     /// A job's attempts, newest first (failures first if asked), at most `limit`.
@@ -131,7 +213,7 @@ impl Client {
         failures_first: bool,
         limit: u64,
     ) -> anyhow::Result<Vec<AttemptStatus>> {
-        Self::json(self.request(
+        self.json(self.request(
             reqwest::Method::GET,
             &format!("/v1/jobs/{id}/attempts?failures_first={failures_first}&limit={limit}"),
         ))
@@ -140,11 +222,12 @@ impl Client {
 
     /// `POST /v1/jobs/{id}/{action}`: pause, resume, requeue.
     pub async fn job_action(&self, id: i64, action: &str) -> anyhow::Result<JobStatus> {
-        Self::json(self.request(reqwest::Method::POST, &format!("/v1/jobs/{id}/{action}"))).await
+        self.json(self.request(reqwest::Method::POST, &format!("/v1/jobs/{id}/{action}")))
+            .await
     }
 
     pub async fn patch_job(&self, id: i64, patch: &JobPatch) -> anyhow::Result<JobStatus> {
-        Self::json(
+        self.json(
             self.request(reqwest::Method::PATCH, &format!("/v1/jobs/{id}"))
                 .json(patch),
         )
@@ -154,7 +237,7 @@ impl Client {
     /// Drains a worker, or lets it take work again.
     pub async fn drain(&self, worker: &str, drain: bool) -> anyhow::Result<WorkerStatus> {
         let action = if drain { "drain" } else { "undrain" };
-        Self::json(self.request(
+        self.json(self.request(
             reqwest::Method::POST,
             &format!("/v1/workers/{}/{action}", urlencoding::encode(worker)),
         ))
@@ -164,7 +247,7 @@ impl Client {
     /// Lifts a worker's blocklisting for `job`, or for every job.
     pub async fn unblock(&self, worker: &str, job: Option<i64>) -> anyhow::Result<WorkerStatus> {
         let query = job.map_or(String::new(), |j| format!("?job={j}"));
-        Self::json(self.request(
+        self.json(self.request(
             reqwest::Method::POST,
             &format!("/v1/workers/{}/unblock{query}", urlencoding::encode(worker)),
         ))
@@ -172,42 +255,48 @@ impl Client {
     }
 
     pub async fn tasks(&self, id: i64) -> anyhow::Result<Vec<TaskStatus>> {
-        Self::json(self.request(reqwest::Method::GET, &format!("/v1/jobs/{id}/tasks"))).await
+        self.json(self.request(reqwest::Method::GET, &format!("/v1/jobs/{id}/tasks")))
+            .await
     }
 
     pub async fn workers(&self) -> anyhow::Result<Vec<WorkerStatus>> {
-        Self::json(self.request(reqwest::Method::GET, "/v1/workers")).await
+        self.json(self.request(reqwest::Method::GET, "/v1/workers"))
+            .await
     }
 
     pub async fn cancel(&self, id: i64) -> anyhow::Result<JobStatus> {
-        Self::json(self.request(reqwest::Method::POST, &format!("/v1/jobs/{id}/cancel"))).await
+        self.json(self.request(reqwest::Method::POST, &format!("/v1/jobs/{id}/cancel")))
+            .await
     }
 
     pub async fn frame_exr(&self, id: i64, frame: u32) -> anyhow::Result<Vec<u8>> {
-        let r = Self::send(self.request(
-            reqwest::Method::GET,
-            &format!("/v1/jobs/{id}/frames/{frame}/exr"),
-        ))
-        .await?;
+        let r = self
+            .send(self.request(
+                reqwest::Method::GET,
+                &format!("/v1/jobs/{id}/frames/{frame}/exr"),
+            ))
+            .await?;
         Ok(r.bytes().await?.to_vec())
     }
 
     pub async fn frame_preview(&self, id: i64, frame: u32) -> anyhow::Result<Vec<u8>> {
-        let r = Self::send(self.request(
-            reqwest::Method::GET,
-            &format!("/v1/jobs/{id}/frames/{frame}/preview.png"),
-        ))
-        .await?;
+        let r = self
+            .send(self.request(
+                reqwest::Method::GET,
+                &format!("/v1/jobs/{id}/frames/{frame}/preview.png"),
+            ))
+            .await?;
         Ok(r.bytes().await?.to_vec())
     }
 
     /// Leases a task, waiting up to `wait_ms`; `None` when none was queued.
     pub async fn lease(&self, req: &LeaseRequest) -> anyhow::Result<Option<LeaseGrant>> {
-        let r = Self::send(
-            self.request(reqwest::Method::POST, "/v1/tasks/lease")
-                .json(req),
-        )
-        .await?;
+        let r = self
+            .send(
+                self.request(reqwest::Method::POST, "/v1/tasks/lease")
+                    .json(req),
+            )
+            .await?;
         if r.status() == StatusCode::NO_CONTENT {
             return Ok(None);
         }
@@ -215,7 +304,7 @@ impl Client {
     }
 
     pub async fn heartbeat(&self, task: i64, hb: &Heartbeat) -> anyhow::Result<()> {
-        Self::send(
+        self.send(
             self.request(
                 reqwest::Method::POST,
                 &format!("/v1/tasks/{task}/heartbeat"),
@@ -239,7 +328,7 @@ impl Client {
             .with_context(|| path.display().to_string())?;
         let len = file.metadata().await?.len();
         let body = reqwest::Body::wrap_stream(tokio_util::io::ReaderStream::new(file));
-        Self::send(
+        self.send(
             self.request(
                 reqwest::Method::PUT,
                 &format!("/v1/tasks/{task}/result?lease={lease}&seconds={seconds}"),
@@ -254,16 +343,18 @@ impl Client {
 
     /// Deletes a job that has ended.
     pub async fn delete(&self, id: i64) -> anyhow::Result<()> {
-        Self::send(self.request(reqwest::Method::DELETE, &format!("/v1/jobs/{id}"))).await?;
+        self.send(self.request(reqwest::Method::DELETE, &format!("/v1/jobs/{id}")))
+            .await?;
         Ok(())
     }
 
     pub async fn methods(&self) -> anyhow::Result<Vec<MethodStatus>> {
-        Self::json(self.request(reqwest::Method::GET, "/v1/methods")).await
+        self.json(self.request(reqwest::Method::GET, "/v1/methods"))
+            .await
     }
 
     pub async fn fail(&self, task: i64, failure: &Failure) -> anyhow::Result<()> {
-        Self::send(
+        self.send(
             self.request(reqwest::Method::POST, &format!("/v1/tasks/{task}/fail"))
                 .json(failure),
         )

@@ -485,3 +485,39 @@ async fn openapi_document_describes_the_api() {
     }
     running.stop().await.expect("stop");
 }
+
+/// A client given several coordinators moves to the next when one cannot be reached (the
+/// request included), and stays there.
+#[tokio::test]
+async fn a_client_of_several_coordinators_fails_over_to_one_that_answers() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let running = start(dir.path()).await;
+    // A port nobody listens on: bound, then closed.
+    let dead = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    let dead_addr = dead.local_addr().expect("addr");
+    drop(dead);
+    let urls = format!("http://{dead_addr}, http://{}/", running.addr);
+    let client = tessera_farm::client::Client::new(&urls, CLIENT).expect("client");
+    // The request that found the first down is sent again to the second, and later requests
+    // (of clones too) go to the second first.
+    client.jobs("limit=1").await.expect("the second answers");
+    assert_eq!(client.url("/x"), format!("http://{}/x", running.addr));
+    client
+        .clone()
+        .jobs("limit=1")
+        .await
+        .expect("still the second");
+    // With every coordinator down, the error is the connection's: worth retrying later.
+    let down =
+        tessera_farm::client::Client::new(&format!("http://{dead_addr}"), CLIENT).expect("client");
+    let e = down.jobs("limit=1").await.expect_err("nobody listens");
+    assert!(tessera_farm::client::is_transient(&e), "{e:#}");
+    // A list with nothing in it is refused, naming what was expected.
+    let empty = tessera_farm::client::Client::new(" , ", CLIENT)
+        .err()
+        .expect("refused");
+    assert!(
+        format!("{empty}").contains("expected http://host:port"),
+        "{empty}"
+    );
+}

@@ -157,7 +157,8 @@ pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
 
 #[derive(clap::Args)]
 pub struct WorkerArgs {
-    /// The coordinator's URL.
+    /// The coordinator's URL, or several of one farm, comma-separated (coordinators sharing a
+    /// store): the next is used when one cannot be reached.
     #[arg(long, env = "TESSERA_COORDINATOR")]
     pub coordinator: String,
     /// The worker token.

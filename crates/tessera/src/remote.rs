@@ -14,7 +14,8 @@ use tessera_farm::protocol::{AttemptStatus, JobList, JobPatch, JobState, JobStat
 /// How to reach the coordinator.
 #[derive(clap::Args, Clone, Default)]
 pub struct Remote {
-    /// The coordinator's URL (http:// or https://).
+    /// The coordinator's URL (http:// or https://), or several of one farm, comma-separated
+    /// (the next is used when one cannot be reached).
     #[arg(long, env = "TESSERA_COORDINATOR")]
     pub coordinator: Option<String>,
     /// The client token.
