@@ -457,6 +457,22 @@ impl Store {
         self.db.conn()
     }
 
+    /// The store's size, bytes: SQLite's pages (its write-ahead log not counted), or on
+    /// PostgreSQL the tables of the store's schema with their indexes and TOAST.
+    pub fn size_bytes(&self) -> Result<i64> {
+        let sql = match self.db.dialect() {
+            Dialect::Sqlite => {
+                "SELECT page_count * page_size FROM pragma_page_count(), pragma_page_size()"
+            }
+            Dialect::Postgres => {
+                "SELECT COALESCE(SUM(pg_total_relation_size(c.oid)), 0)::BIGINT FROM pg_class c
+                 JOIN pg_namespace n ON n.oid = c.relnamespace
+                 WHERE n.nspname = current_schema() AND c.relkind = 'r'"
+            }
+        };
+        self.conn()?.query_row(sql, params![], |r| r.get(0))
+    }
+
     /// Moves SQLite's write-ahead log into the database and truncates it (after a job ends:
     /// the log would otherwise keep the size of its busiest moment); nothing on PostgreSQL.
     pub fn checkpoint(&self) -> Result<()> {
@@ -594,6 +610,19 @@ pub(crate) mod tests {
             ),
         };
         c.execute_batch(&sql).expect("version");
+    }
+
+    #[test]
+    fn the_store_size_counts_its_tables_and_grows_with_jobs() {
+        let (_dir, small, _) = store(&[0], 1);
+        let (_dir2, big, _) = store(&[0; 20], 500);
+        let (a, b) = (
+            small.size_bytes().expect("size"),
+            big.size_bytes().expect("size"),
+        );
+        // At least a page per table, and 10,000 tasks take more room than one.
+        assert!(a >= 4096, "{a}");
+        assert!(b > a + 10_000 * 50, "{a} then {b}");
     }
 
     #[test]

@@ -87,25 +87,24 @@ pub(super) async fn local_coordinator(
     Ok((running, client))
 }
 
-/// `tessera serve --local-workers N` as a process of its own (so its memory is its own), on a
-/// free port, once its workers have asked for work; with a client of it.
-async fn serve_process(
+/// `tessera serve --local-workers N` as a process of its own (so its memory and CPU are its
+/// own), on a free port, on the embedded store or `store`, once its workers have asked for
+/// work; with a client of it and the worker token.
+pub(super) async fn serve_process(
     data: &Path,
     local_workers: u32,
-) -> anyhow::Result<(tokio::process::Child, Client)> {
+    store: Option<&str>,
+) -> anyhow::Result<(tokio::process::Child, Client, String)> {
     use tokio::io::AsyncBufReadExt;
     let token = coordinator::random_token()?;
+    let worker_token = coordinator::random_token()?;
     let mut child = tokio::process::Command::new(std::env::current_exe()?)
         .args(["serve", "--listen", "127.0.0.1:0", "--local-workers"])
         .arg(local_workers.to_string())
         .arg("--data")
         .arg(data)
-        .args([
-            "--client-token",
-            &token,
-            "--worker-token",
-            &coordinator::random_token()?,
-        ])
+        .args(["--client-token", &token, "--worker-token", &worker_token])
+        .args(store.map(|s| ["--store", s]).into_iter().flatten())
         .env("RUST_LOG", "warn")
         .stdout(std::process::Stdio::piped())
         .kill_on_drop(true)
@@ -131,7 +130,7 @@ async fn serve_process(
         );
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
-    Ok((child, client))
+    Ok((child, client, worker_token))
 }
 
 /// Peak resident memory of a process (`VmHWM`), MiB, where the platform tells it.
@@ -182,7 +181,7 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
     let dir = tempfile_dir()?;
     let exe = std::env::current_exe()?;
     let data = dir.join("data");
-    let (mut serve, client) = serve_process(&data, args.workers).await?;
+    let (mut serve, client, _) = serve_process(&data, args.workers, None).await?;
     let serve_pid = serve.id().context("serve's pid")?;
     let (bundle, desc, scene_name) = Bundle::pack_scene(&args.scene)?;
     let tar = bundle.to_tar().map_err(anyhow::Error::msg)?;
@@ -522,7 +521,7 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
 }
 
 /// Runs a task of `plan` in this process and writes its result as a worker does.
-fn write_result(
+pub(super) fn write_result(
     plan: &dyn tessera_render::method::Plan,
     scene: &tessera_render::Scene,
     desc: &tessera_scene::SceneDesc,

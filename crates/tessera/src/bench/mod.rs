@@ -3,6 +3,8 @@
 //! - `tessera bench SCENE --reference REF.exr`: speed against error (`error.rs`).
 //! - `tessera bench farm` / `tessera bench leases`: the farm's overhead and lease throughput
 //!   (`farm.rs`).
+//! - `tessera bench soak`: a simulated farm of many workers for minutes: no task lost or done
+//!   twice, the store's size, the coordinator's CPU (`soak.rs`).
 //! - `tessera bench flythrough`: pass artifacts cached across a fly-through's frames against
 //!   built per frame: time and flicker (`flythrough.rs`).
 //! - `tessera bench load SCENE`: reading, BVH building and the first pixels of a
@@ -16,6 +18,7 @@ mod farm;
 mod flythrough;
 mod load;
 mod plot;
+mod soak;
 
 pub use error::ErrorArgs;
 
@@ -34,6 +37,8 @@ pub enum BenchCommand {
     Farm(farm::FarmArgs),
     /// Lease throughput with many simulated workers.
     Leases(farm::LeaseArgs),
+    /// A simulated farm for minutes: no task lost or done twice, store size, coordinator CPU.
+    Soak(soak::SoakArgs),
     /// A camera-only fly-through on local workers, pass artifacts cached vs built per frame.
     Flythrough(flythrough::FlythroughArgs),
     /// Load, BVH build and first pixels of a scene, and its memory.
@@ -46,6 +51,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     match args.command {
         Some(BenchCommand::Farm(a)) => crate::block_on(farm::farm(a)),
         Some(BenchCommand::Leases(a)) => crate::block_on(farm::leases(a)),
+        Some(BenchCommand::Soak(a)) => crate::block_on(soak::run(a)),
         Some(BenchCommand::Flythrough(a)) => crate::block_on(flythrough::run(a)),
         Some(BenchCommand::Load(a)) => load::run(a),
         Some(BenchCommand::Dashboard(a)) => crate::block_on(dashboard::run(a)),
