@@ -292,6 +292,42 @@ fn an_adaptive_job_adds_rounds_and_equals_an_adaptive_render() {
     );
 }
 
+/// A job of some frames of a fly-through plans its passes from those frames (the irradiance
+/// cache's keyframes); its workers must plan it alike, or the artifact keys its tasks read
+/// differ from those the coordinator built (a 1920×1080 photon-mapped frame of the fly-through
+/// in scripts/testfarm failed so).
+#[test]
+fn a_photon_mapped_job_of_later_frames_equals_tessera_render_of_them() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (_serve, url) = serve(&dir.path().join("data"), "127.0.0.1:0", "30");
+    let _w = worker(&url, "w", &dir.path().join("w.log"));
+    let rt = runtime();
+    let client = Client::new(&url, CLIENT_TOKEN).expect("client");
+    let args = [
+        "--integrator",
+        "photon",
+        "--size",
+        "48x32",
+        "--spp",
+        "1",
+        "--tile",
+        "16",
+    ];
+    let id = submit_with(&url, &[&args[..], &["--frames", "3"]].concat());
+    let job = wait_for(&rt, &client, id, Duration::from_secs(120));
+    assert_eq!(job.state, JobState::Done, "{:?}", job.error);
+    let farm = rt.block_on(client.frame_exr(id, 3)).expect("frame");
+    let local = render_locally(
+        &flythrough(),
+        &[&args[..], &["--frame", "3"]].concat(),
+        &dir.path().join("photon.exr"),
+    );
+    assert!(
+        local == farm,
+        "the farm's photon-mapped frame 3 differs from tessera render's"
+    );
+}
+
 /// Status of a job's pass: (state, built by, key).
 fn pass(job: &JobStatus, name: &str) -> (String, Option<i64>, String) {
     let p = job

@@ -349,6 +349,9 @@ pub struct LeaseGrant {
     pub bundle: String,
     pub scene: String,
     pub settings: RenderSettings,
+    /// The job's frames: a method plans its passes from all of them (the irradiance cache's
+    /// keyframes), so a worker plans the job with the same range as the coordinator did.
+    pub frames: FrameRange,
     pub task: TaskSpec,
     /// Artifacts the task reads, by key.
     #[serde(default)]

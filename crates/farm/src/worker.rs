@@ -20,7 +20,7 @@ use tokio::sync::OnceCell;
 
 use crate::bundle::Bundle;
 use crate::client::{Client, is_transient, status_of};
-use crate::job::{self, FrameRange, Limits};
+use crate::job::{self, Limits};
 use crate::protocol::{
     Failure, Heartbeat, LeaseGrant, LeaseRequest, WorkerInfo, result_over_limit,
 };
@@ -324,16 +324,14 @@ impl Worker {
                 self.client.download_bundle(&grant.bundle)
             })
             .await?;
-            let (scene, settings) = (grant.scene.clone(), grant.settings.clone());
+            let (scene, settings, frames) =
+                (grant.scene.clone(), grant.settings.clone(), grant.frames);
             let started = Instant::now();
             let prepared = tokio::task::spawn_blocking(move || -> anyhow::Result<Prepared> {
                 let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
                 let mut desc = bundle.load(&scene)?;
-                // The job's frames are the coordinator's to check; any of them plans alike.
-                let frames = FrameRange {
-                    first: 1,
-                    last: desc.frame_count(),
-                };
+                // Planned as the coordinator planned it: the same frames give the same passes
+                // and artifact keys.
                 let plan = job::plan(&mut desc, &settings, frames, &Limits::default())
                     .map_err(anyhow::Error::msg)?;
                 Ok(Prepared {

@@ -392,7 +392,13 @@ pub(crate) fn peak_rss_mib() -> Option<f64> {
 
 /// CPU time of this process (user + system), where the platform tells it.
 pub(crate) fn cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    process_cpu_seconds("self")
+}
+
+/// CPU time (user + system) of the process `pid` (a number, or `self`), seconds, where the
+/// platform tells it.
+pub(crate) fn process_cpu_seconds(pid: &str) -> Option<f64> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
     // Fields after the command name (which is in parentheses and may contain spaces).
     let rest = &stat[stat.rfind(')')? + 2..];
     let fields: Vec<&str> = rest.split_whitespace().collect();

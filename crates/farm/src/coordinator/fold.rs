@@ -219,6 +219,21 @@ impl App {
         }
     }
 
+    /// Claims the fold of `key` for this coordinator: `Some(owner)` when another holds it. A
+    /// claim newly taken (over a lapsed one, maybe this coordinator's own) drops what this
+    /// coordinator held of the fold, since another may have folded more since.
+    fn claim_fold(&self, key: StepKey) -> anyhow::Result<Option<String>> {
+        match self
+            .store
+            .claim(&claim_name(key), &self.id, now_ms(), self.claim_ms())?
+        {
+            Claim::Refused(owner) => return Ok(Some(owner)),
+            Claim::Taken => self.folds.forget(key),
+            Claim::Held => {}
+        }
+        Ok(None)
+    }
+
     /// Folds what can be folded of `key`'s frame or pass (blocking).
     pub(super) fn fold(&self, key: StepKey) -> anyhow::Result<()> {
         let name = claim_name(key);
@@ -227,13 +242,8 @@ impl App {
             return Ok(());
         }
         // One coordinator folds a frame or a pass; another's results wait for it.
-        match self
-            .store
-            .claim(&name, &self.id, now_ms(), self.claim_ms())?
-        {
-            Claim::Refused(_) => return Ok(()),
-            Claim::Taken => self.folds.forget(key),
-            Claim::Held => {}
+        if self.claim_fold(key)?.is_some() {
+            return Ok(());
         }
         let job = self.job_plan(key.job)?;
         let mut inner = self.folds.lock();
@@ -253,19 +263,12 @@ impl App {
             frame,
             step: 0,
         };
-        match self
-            .store
-            .claim(&claim_name(key), &self.id, now_ms(), self.claim_ms())?
-        {
-            // Another coordinator folds this frame: it has the preview.
-            Claim::Refused(owner) => {
-                return Err(FoldedElsewhere(format!(
-                    "frame {frame} of job {job_id} is being folded by coordinator {owner}: its preview is there"
-                ))
-                .into());
-            }
-            Claim::Taken => self.folds.forget(key),
-            Claim::Held => {}
+        // Another coordinator folds this frame: it has the preview.
+        if let Some(owner) = self.claim_fold(key)? {
+            return Err(FoldedElsewhere(format!(
+                "frame {frame} of job {job_id} is being folded by coordinator {owner}: its preview is there"
+            ))
+            .into());
         }
         let mut inner = self.folds.lock();
         self.fold_frame(&mut inner, &job, job_id, frame)?;

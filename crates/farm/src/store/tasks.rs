@@ -3,7 +3,7 @@
 use super::db::{Conn, Optional, params};
 
 use super::{Result, SPEC_COLUMNS, Store, StoreError, from_json, task_spec};
-use crate::job::TaskSpec;
+use crate::job::{FrameRange, TaskSpec};
 use crate::protocol::{LeaseGrant, WorkerInfo};
 
 /// A step of a job: a frame's (frame ≥ 1) or a pass's (frame 0, step = the pass's position).
@@ -143,14 +143,21 @@ impl Store {
                 let Some((task_id, job_id)) = Self::next_task(tx, worker)? else {
                     return Ok(None);
                 };
-                let (bundle, scene, settings, spec): (String, String, String, TaskSpec) = tx
-                    .query_row(
+                let (bundle, scene, settings, frames, spec): (String, String, String, _, TaskSpec) =
+                    tx.query_row(
                         &format!(
-                            "SELECT j.bundle, j.scene, j.settings, {SPEC_COLUMNS}
+                            "SELECT j.bundle, j.scene, j.settings, j.first_frame, j.last_frame,
+                                {SPEC_COLUMNS}
                              FROM tasks t JOIN jobs j ON j.id = t.job_id WHERE t.id = ?1"
                         ),
                         params![task_id],
-                        |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, task_spec(r, 3)?)),
+                        |r| {
+                            let frames = FrameRange {
+                                first: r.get(3)?,
+                                last: r.get(4)?,
+                            };
+                            Ok((r.get(0)?, r.get(1)?, r.get(2)?, frames, task_spec(r, 5)?))
+                        },
                     )?;
                 let settings = match from_json(&settings, &format!("settings of job {job_id}")) {
                     Ok(s) => s,
@@ -183,6 +190,7 @@ impl Store {
                     bundle,
                     scene,
                     settings,
+                    frames,
                     task: spec,
                     artifacts,
                     input: None,

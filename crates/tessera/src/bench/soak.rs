@@ -39,15 +39,6 @@ pub struct SoakArgs {
     pub store: Option<String>,
 }
 
-/// CPU time of a process (user + system), seconds, where the platform tells it.
-fn cpu_seconds_of(pid: u32) -> Option<f64> {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
-    let rest = &stat[stat.rfind(')')? + 2..];
-    let fields: Vec<&str> = rest.split_whitespace().collect();
-    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
-    Some(ticks / 100.0)
-}
-
 pub async fn run(args: SoakArgs) -> anyhow::Result<()> {
     anyhow::ensure!(
         args.minutes > 0.0 && args.minutes.is_finite(),
@@ -89,7 +80,7 @@ pub async fn run(args: SoakArgs) -> anyhow::Result<()> {
     };
 
     let started = Instant::now();
-    let cpu_start = cpu_seconds_of(serve_pid);
+    let cpu_start = crate::render::process_cpu_seconds(&serve_pid.to_string());
     let deadline = started + Duration::from_secs_f64(args.minutes * 60.0);
     let submitting = Arc::new(AtomicBool::new(true));
     // Results accepted, by task: each must be 1.
@@ -182,7 +173,10 @@ pub async fn run(args: SoakArgs) -> anyhow::Result<()> {
         latencies.extend(h.await??);
     }
     let wall = started.elapsed().as_secs_f64();
-    let cpu = match (cpu_start, cpu_seconds_of(serve_pid)) {
+    let cpu = match (
+        cpu_start,
+        crate::render::process_cpu_seconds(&serve_pid.to_string()),
+    ) {
         (Some(a), Some(b)) => Some(b - a),
         _ => None,
     };
