@@ -251,19 +251,23 @@ impl Store {
         // Completions of one step wait for each other on its frame's (or pass's) row, which
         // they update before counting the step's open tasks: the last to commit sees none.
         self.db.write_row_locked(|tx| {
-            let n = tx.execute(
-                "UPDATE tasks SET state = 'done', seconds = ?3, lease_expires_ms = NULL,
-                    result_bytes = ?4, payload_bytes = ?5
-                 WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
-                params![task, lease, seconds, sizes.0 as i64, sizes.1 as i64],
-            )?;
-            if n == 0 {
+            let done: Option<(i64, u32, u32)> = tx
+                .query_row(
+                    "UPDATE tasks SET state = 'done', seconds = ?3, lease_expires_ms = NULL,
+                        result_bytes = ?4, payload_bytes = ?5
+                     WHERE id = ?1 AND lease = ?2 AND state = 'leased'
+                     RETURNING job_id, frame, step",
+                    params![task, lease, seconds, sizes.0 as i64, sizes.1 as i64],
+                    |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
+                )
+                .optional()?;
+            let Some((job, frame, step)) = done else {
                 tx.execute(
                     "UPDATE attempts SET ended_ms = ?2, outcome = 'stale' WHERE id = ?1 AND outcome IS NULL",
                     params![lease, now],
                 )?;
                 return Ok(Completion::Stale);
-            }
+            };
             tx.execute(
                 "UPDATE attempts SET ended_ms = ?2, outcome = 'done' WHERE id = ?1",
                 params![lease, now],
@@ -276,11 +280,6 @@ impl Store {
                                                             FROM tasks WHERE id = ?4 AND frame > 0), 0)
                  WHERE id = (SELECT worker FROM attempts WHERE id = ?1)",
                 params![lease, now, seconds, task],
-            )?;
-            let (job, frame, step): (i64, u32, u32) = tx.query_row(
-                "SELECT job_id, frame, step FROM tasks WHERE id = ?1",
-                params![task],
-                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
             )?;
             if frame == 0 {
                 tx.execute(

@@ -408,39 +408,11 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
         .map(|c| format!("http://{}", c.addr))
         .collect();
     let client = Client::new(&urls[0], &client_token)?;
-    let (bundle, desc, scene_name) = Bundle::pack_scene(&args.scene)?;
-    let info = client
-        .upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?)
-        .await?;
-    let settings = RenderSettings {
-        spp: Some(1),
-        tile: Some(args.tile),
-        ..Default::default()
-    };
-    // The simulated workers run the job's (tiny) tasks for real, to post real results.
-    let mut planned = desc.clone();
-    let plan = job::plan(
-        &mut planned,
-        &settings,
-        FrameRange::single(1),
-        &Limits::default(),
-    )
-    .map_err(anyhow::Error::msg)?;
-    let plan: Arc<dyn tessera_render::method::Plan> = Arc::from(plan);
-    let scene = Arc::new(tessera_render::Scene::build(&planned));
-    let planned = Arc::new(planned);
-    let submit = || JobRequest {
-        bundle: info.hash.clone(),
-        scene: scene_name.clone(),
-        name: Some("lease benchmark".into()),
-        frames: None,
-        settings: settings.clone(),
-        priority: 0,
-        require_tags: vec![],
-    };
+    let sim =
+        Arc::new(SimulatedJob::upload(&client, &args.scene, args.tile, "lease benchmark").await?);
 
     for complete in [false, true] {
-        let job = client.submit(&submit()).await?;
+        let job = client.submit(&sim.request).await?;
         let tasks = job.tasks.total;
         let granted = Arc::new(AtomicU64::new(0));
         let start = Instant::now();
@@ -448,8 +420,7 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
         for i in 0..args.workers {
             let url = urls[i as usize % urls.len()].clone();
             let (token, granted) = (worker_token.clone(), granted.clone());
-            let (plan, scene, desc, dir) =
-                (plan.clone(), scene.clone(), planned.clone(), dir.clone());
+            let (sim, dir) = (sim.clone(), dir.clone());
             handles.push(tokio::spawn(async move {
                 let client = Client::new(&url, &token)?;
                 let req = LeaseRequest {
@@ -466,7 +437,7 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
                     granted.fetch_add(1, Relaxed);
                     if complete {
                         let path = dir.join(format!("{}.tswf", grant.task_id));
-                        write_result(plan.as_ref(), &scene, &desc, &grant.task, &path)?;
+                        sim.write_result(&grant.task, &path)?;
                         client
                             .upload_result(grant.task_id, grant.lease, 0.0, &path)
                             .await?;
@@ -520,8 +491,63 @@ pub async fn leases(args: LeaseArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A job of simulated workers: the scene uploaded, at 1 spp in `tile`-pixel tiles, planned and
+/// built here too, so that a simulated worker runs its (tiny) tasks for real and posts real
+/// results.
+pub(super) struct SimulatedJob {
+    pub request: JobRequest,
+    plan: Box<dyn tessera_render::method::Plan>,
+    scene: tessera_render::Scene,
+    desc: tessera_scene::SceneDesc,
+}
+
+impl SimulatedJob {
+    pub async fn upload(
+        client: &Client,
+        scene: &Path,
+        tile: u32,
+        name: &str,
+    ) -> anyhow::Result<SimulatedJob> {
+        let (bundle, mut desc, scene_name) = Bundle::pack_scene(scene)?;
+        let info = client
+            .upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?)
+            .await?;
+        let settings = RenderSettings {
+            spp: Some(1),
+            tile: Some(tile),
+            ..Default::default()
+        };
+        let plan = job::plan(
+            &mut desc,
+            &settings,
+            FrameRange::single(1),
+            &Limits::default(),
+        )
+        .map_err(anyhow::Error::msg)?;
+        Ok(SimulatedJob {
+            request: JobRequest {
+                bundle: info.hash,
+                scene: scene_name,
+                name: Some(name.into()),
+                frames: None,
+                settings,
+                priority: 0,
+                require_tags: vec![],
+            },
+            plan,
+            scene: tessera_render::Scene::build(&desc),
+            desc,
+        })
+    }
+
+    /// Runs `task` in this process and writes its result to `path` as a worker does.
+    pub fn write_result(&self, task: &job::TaskSpec, path: &Path) -> anyhow::Result<()> {
+        write_result(self.plan.as_ref(), &self.scene, &self.desc, task, path)
+    }
+}
+
 /// Runs a task of `plan` in this process and writes its result as a worker does.
-pub(super) fn write_result(
+fn write_result(
     plan: &dyn tessera_render::method::Plan,
     scene: &tessera_render::Scene,
     desc: &tessera_scene::SceneDesc,

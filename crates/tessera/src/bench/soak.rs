@@ -13,13 +13,11 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::Context;
-use tessera_farm::bundle::Bundle;
 use tessera_farm::client::{Client, is_transient};
-use tessera_farm::job::{self, FrameRange, Limits, RenderSettings};
-use tessera_farm::protocol::{JobRequest, JobState, LeaseRequest, WorkerInfo};
+use tessera_farm::protocol::{JobState, LeaseRequest, WorkerInfo};
 use tessera_farm::store::{Location, Store};
 
-use super::farm::{peak_rss_mib, serve_process, tempfile_dir, write_result};
+use super::farm::{SimulatedJob, peak_rss_mib, serve_process, tempfile_dir};
 
 #[derive(clap::Args)]
 pub struct SoakArgs {
@@ -49,35 +47,7 @@ pub async fn run(args: SoakArgs) -> anyhow::Result<()> {
     let data = dir.join("data");
     let (mut serve, client, worker_token) = serve_process(&data, 0, args.store.as_deref()).await?;
     let serve_pid = serve.id().context("serve's pid")?;
-    let (bundle, desc, scene_name) = Bundle::pack_scene(&args.scene)?;
-    let info = client
-        .upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?)
-        .await?;
-    let settings = RenderSettings {
-        spp: Some(1),
-        tile: Some(args.tile),
-        ..Default::default()
-    };
-    let mut planned = desc.clone();
-    let plan = job::plan(
-        &mut planned,
-        &settings,
-        FrameRange::single(1),
-        &Limits::default(),
-    )
-    .map_err(anyhow::Error::msg)?;
-    let plan: Arc<dyn tessera_render::method::Plan> = Arc::from(plan);
-    let scene = Arc::new(tessera_render::Scene::build(&planned));
-    let planned = Arc::new(planned);
-    let request = JobRequest {
-        bundle: info.hash.clone(),
-        scene: scene_name.clone(),
-        name: Some("soak".into()),
-        frames: None,
-        settings: settings.clone(),
-        priority: 0,
-        require_tags: vec![],
-    };
+    let sim = Arc::new(SimulatedJob::upload(&client, &args.scene, args.tile, "soak").await?);
 
     let started = Instant::now();
     let cpu_start = crate::render::process_cpu_seconds(&serve_pid.to_string());
@@ -90,7 +60,7 @@ pub async fn run(args: SoakArgs) -> anyhow::Result<()> {
     for i in 0..args.workers {
         let url = client.url("");
         let token = worker_token.clone();
-        let (plan, scene, desc, dir) = (plan.clone(), scene.clone(), planned.clone(), dir.clone());
+        let (sim, dir) = (sim.clone(), dir.clone());
         let (submitting, accepted, leased, refused) = (
             submitting.clone(),
             accepted.clone(),
@@ -120,7 +90,7 @@ pub async fn run(args: SoakArgs) -> anyhow::Result<()> {
                 latencies.push(asked.elapsed().as_secs_f64());
                 leased.fetch_add(1, Relaxed);
                 let path = dir.join(format!("{}-{}.tswf", grant.task_id, grant.lease));
-                write_result(plan.as_ref(), &scene, &desc, &grant.task, &path)?;
+                sim.write_result(&grant.task, &path)?;
                 let upload = client
                     .upload_result(grant.task_id, grant.lease, 0.0, &path)
                     .await;
@@ -155,7 +125,7 @@ pub async fn run(args: SoakArgs) -> anyhow::Result<()> {
     while Instant::now() < deadline {
         let open = open_jobs(&client, &jobs).await?;
         if open < 2 {
-            jobs.push(client.submit(&request).await?.id);
+            jobs.push(client.submit(&sim.request).await?.id);
         }
         let done = accepted.lock().unwrap_or_else(|e| e.into_inner()).len();
         progress.set_position(started.elapsed().as_secs());

@@ -239,36 +239,43 @@ impl Lent<'_> {
     }
 
     pub fn execute(&self, sql: &str, params: Vec<Value>) -> Result<usize> {
-        let c = self.conn();
-        let text = sql;
-        let sql = sql.to_owned();
-        let n = self
-            .pool
-            .run(async move {
-                let stmt = c.prepared(&sql).await?;
-                let refs: Vec<&(dyn ToSql + Sync)> =
-                    params.iter().map(|p| p as &(dyn ToSql + Sync)).collect();
-                c.client.execute(&stmt, &refs).await
-            })?
-            .map_err(|e| StoreError::statement(text, e))?;
-        Ok(n as usize)
+        match self.prepared(sql, params, false)? {
+            Answer::Count(n) => Ok(n as usize),
+            Answer::Rows(rows) => Ok(rows.len()),
+        }
     }
 
     pub fn query(&self, sql: &str, params: Vec<Value>) -> Result<Vec<Row>> {
+        match self.prepared(sql, params, true)? {
+            Answer::Rows(rows) => rows.iter().map(row).collect(),
+            Answer::Count(_) => Ok(Vec::new()),
+        }
+    }
+
+    /// Runs `sql` as a prepared (and cached) statement with `params` bound: its rows, or the
+    /// number of rows it changed.
+    fn prepared(&self, sql: &str, params: Vec<Value>, rows: bool) -> Result<Answer> {
         let c = self.conn();
-        let text = sql;
-        let sql = sql.to_owned();
-        let rows = self
-            .pool
+        let owned = sql.to_owned();
+        self.pool
             .run(async move {
-                let stmt = c.prepared(&sql).await?;
+                let stmt = c.prepared(&owned).await?;
                 let refs: Vec<&(dyn ToSql + Sync)> =
                     params.iter().map(|p| p as &(dyn ToSql + Sync)).collect();
-                c.client.query(&stmt, &refs).await
+                Ok(if rows {
+                    Answer::Rows(c.client.query(&stmt, &refs).await?)
+                } else {
+                    Answer::Count(c.client.execute(&stmt, &refs).await?)
+                })
             })?
-            .map_err(|e| StoreError::statement(text, e))?;
-        rows.iter().map(row).collect()
+            .map_err(|e| StoreError::statement(sql, e))
     }
+}
+
+/// What a statement gave back.
+enum Answer {
+    Rows(Vec<tokio_postgres::Row>),
+    Count(u64),
 }
 
 impl PgConn {
