@@ -1,5 +1,6 @@
-//! Several coordinators, one farm: `tessera serve` processes sharing one PostgreSQL store (and
-//! one data directory, as a shared filesystem would be) serve the same queue to workers that
+//! Several coordinators, one farm: `tessera serve` processes sharing one PostgreSQL store and
+//! one object store (`--objects`: a directory, as NFS would be), each with a data directory of
+//! its own, serve the same queue to workers that
 //! each talk to one of them. A job submitted to one is rendered by workers of both; when the
 //! coordinator folding its frames is SIGKILLed, another takes its claims over once they lapse
 //! and finishes the job. Every frame equals `tessera render`'s byte for byte.
@@ -27,11 +28,14 @@ fn coordinators_sharing_a_store_are_one_farm_and_one_dying_loses_nothing() {
         return;
     }
     let dir = tempfile::tempdir().expect("temp dir");
-    let data = dir.path().join("data");
-    // The same data directory gives both the same store (tests/common: one schema per
-    // directory).
-    let (mut a, url_a) = serve(&data, "127.0.0.1:0", "2");
-    let (_b, url_b) = serve(&data, "127.0.0.1:0", "2");
+    // One job store (tests/common: a schema named for this path) and one object store;
+    // nothing else shared.
+    let store = tessera_farm::store::test_store_url(&dir.path().join("farm")).expect("PostgreSQL");
+    let objects = dir.path().join("objects");
+    let objects = objects.to_str().expect("utf-8 temp path");
+    let shared = ["--store", &store, "--objects", objects];
+    let (mut a, url_a) = serve_with(&dir.path().join("data-a"), "127.0.0.1:0", "2", &shared);
+    let (_b, url_b) = serve_with(&dir.path().join("data-b"), "127.0.0.1:0", "2", &shared);
     assert_ne!(url_a, url_b);
     let logs: Vec<PathBuf> = (0..3)
         .map(|i| dir.path().join(format!("w{i}.log")))
@@ -104,4 +108,19 @@ fn coordinators_sharing_a_store_are_one_farm_and_one_dying_loses_nothing() {
     // Every task was done once (a lease cut by a's death is the only reason to do one twice).
     let tasks = rt.block_on(on_b.tasks(id)).expect("tasks");
     assert!(tasks.iter().all(|t| t.state == "done"), "{tasks:?}");
+    // The frames, bundle and artifacts are in the object store, not in a coordinator's data.
+    for frame in job.frames.iter() {
+        let name = tessera_farm::job::frame_file_name(frame);
+        assert!(
+            dir.path()
+                .join(format!("objects/jobs/{id}/{name}"))
+                .is_file(),
+            "{name}"
+        );
+    }
+    for data in ["data-a", "data-b"] {
+        for kept in ["jobs", "bundles", "cache"] {
+            assert!(!dir.path().join(data).join(kept).exists(), "{data}/{kept}");
+        }
+    }
 }

@@ -50,7 +50,9 @@ pub fn serve_with(
         ])
         .args(extra)
         .args(
+            // Unless the caller names a store, one of this data directory's own.
             tessera_farm::store::test_store_url(data)
+                .filter(|_| !extra.contains(&"--store"))
                 .map(|url| ["--store".to_owned(), url])
                 .into_iter()
                 .flatten(),

@@ -396,9 +396,8 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
     .await;
     assert!(!dir.path().join("jobs").join(job["id"].to_string()).exists());
     // Its bundle went with it (no other job used it).
-    let bundles_after = std::fs::read_dir(dir.path().join("bundles"))
-        .expect("bundles")
-        .count();
+    // (A directory the object store leaves empty goes too.)
+    let bundles_after = std::fs::read_dir(dir.path().join("bundles")).map_or(0, |d| d.count());
     assert_eq!(bundles_after + 1, bundles_before);
     running.stop().await.expect("stop");
 }

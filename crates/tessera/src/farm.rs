@@ -17,7 +17,8 @@ pub struct ServeArgs {
     /// Address to listen on (port 0: any free port; the address is printed).
     #[arg(long, default_value = "127.0.0.1:8720")]
     pub listen: SocketAddr,
-    /// Where the job store (unless --store), bundles, tiles and frames live.
+    /// This coordinator's directory: the job store (unless --store), tokens, a spool for
+    /// files in transit, and the objects (unless --objects).
     #[arg(long, default_value = "tessera-data")]
     pub data: PathBuf,
     /// The job store in PostgreSQL instead of the embedded SQLite in --data:
@@ -26,6 +27,12 @@ pub struct ServeArgs {
     /// farm.
     #[arg(long, env = "TESSERA_STORE", hide_env_values = true)]
     pub store: Option<String>,
+    /// Where scene bundles, task results, checkpoints, frames and pass artifacts live: a
+    /// directory (coordinators sharing --store must share it: NFS, say) or s3://BUCKET/PREFIX
+    /// (credentials, region and endpoint from AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY,
+    /// AWS_REGION, AWS_ENDPOINT_URL, AWS_ALLOW_HTTP). Default: --data.
+    #[arg(long, env = "TESSERA_OBJECTS")]
+    pub objects: Option<String>,
     /// Worker processes to start and supervise on this machine.
     #[arg(long, default_value_t = 0)]
     pub local_workers: u32,
@@ -102,6 +109,7 @@ pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
         );
     }
     config.store = args.store.clone();
+    config.objects = args.objects.clone();
     config.lease_ms = (args.lease_seconds * 1000.0) as u64;
     config.max_attempts = args.max_attempts;
     anyhow::ensure!(
@@ -140,6 +148,9 @@ pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
     text += &format!("data: {}\n", args.data.display());
     if args.store.is_some() {
         text += "job store: PostgreSQL (--store)\n";
+    }
+    if let Some(objects) = &args.objects {
+        text += &format!("objects: {objects}\n");
     }
     text += &format!("dashboard: {url}/ (log in with the client token); API docs: {url}/docs\n");
     if generated {

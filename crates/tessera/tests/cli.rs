@@ -469,3 +469,63 @@ fn serve_refuses_a_job_store_it_cannot_use_naming_it() {
         "{err}"
     );
 }
+
+/// `tessera serve --objects LOCATION` with everything else valid, in a new data directory.
+fn serve_with_objects(location: &str, env: &[(&str, &str)]) -> Output {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let data = dir.path().join("data");
+    Command::new(env!("CARGO_BIN_EXE_tessera"))
+        .args(["serve", "--listen", "127.0.0.1:0", "--data"])
+        .arg(&data)
+        .args(["--objects", location])
+        .envs(env.iter().copied())
+        .output()
+        .expect("run tessera")
+}
+
+#[test]
+fn serve_refuses_an_object_store_it_cannot_write_naming_it() {
+    // A directory that cannot be made: a file is where it would go.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, b"x").expect("file");
+    let objects = file.join("objects");
+    let o = serve_with_objects(objects.to_str().expect("utf-8"), &[]);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("object store")
+            && err.contains("cannot be written")
+            && err.contains("a-file/objects"),
+        "{err}"
+    );
+
+    // S3 that does not answer (nothing listens on port 1): the probe write fails, named.
+    let o = serve_with_objects(
+        "s3://tessera-test/farm",
+        &[
+            ("AWS_ENDPOINT_URL", "http://127.0.0.1:1"),
+            ("AWS_ALLOW_HTTP", "true"),
+            ("AWS_ACCESS_KEY_ID", "tessera"),
+            ("AWS_SECRET_ACCESS_KEY", "tessera"),
+            ("AWS_REGION", "us-east-1"),
+        ],
+    );
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("the object store s3://tessera-test/farm cannot be written")
+            && err.contains("127.0.0.1:1"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+
+    // A kind of store there is no backend for.
+    let o = serve_with_objects("ftp://host/farm", &[]);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("--objects ftp://host/farm") && err.contains("s3://"),
+        "{err}"
+    );
+}

@@ -167,11 +167,9 @@ async fn upload_bundle(
     let info = tokio::task::spawn_blocking(move || -> AppResult<BundleInfo> {
         let unpacked = Bundle::from_tar(&body).map_err(AppError::bad_request)?;
         let hash = bundle::hash(&body);
-        let path = app2.bundle_path(&hash);
-        if !path.exists() {
-            let tmp = path.with_extension("tmp");
-            std::fs::write(&tmp, &body)?;
-            std::fs::rename(&tmp, &path)?;
+        let key = app2.bundle_key(&hash);
+        if !app2.objects.exists(&key)? {
+            app2.objects.put(&key, body.clone())?;
         }
         app2.store
             .insert_bundle(&hash, body.len() as u64, now_ms())?;
@@ -202,7 +200,9 @@ async fn download_bundle(
     if !bundle::is_hash(&hash) || !app.store.bundle_exists(&hash)? {
         return Err(AppError::not_found(format!("no bundle {hash}")));
     }
-    send_file(app.bundle_path(&hash), "application/x-tar").await
+    send_object(&app, &app.bundle_key(&hash), "application/x-tar")
+        .await?
+        .ok_or_else(|| AppError::not_found(format!("bundle {hash} is not in the object store")))
 }
 
 /// Submit a job: a bundle's scene, frames, settings and priority. The scene is validated and
@@ -224,7 +224,12 @@ async fn submit_job(
     }
     let app2 = app.clone();
     let new = tokio::task::spawn_blocking(move || -> AppResult<NewJob> {
-        let bytes = std::fs::read(app2.bundle_path(&req.bundle))?;
+        let bytes = app2
+            .objects
+            .get(&app2.bundle_key(&req.bundle))?
+            .ok_or_else(|| {
+                AppError::bad_request(format!("bundle {} is not in the object store", req.bundle))
+            })?;
         let bundle = Bundle::from_tar(&bytes).map_err(AppError::bad_request)?;
         let mut desc = bundle
             .load(&req.scene)
@@ -427,22 +432,26 @@ fn frame_state(app: &App, id: i64, frame: u32) -> AppResult<String> {
         .ok_or_else(|| AppError::not_found(format!("job {id} has no frame {frame}")))
 }
 
-/// A file as a response body, streamed.
-pub(super) async fn send_file(
-    path: std::path::PathBuf,
+/// An object as a response body, streamed; `None` if there is none.
+pub(super) async fn send_object(
+    app: &App,
+    key: &str,
     content_type: &'static str,
-) -> AppResult<Response> {
-    let file = tokio::fs::File::open(&path).await?;
-    let len = file.metadata().await?.len();
-    let body = axum::body::Body::from_stream(tokio_util::io::ReaderStream::new(file));
-    Ok((
-        [
-            (header::CONTENT_TYPE, content_type.to_string()),
-            (header::CONTENT_LENGTH, len.to_string()),
-        ],
-        body,
-    )
-        .into_response())
+) -> AppResult<Option<Response>> {
+    let Some((len, stream)) = app.objects.stream(key).await? else {
+        return Ok(None);
+    };
+    let body = axum::body::Body::from_stream(stream);
+    Ok(Some(
+        (
+            [
+                (header::CONTENT_TYPE, content_type.to_string()),
+                (header::CONTENT_LENGTH, len.to_string()),
+            ],
+            body,
+        )
+            .into_response(),
+    ))
 }
 
 /// Download a finished frame as OpenEXR.
@@ -459,7 +468,10 @@ async fn frame_exr(
             "frame {frame} of job {id} is not finished; its preview is at /v1/jobs/{id}/frames/{frame}/preview.png"
         )));
     }
-    send_file(app.frame_path(id, frame), "image/x-exr").await
+    let key = app.frame_key(id, frame);
+    send_object(&app, &key, "image/x-exr")
+        .await?
+        .ok_or_else(|| AppError::internal(format!("{key} is not in the object store")))
 }
 
 /// A PNG preview of a frame: what its results folded so far make, or the finished frame.
@@ -475,7 +487,12 @@ async fn frame_preview(
 ) -> AppResult<Response> {
     let state = frame_state(&app, id, frame)?;
     let bytes = if state == "done" {
-        tokio::fs::read(app.frame_path(id, frame).with_extension("png")).await?
+        let key = app.preview_key(id, frame);
+        let app2 = app.clone();
+        tokio::task::spawn_blocking(move || app2.objects.get(&key))
+            .await??
+            .ok_or_else(|| AppError::internal("the frame's PNG is not in the object store"))?
+            .to_vec()
     } else {
         let image = app.preview_of(id, frame).await.map_err(|e| match e
             .downcast_ref::<super::fold::FoldedElsewhere>()

@@ -8,34 +8,39 @@ impl App {
     /// its steps' inputs.
     pub(super) fn remove_frame_files(&self, job: i64, frame: u32) -> anyhow::Result<()> {
         for (task, lease) in self.store.results_of(job, frame)? {
-            let _ = std::fs::remove_file(self.result_path(job, task, lease));
+            self.discard(&self.result_key(job, task, lease));
         }
-        let _ = std::fs::remove_file(self.checkpoint_path(job, frame));
-        let steps = self.job_dir(job).join("steps");
-        if let Ok(entries) = std::fs::read_dir(&steps) {
-            let prefix = format!("{frame}-");
-            for e in entries.flatten() {
-                if e.file_name().to_string_lossy().starts_with(&prefix) {
-                    let _ = std::fs::remove_file(e.path());
-                }
+        self.discard(&self.checkpoint_key(job, frame));
+        let inputs = format!("{}/steps/{frame}-", self.job_prefix(job));
+        for key in self
+            .objects
+            .list(&format!("{}/steps", self.job_prefix(job)))?
+        {
+            if key.starts_with(&inputs) {
+                self.discard(&key);
             }
         }
         Ok(())
     }
 
-    /// Deletes a job that has ended, with its files (and its bundle, if no other job uses
+    /// Deletes an object no longer needed; one that cannot be deleted is left (and logged):
+    /// the job it belongs to goes on, and its deletion deletes it.
+    pub(super) fn discard(&self, key: &str) {
+        if let Err(e) = self.objects.delete(key) {
+            tracing::warn!(key, error = %format!("{e:#}"), "an object could not be deleted");
+        }
+    }
+
+    /// Deletes a job that has ended, with its objects (and its bundle, if no other job uses
     /// it). `None` if the job has not ended or does not exist.
     pub(super) fn delete_job(&self, job: i64) -> anyhow::Result<Option<()>> {
         let Some(orphan) = self.store.delete_job(job)? else {
             return Ok(None);
         };
         self.forget_job(job);
-        let dir = self.job_dir(job);
-        if dir.exists() {
-            std::fs::remove_dir_all(&dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
-        }
+        self.objects.delete_all(&self.job_prefix(job))?;
         if let Some(bundle) = orphan {
-            let _ = std::fs::remove_file(self.bundle_path(&bundle));
+            self.objects.delete(&self.bundle_key(&bundle))?;
         }
         self.store.checkpoint()?;
         tracing::info!(job, "job deleted");
@@ -107,7 +112,7 @@ impl App {
                 tracing::warn!(key = %entry.key, error = %e, "evicting an artifact");
                 continue;
             }
-            let _ = std::fs::remove_file(self.config.data.join(&entry.path));
+            self.discard(&entry.path);
             total = total.saturating_sub(entry.bytes);
             tracing::info!(key = %entry.key, pass = %entry.name, bytes = entry.bytes, "artifact evicted (the cache is over its cap)");
         }

@@ -32,6 +32,11 @@ impl AppError {
     pub fn conflict(message: impl Into<String>) -> Self {
         Self::new(StatusCode::CONFLICT, message)
     }
+    /// A store this coordinator depends on failed: worth retrying.
+    pub fn unavailable(message: impl std::fmt::Display) -> Self {
+        tracing::error!(error = %message, "unavailable");
+        Self::new(StatusCode::SERVICE_UNAVAILABLE, message.to_string())
+    }
     pub fn internal(message: impl std::fmt::Display) -> Self {
         tracing::error!(error = %message, "internal error");
         Self::new(StatusCode::INTERNAL_SERVER_ERROR, message.to_string())
@@ -53,6 +58,12 @@ impl IntoResponse for AppError {
 impl From<crate::store::StoreError> for AppError {
     fn from(e: crate::store::StoreError) -> Self {
         AppError::internal(e)
+    }
+}
+
+impl From<anyhow::Error> for AppError {
+    fn from(e: anyhow::Error) -> Self {
+        AppError::internal(format!("{e:#}"))
     }
 }
 

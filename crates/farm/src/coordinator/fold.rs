@@ -19,7 +19,7 @@ use anyhow::Context;
 use tessera_render::method::{DynPass, Next, Payload};
 use tessera_render::wire::{self, Header};
 
-use super::{App, JobPlan, now_ms, replace_file};
+use super::{App, JobPlan, now_ms};
 use crate::job;
 use crate::protocol::Event;
 use crate::store::{Artifact, CacheEntry, Claim, StepKey};
@@ -51,6 +51,9 @@ struct Inner {
 #[derive(Default)]
 pub(super) struct Folds {
     inner: Mutex<Inner>,
+    /// Steps asked to be folded and not yet taken up by the fold thread: asking again adds
+    /// nothing (the reaper asks for every claimed step each tick).
+    queued: Mutex<std::collections::HashSet<StepKey>>,
 }
 
 impl Folds {
@@ -66,6 +69,21 @@ impl Folds {
         } else {
             inner.frames.retain(|(k, _)| *k != (key.job, key.frame));
         }
+    }
+
+    /// Whether `key` was not already waiting to be folded (it is now).
+    fn enqueue(&self, key: StepKey) -> bool {
+        self.queued
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(key)
+    }
+
+    fn dequeued(&self, key: StepKey) {
+        self.queued
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(&key);
     }
 
     pub fn forget_job(&self, job: i64) {
@@ -84,18 +102,22 @@ fn read_result(
     lease: i64,
     pass: Option<&dyn DynPass>,
 ) -> anyhow::Result<Box<dyn Payload>> {
-    let path = app.result_path(key.job, id, lease);
-    let file = std::fs::File::open(&path).with_context(|| path.display().to_string())?;
+    let name = app.result_key(key.job, id, lease);
+    let local = app
+        .objects
+        .read(&name)?
+        .with_context(|| format!("{name} is not in the object store"))?;
+    let file = std::fs::File::open(local.path()).with_context(|| name.clone())?;
     let (mut reader, _header) =
-        wire::Reader::new(BufReader::new(file)).with_context(|| path.display().to_string())?;
+        wire::Reader::new(BufReader::new(file)).with_context(|| name.clone())?;
     let partial = match pass {
         Some(p) => p.decode(&mut reader),
         None => job.plan.decode(&mut reader),
     }
-    .with_context(|| format!("{}: the result of task {id}", path.display()))?;
+    .with_context(|| format!("{name}: the result of task {id}"))?;
     reader
         .finish()
-        .with_context(|| format!("{}: the result of task {id}", path.display()))?;
+        .with_context(|| format!("{name}: the result of task {id}"))?;
     Ok(partial)
 }
 
@@ -158,7 +180,11 @@ pub(super) fn start_thread(
         .spawn(move || {
             for request in requests {
                 match request {
-                    FoldRequest::Step(key) => app.fold_or_fail(key),
+                    FoldRequest::Step(key) => {
+                        // Taken up: results arriving from now on ask again.
+                        app.folds.dequeued(key);
+                        app.fold_or_fail(key)
+                    }
                     FoldRequest::Preview(job, frame, reply) => {
                         let _ = reply.send(app.preview(job, frame));
                     }
@@ -172,6 +198,9 @@ impl App {
     /// Asks the fold thread to fold in the results of `key`'s step that are done and next in
     /// order; a failure fails the job with its reason.
     pub(super) fn spawn_fold(&self, key: StepKey) {
+        if !self.folds.enqueue(key) {
+            return;
+        }
         let sent = self
             .fold_requests
             .lock()
@@ -293,30 +322,30 @@ impl App {
         let entry = match at {
             Some(i) => inner.frames.remove(i),
             None => {
-                let path = self.checkpoint_path(job_id, frame);
-                let fold = match std::fs::File::open(&path) {
-                    Ok(file) => {
+                let name = self.checkpoint_key(job_id, frame);
+                let fold = match self.objects.read(&name)? {
+                    Some(local) => {
+                        let file =
+                            std::fs::File::open(local.path()).with_context(|| name.clone())?;
                         let (mut r, _) = wire::Reader::new(BufReader::new(file))
-                            .with_context(|| path.display().to_string())?;
-                        let step: u32 = wire::decode_from(&mut r)
-                            .with_context(|| path.display().to_string())?;
+                            .with_context(|| name.clone())?;
+                        let step: u32 = wire::decode_from(&mut r).with_context(|| name.clone())?;
                         let state = job
                             .plan
                             .decode_frame(&mut r)
-                            .with_context(|| path.display().to_string())?;
-                        r.finish().with_context(|| path.display().to_string())?;
+                            .with_context(|| name.clone())?;
+                        r.finish().with_context(|| name.clone())?;
                         FrameFold {
                             step,
                             next: 0,
                             state,
                         }
                     }
-                    Err(e) if e.kind() == std::io::ErrorKind::NotFound => FrameFold {
+                    None => FrameFold {
                         step: 0,
                         next: 0,
                         state: job.plan.new_frame(frame),
                     },
-                    Err(e) => return Err(e).context(path.display().to_string()),
                 };
                 if inner.frames.len() >= FRAMES_IN_MEMORY {
                     // Rebuilt from its checkpoint when next folded, here or elsewhere.
@@ -393,27 +422,27 @@ impl App {
                         );
                     };
                     if let Some(input) = &step.input {
-                        let path = self.input_path(job_id, frame, number);
                         let header = Header::new("input", &job.plan.schema());
-                        replace_file(&path, |file| {
-                            input.write_to(&header, &mut BufWriter::new(file))?;
-                            Ok(())
-                        })?;
+                        self.objects
+                            .write(&self.input_key(job_id, frame, number), |file| {
+                                input.write_to(&header, &mut BufWriter::new(file))?;
+                                Ok(())
+                            })?;
                     }
                     self.store.add_step(job_id, frame, &step.tasks)?;
-                    let path = self.checkpoint_path(job_id, frame);
                     let header = Header::new("checkpoint", &job.plan.schema());
-                    replace_file(&path, |file| {
-                        let mut w = wire::Writer::new(BufWriter::new(file), &header)?;
-                        wire::encode_into(&number, &mut w)?;
-                        f.state.encode(&mut w)?;
-                        w.finish()?;
-                        Ok(())
-                    })?;
+                    self.objects
+                        .write(&self.checkpoint_key(job_id, frame), |file| {
+                            let mut w = wire::Writer::new(BufWriter::new(file), &header)?;
+                            wire::encode_into(&number, &mut w)?;
+                            f.state.encode(&mut w)?;
+                            w.finish()?;
+                            Ok(())
+                        })?;
                     for (id, lease) in self.store.step_results(key)? {
-                        let _ = std::fs::remove_file(self.result_path(job_id, id, lease));
+                        self.discard(&self.result_key(job_id, id, lease));
                     }
-                    let _ = std::fs::remove_file(self.input_path(job_id, frame, f.step));
+                    self.discard(&self.input_key(job_id, frame, f.step));
                     tracing::debug!(
                         job = job_id,
                         frame,
@@ -426,21 +455,24 @@ impl App {
                     self.wake_workers();
                 }
                 Next::Done(done) => {
-                    let path = self.frame_path(job_id, frame);
-                    let tmp = path.with_extension("tmp.exr");
+                    let name = self.frame_key(job_id, frame);
+                    let tmp = self.objects.spool_file(&name);
                     job::write_frame(&tmp, &job.desc, job.plan.as_ref(), frame, &done)?;
-                    std::fs::rename(tmp.with_extension("png"), path.with_extension("png"))?;
-                    std::fs::rename(&tmp, &path)?;
                     let mut files = Vec::new();
-                    for (kind, file) in [("exr", path.clone()), ("png", path.with_extension("png"))]
-                    {
+                    // The preview first: a frame whose EXR is there has its PNG.
+                    let png = (tmp.with_extension("png"), self.preview_key(job_id, frame));
+                    for (kind, (file, path)) in [("png", png), ("exr", (tmp, name.clone()))] {
                         let (sha256, bytes) = crate::bundle::hash_file(&file)?;
-                        files.push(Artifact {
-                            kind: kind.into(),
-                            path: self.relative(&file),
-                            bytes,
-                            sha256,
-                        });
+                        self.objects.put_file(&path, &file)?;
+                        files.insert(
+                            0,
+                            Artifact {
+                                kind: kind.into(),
+                                path,
+                                bytes,
+                                sha256,
+                            },
+                        );
                     }
                     self.metrics.count_frame();
                     let job_done = self.store.frame_stitched(
@@ -460,7 +492,7 @@ impl App {
                         }),
                         &self.id,
                     )?;
-                    tracing::info!(job = job_id, frame, path = %path.display(), job_done, "frame written");
+                    tracing::info!(job = job_id, frame, key = %name, job_done, "frame written");
                     self.emit(Event::Job { id: job_id });
                     if job_done {
                         inner.frames.retain(|((j, _), _)| *j != job_id);
@@ -537,21 +569,28 @@ impl App {
             .remove(&(key.job, key.step))
             .context("the pass's fold vanished")?;
         let (artifact, summary) = pass.finish(fold.state).map_err(anyhow::Error::msg)?;
-        let path = self.artifact_path(pass.key());
-        // Jobs that build the same key at once (reuse disabled) write their own temporary
-        // file; the renames replace one identical artifact with another.
-        let tmp = path.with_extension(format!("{}.tmp", key.job));
+        let name = self.artifact_key(pass.key());
+        // Jobs that build the same key at once (reuse disabled) each write their own spool
+        // file; the second store replaces one identical artifact with another.
+        let tmp = self.objects.spool_file(&name);
         let header = Header::new("artifact", &pass.schema());
-        {
+        let written = (|| {
             let file = std::fs::File::create(&tmp).with_context(|| tmp.display().to_string())?;
             artifact.write_to(&header, &mut BufWriter::new(file))?;
-        }
-        std::fs::rename(&tmp, &path)?;
-        let (sha256, bytes) = crate::bundle::hash_file(&path)?;
+            anyhow::Ok(crate::bundle::hash_file(&tmp)?)
+        })();
+        let (sha256, bytes) = match written {
+            Ok(w) => w,
+            Err(e) => {
+                let _ = std::fs::remove_file(&tmp);
+                return Err(e);
+            }
+        };
+        self.objects.put_file(&name, &tmp)?;
         let entry = CacheEntry {
             key: pass.key().to_string(),
             name: pass.name().to_string(),
-            path: self.relative(&path),
+            path: name,
             bytes,
             sha256,
             job: key.job,
@@ -561,7 +600,7 @@ impl App {
             self.store
                 .pass_built(key.job, key.step, &entry, &summary, &frames, now_ms())?;
         for (id, lease) in self.store.step_results(key)? {
-            let _ = std::fs::remove_file(self.result_path(key.job, id, lease));
+            self.discard(&self.result_key(key.job, id, lease));
         }
         self.store.release(&claim_name(key), &self.id)?;
         tracing::info!(job = key.job, pass = pass.name(), key = %pass.key(), bytes = entry.bytes, frames_queued, "{summary}");
@@ -581,12 +620,12 @@ impl App {
         for frame in job.frames.iter() {
             let step = job.plan.start(frame).map_err(anyhow::Error::msg)?;
             if let Some(input) = &step.input {
-                let path = self.input_path(job_id, frame, 0);
                 let header = Header::new("input", &job.plan.schema());
-                replace_file(&path, |file| {
-                    input.write_to(&header, &mut BufWriter::new(file))?;
-                    Ok(())
-                })?;
+                self.objects
+                    .write(&self.input_key(job_id, frame, 0), |file| {
+                        input.write_to(&header, &mut BufWriter::new(file))?;
+                        Ok(())
+                    })?;
             }
             out.push(step.tasks);
         }

@@ -1,13 +1,13 @@
 //! The coordinator: HTTP API, job store, scheduler, lease reaper, the fold of results into
 //! frames and artifacts, disk reclamation, and the supervisor of local workers.
 //!
-//! Everything that must survive a restart is in the SQLite store and the data directory:
-//! `DIR/tessera.db`, `DIR/bundles/HASH.tar`, `DIR/jobs/ID/results/TASK-LEASE.tswf` (a task's
-//! result until its frame or pass is done), `DIR/jobs/ID/steps/FRAME-STEP.input` and
-//! `DIR/jobs/ID/steps/FRAME.state` (a frame's checkpoint between steps),
-//! `DIR/jobs/ID/frame_NNNN.exr`, `DIR/cache/KEY.tswf` (pass artifacts). On start it folds on
-//! steps whose tasks all arrived before a restart; leases granted before it keep running and
-//! expire as usual.
+//! Everything that must survive a restart is in the job store (SQLite in `DIR/tessera.db`, or
+//! PostgreSQL) and the object store (by default the data directory; see [`crate::objects`]):
+//! `bundles/HASH.tar`, `jobs/ID/results/TASK-LEASE.tswf` (a task's result until its frame or
+//! pass is done), `jobs/ID/steps/FRAME-STEP.input` and `jobs/ID/steps/FRAME.state` (a frame's
+//! checkpoint between steps), `jobs/ID/frame_NNNN.exr`, `cache/KEY.tswf` (pass artifacts).
+//! `DIR/spool` is scratch. On start it folds on steps whose tasks all arrived before a
+//! restart; leases granted before it keep running and expire as usual.
 
 mod api;
 mod auth;
@@ -49,6 +49,9 @@ pub struct Config {
     /// The job store: a PostgreSQL URL (`postgres://…`; coordinators sharing it are one
     /// farm), or `None` for the embedded SQLite in `data`.
     pub store: Option<String>,
+    /// The object store: a directory or `s3://bucket/prefix` (coordinators sharing a job store
+    /// share it), or `None` for `data`.
+    pub objects: Option<String>,
     pub client_token: String,
     pub worker_token: String,
     /// A lease not renewed for this long expires.
@@ -86,6 +89,7 @@ impl Config {
             listen,
             data,
             store: None,
+            objects: None,
             client_token,
             worker_token,
             lease_ms: 15_000,
@@ -116,6 +120,8 @@ impl Config {
 pub struct App {
     pub config: Config,
     pub store: Store,
+    /// Bundles, results, checkpoints, frames and artifacts.
+    pub objects: crate::objects::Objects,
     /// This coordinator among those sharing the store: the owner of its claims.
     pub id: String,
     metrics: Metrics,
@@ -131,6 +137,11 @@ pub struct App {
     fold_requests: Mutex<std::sync::mpsc::Sender<fold::FoldRequest>>,
     /// What changed, for dashboards (`/v1/events`).
     events: tokio::sync::broadcast::Sender<Event>,
+    /// Whether the reaper last found the job store unreachable.
+    store_down: std::sync::atomic::AtomicBool,
+    /// No lease expires before this (ms since the epoch): a lease period after the job store
+    /// came back, so that workers whose heartbeats failed meanwhile can renew theirs.
+    expire_after: std::sync::atomic::AtomicI64,
 }
 
 /// A job's scene with its settings applied, and its method's plan.
@@ -141,22 +152,6 @@ pub struct JobPlan {
     pub plan: Box<dyn Plan>,
 }
 
-/// Writes `path` whole or not at all (a temporary file renamed over it), creating its
-/// directory.
-fn replace_file(
-    path: &Path,
-    write: impl FnOnce(&mut std::fs::File) -> anyhow::Result<()>,
-) -> anyhow::Result<()> {
-    if let Some(dir) = path.parent() {
-        std::fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
-    }
-    let tmp = path.with_extension("tmp");
-    let mut file = std::fs::File::create(&tmp).with_context(|| tmp.display().to_string())?;
-    write(&mut file).with_context(|| tmp.display().to_string())?;
-    file.sync_all().ok();
-    std::fs::rename(&tmp, path).with_context(|| path.display().to_string())
-}
-
 /// Milliseconds since the Unix epoch.
 pub fn now_ms() -> i64 {
     std::time::SystemTime::now()
@@ -164,51 +159,44 @@ pub fn now_ms() -> i64 {
         .map_or(0, |d| d.as_millis() as i64)
 }
 
+/// Where things live in the object store.
 impl App {
-    fn bundle_path(&self, hash: &str) -> PathBuf {
-        self.config.data.join("bundles").join(format!("{hash}.tar"))
+    fn bundle_key(&self, hash: &str) -> String {
+        format!("bundles/{hash}.tar")
     }
-    fn job_dir(&self, job: i64) -> PathBuf {
-        self.config.data.join("jobs").join(job.to_string())
+    fn job_prefix(&self, job: i64) -> String {
+        format!("jobs/{job}")
     }
-    fn result_path(&self, job: i64, task: i64, lease: i64) -> PathBuf {
-        self.job_dir(job)
-            .join("results")
-            .join(format!("{task}-{lease}.tswf"))
+    fn result_key(&self, job: i64, task: i64, lease: i64) -> String {
+        format!("jobs/{job}/results/{task}-{lease}.tswf")
     }
     /// What step `step` of frame `frame` reads besides the artifacts.
-    fn input_path(&self, job: i64, frame: u32, step: u32) -> PathBuf {
-        self.job_dir(job)
-            .join("steps")
-            .join(format!("{frame}-{step}.input"))
+    fn input_key(&self, job: i64, frame: u32, step: u32) -> String {
+        format!("jobs/{job}/steps/{frame}-{step}.input")
     }
     /// A frame's checkpoint between steps.
-    fn checkpoint_path(&self, job: i64, frame: u32) -> PathBuf {
-        self.job_dir(job)
-            .join("steps")
-            .join(format!("{frame}.state"))
+    fn checkpoint_key(&self, job: i64, frame: u32) -> String {
+        format!("jobs/{job}/steps/{frame}.state")
     }
-    fn frame_path(&self, job: i64, frame: u32) -> PathBuf {
-        self.job_dir(job).join(job::frame_file_name(frame))
+    /// A finished frame's EXR.
+    fn frame_key(&self, job: i64, frame: u32) -> String {
+        format!("jobs/{job}/{}", job::frame_file_name(frame))
     }
-    /// `path` relative to the data directory, as the store records files.
-    fn relative(&self, path: &Path) -> String {
-        path.strip_prefix(&self.config.data)
-            .unwrap_or(path)
-            .to_string_lossy()
-            .into_owned()
+    /// A finished frame's PNG preview, beside its EXR.
+    fn preview_key(&self, job: i64, frame: u32) -> String {
+        self.frame_key(job, frame).replace(".exr", ".png")
     }
-    /// Where a pass artifact with this key lives.
-    fn artifact_path(&self, key: &str) -> PathBuf {
-        self.config.data.join("cache").join(format!("{key}.tswf"))
+    /// A pass artifact with this key.
+    fn artifact_key(&self, key: &str) -> String {
+        format!("cache/{key}.tswf")
     }
 
-    /// The cached artifact with this key, if its file is still there.
-    fn cached(&self, key: &str) -> crate::store::Result<Option<crate::store::CacheEntry>> {
-        Ok(self
-            .store
-            .cached(key)?
-            .filter(|e| self.config.data.join(&e.path).is_file()))
+    /// The cached artifact with this key, if its object is still there.
+    fn cached(&self, key: &str) -> anyhow::Result<Option<crate::store::CacheEntry>> {
+        match self.store.cached(key)? {
+            Some(e) if self.objects.exists(&e.path)? => Ok(Some(e)),
+            _ => Ok(None),
+        }
     }
 
     /// A job's scene and plan, read from its bundle and planned once (cached).
@@ -225,8 +213,10 @@ impl App {
             .store
             .job_source(job)?
             .with_context(|| format!("job {job} is not in the store"))?;
-        let bytes = std::fs::read(self.bundle_path(&hash))
-            .with_context(|| format!("bundle {hash} of job {job}"))?;
+        let bytes = self
+            .objects
+            .get(&self.bundle_key(&hash))?
+            .with_context(|| format!("bundle {hash} of job {job} is not in the object store"))?;
         let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
         let mut desc = bundle.load(&scene)?;
         let plan = job::plan(&mut desc, &settings, frames, &Limits::default())
@@ -255,7 +245,24 @@ impl App {
 
     /// Takes back expired leases, once.
     fn reap(&self) {
-        match self.store.expire(now_ms(), &self.config.retry_policy()) {
+        use std::sync::atomic::Ordering::Relaxed;
+        let now = now_ms();
+        if self.store_down.load(Relaxed) {
+            if self.store.gauges().is_err() {
+                return;
+            }
+            // Every heartbeat failed while the store was away: the leases that ran out then
+            // were not given up by their workers.
+            self.store_down.store(false, Relaxed);
+            self.expire_after
+                .store(now + self.config.lease_ms as i64, Relaxed);
+            tracing::info!("job store reachable again: no lease expires for one lease period");
+        }
+        if now < self.expire_after.load(Relaxed) {
+            self.tend_claims();
+            return;
+        }
+        match self.store.expire(now, &self.config.retry_policy()) {
             Ok(expired) => {
                 for (task, outcome) in expired {
                     self.metrics.count_expired();
@@ -266,7 +273,11 @@ impl App {
                     self.wake_workers();
                 }
             }
-            Err(e) => tracing::error!(error = %e, "expiring leases"),
+            Err(e) => {
+                self.store_down.store(true, Relaxed);
+                tracing::error!(error = %e, "expiring leases");
+                return;
+            }
         }
         self.tend_claims();
     }
@@ -378,10 +389,8 @@ pub fn use_ring_for_tls() {
 /// Opens the store, resumes unfinished work, binds and starts serving.
 pub async fn start(config: Config) -> anyhow::Result<Running> {
     use_ring_for_tls();
-    for dir in ["bundles", "jobs", "cache"] {
-        std::fs::create_dir_all(config.data.join(dir))
-            .with_context(|| format!("creating {}", config.data.join(dir).display()))?;
-    }
+    std::fs::create_dir_all(&config.data)
+        .with_context(|| format!("creating the data directory {}", config.data.display()))?;
     let store = match &config.store {
         Some(url) => Store::open_at(crate::store::Location::Postgres(url))
             .context("opening the job store (--store)")?,
@@ -407,10 +416,14 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         .unwrap_or_else(|_| "coordinator".into());
     let id = format!("{host}/{addr}");
     tracing::info!(coordinator = %id, shared = store.is_shared(), "job store open");
+    let objects = open_objects(&config, &id)?;
+    objects.probe(&id)?;
+    tracing::info!(objects = %objects.location, "object store writable");
     let app = Arc::new(App {
         stopping: shutdown.subscribe(),
         config,
         store,
+        objects,
         id,
         metrics: Metrics::default(),
         work: Notify::new(),
@@ -418,6 +431,8 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         folds: Folds::default(),
         fold_requests: Mutex::new(fold_tx),
         events: tokio::sync::broadcast::channel(events::CAPACITY).0,
+        store_down: false.into(),
+        expire_after: 0.into(),
     });
     fold::start_thread(&app, fold_rx)?;
     {
@@ -504,6 +519,21 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         shutdown,
         server,
     })
+}
+
+/// The object store of `config`, with a spool directory of this coordinator's (`id`) in the
+/// data directory, emptied: what a previous run left there was never stored.
+fn open_objects(config: &Config, id: &str) -> anyhow::Result<crate::objects::Objects> {
+    let spool = config.data.join("spool").join(id.replace(['/', ':'], "_"));
+    if spool.is_dir() {
+        std::fs::remove_dir_all(&spool)
+            .with_context(|| format!("emptying the spool directory {}", spool.display()))?;
+    }
+    let location = match &config.objects {
+        Some(l) => l.clone(),
+        None => config.data.to_string_lossy().into_owned(),
+    };
+    crate::objects::Objects::open(&location, &spool)
 }
 
 /// Tokens from flags or the environment, or generated once and kept in `DIR/tokens.json` so a

@@ -15,7 +15,7 @@ use futures_util::StreamExt;
 use serde::Deserialize;
 use tokio::io::AsyncWriteExt;
 
-use super::api::send_file;
+use super::api::send_object;
 use super::{App, AppError, AppResult, now_ms};
 use crate::bundle;
 use crate::job::TaskSpec;
@@ -45,7 +45,9 @@ pub(super) async fn lease_task(
             app.metrics.leased.fetch_add(1, Relaxed);
             grant.max_result_bytes = Some(app.config.max_result);
             let t = &grant.task;
-            if !t.is_pass() && app.input_path(grant.job_id, t.frame, t.step).is_file() {
+            // A store that cannot say offers the input: the worker's fetch then tells.
+            let input = app.input_key(grant.job_id, t.frame, t.step);
+            if !t.is_pass() && app.objects.exists_async(&input).await.unwrap_or(true) {
                 grant.input = Some(format!(
                     "/v1/jobs/{}/frames/{}/steps/{}/input",
                     grant.job_id, t.frame, t.step
@@ -167,12 +169,9 @@ pub(super) async fn upload_result(
         tracing::warn!(task = id, lease = q.lease, "stale result dropped");
         return Err(stale(id, q.lease));
     };
-    let path = app.result_path(job_id, id, q.lease);
-    let tmp = path.with_extension("part");
-    if let Some(dir) = path.parent() {
-        tokio::fs::create_dir_all(dir).await?;
-    }
-    // Streamed to disk in the chunks it arrives in, never held whole.
+    let key = app.result_key(job_id, id, q.lease);
+    let tmp = app.objects.spool_file(&key);
+    // Streamed to the spool in the chunks it arrives in, never held whole.
     let mut file = tokio::fs::File::create(&tmp).await?;
     let mut stream = body.into_data_stream();
     let mut written: u64 = 0;
@@ -221,13 +220,22 @@ pub(super) async fn upload_result(
             return Err(AppError::bad_request(format!("result of task {id}: {e:#}")));
         }
     };
-    tokio::fs::rename(&tmp, &path).await?;
+    {
+        // Into the object store, where any coordinator folding the frame finds it.
+        let (app, key, from) = (app.clone(), key.clone(), tmp.clone());
+        let stored = tokio::task::spawn_blocking(move || app.objects.put_file(&key, &from)).await?;
+        if let Err(e) = stored {
+            let _ = tokio::fs::remove_file(&tmp).await;
+            return Err(AppError::unavailable(format!("result of task {id}: {e:#}")));
+        }
+    }
     match app
         .store
         .complete(id, q.lease, q.seconds, (written, payload), now_ms())?
     {
         Completion::Stale => {
-            let _ = tokio::fs::remove_file(&path).await;
+            let app2 = app.clone();
+            tokio::task::spawn_blocking(move || app2.discard(&key)).await?;
             app.metrics.stale_results.fetch_add(1, Relaxed);
             Err(stale(id, q.lease))
         }
@@ -305,20 +313,22 @@ pub(super) async fn download_artifact(
     State(app): State<Arc<App>>,
     Path(key): Path<String>,
 ) -> AppResult<Response> {
-    let entry = if bundle::is_hash(&key) {
-        app.cached(&key)?
-    } else {
-        None
+    let entry = match bundle::is_hash(&key) {
+        true => app.store.cached(&key)?,
+        false => None,
+    };
+    // The store may name an artifact whose object is gone (evicted meanwhile).
+    let entry = match entry {
+        Some(e) if app.objects.exists_async(&e.path).await? => Some(e),
+        _ => None,
     };
     let Some(entry) = entry else {
         return Err(AppError::not_found(format!("no artifact {key}")));
     };
     app.store.touch(&key, now_ms())?;
-    send_file(
-        app.config.data.join(&entry.path),
-        "application/octet-stream",
-    )
-    .await
+    send_object(&app, &entry.path, "application/octet-stream")
+        .await?
+        .ok_or_else(|| AppError::not_found(format!("no artifact {key}")))
 }
 
 /// Download what a step of a frame reads besides the artifacts (a wire stream; an SPPM
@@ -331,11 +341,15 @@ pub(super) async fn step_input(
     State(app): State<Arc<App>>,
     Path((id, frame, step)): Path<(i64, u32, u32)>,
 ) -> AppResult<Response> {
-    let path = app.input_path(id, frame, step);
-    if !path.is_file() {
-        return Err(AppError::not_found(format!(
+    send_object(
+        &app,
+        &app.input_key(id, frame, step),
+        "application/octet-stream",
+    )
+    .await?
+    .ok_or_else(|| {
+        AppError::not_found(format!(
             "job {id} frame {frame} has no input for step {step} (not running, or it reads none)"
-        )));
-    }
-    send_file(path, "application/octet-stream").await
+        ))
+    })
 }
