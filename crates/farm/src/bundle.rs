@@ -145,8 +145,11 @@ pub fn hash(bytes: &[u8]) -> String {
 
 /// SHA-256 of a file's bytes, in lower-case hex, read in chunks; and its length.
 pub fn hash_file(path: &Path) -> std::io::Result<(String, u64)> {
-    use std::io::Read;
-    let mut file = std::fs::File::open(path)?;
+    hash_reader(std::fs::File::open(path)?)
+}
+
+/// SHA-256 of what `file` reads to its end, in lower-case hex, read in chunks; and its length.
+pub fn hash_reader(mut file: impl std::io::Read) -> std::io::Result<(String, u64)> {
     let mut h = Sha256::new();
     let mut buf = vec![0u8; 1 << 16];
     let mut len = 0u64;

@@ -195,6 +195,16 @@ impl Objects {
         rx.recv().map_err(|_| stopped())?
     }
 
+    /// Runs a request on the store's threads, for async code (the caller's thread is free
+    /// meanwhile).
+    async fn spawn<T: Send + 'static>(
+        &self,
+        f: impl Future<Output = object_store::Result<T>> + Send + 'static,
+    ) -> object_store::Result<T> {
+        let rt = self.runtime.as_ref().ok_or_else(stopped)?;
+        rt.spawn(f).await.map_err(|_| stopped())?
+    }
+
     fn key(key: &str) -> anyhow::Result<Key> {
         Key::parse(key).with_context(|| format!("object key {key}"))
     }
@@ -229,21 +239,27 @@ impl Objects {
         Ok(())
     }
 
-    /// Writes an object through a local file: `write` fills the file, which is then stored
-    /// under `key`. Nothing is stored if `write` fails.
-    pub fn write(
+    /// Writes an object through a local file: `write` fills the file (which it may also read
+    /// back), which is then stored under `key`; returns what `write` did. Nothing is stored if
+    /// `write` fails.
+    pub fn write<T>(
         &self,
         key: &str,
-        write: impl FnOnce(&mut std::fs::File) -> anyhow::Result<()>,
-    ) -> anyhow::Result<()> {
+        write: impl FnOnce(&mut std::fs::File) -> anyhow::Result<T>,
+    ) -> anyhow::Result<T> {
         let tmp = self.spool_file(key);
         let result = (|| {
-            let mut file =
-                std::fs::File::create(&tmp).with_context(|| tmp.display().to_string())?;
-            write(&mut file).with_context(|| format!("writing {key}"))?;
+            let mut file = std::fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create_new(true)
+                .open(&tmp)
+                .with_context(|| tmp.display().to_string())?;
+            let out = write(&mut file).with_context(|| format!("writing {key}"))?;
             file.sync_all().ok();
             drop(file);
-            self.put_file(key, &tmp)
+            self.put_file(key, &tmp)?;
+            Ok(out)
         })();
         if result.is_err() {
             let _ = std::fs::remove_file(&tmp);
@@ -296,9 +312,7 @@ impl Objects {
         key: &str,
     ) -> anyhow::Result<Option<(u64, BoxStream<'static, object_store::Result<Bytes>>)>> {
         let (store, k) = (self.store.clone(), Self::key(key)?);
-        let rt = self.runtime.as_ref().ok_or_else(stopped)?;
-        let got = rt.spawn(async move { store.get(&k).await }).await?;
-        match got {
+        match self.spawn(async move { store.get(&k).await }).await {
             Ok(g) => Ok(Some((g.meta.size, g.into_stream()))),
             Err(e) if is_not_found(&e) => Ok(None),
             Err(e) => Err(e).with_context(|| format!("reading {key} from {}", self.location)),
@@ -321,9 +335,7 @@ impl Objects {
             return Ok(dir.join(key).is_file());
         }
         let (store, k) = (self.store.clone(), Self::key(key)?);
-        let rt = self.runtime.as_ref().ok_or_else(stopped)?;
-        let head = rt.spawn(async move { store.head(&k).await }).await?;
-        self.found(key, head)
+        self.found(key, self.spawn(async move { store.head(&k).await }).await)
     }
 
     fn found<T>(&self, key: &str, head: object_store::Result<T>) -> anyhow::Result<bool> {
@@ -479,7 +491,7 @@ mod tests {
         o.delete_all("jobs/1").expect("delete all");
         assert!(o.list("jobs").expect("list").is_empty());
         // A failed write stores nothing and leaves nothing in the spool.
-        assert!(o.write("jobs/2/x", |_| anyhow::bail!("no")).is_err());
+        assert!(o.write::<()>("jobs/2/x", |_| anyhow::bail!("no")).is_err());
         assert!(!o.exists("jobs/2/x").expect("exists"));
         assert_eq!(std::fs::read_dir(o.spool()).expect("spool").count(), 0);
         o.probe("host/127.0.0.1:1").expect("writable");

@@ -415,19 +415,22 @@ fn export_writes_mitsuba_xml_and_refuses_what_mitsuba_lacks() {
     );
 }
 
-/// `tessera serve --store URL` with everything else valid, in a new data directory.
-fn serve_with_store(url: &str) -> Output {
+/// `tessera serve` with `args` and the environment `env`, everything else valid, in a new
+/// data directory (for configurations it must refuse: it would serve forever otherwise).
+fn serve_with(args: &[&str], env: &[(&str, &str)]) -> Output {
     let dir = tempfile::tempdir().expect("temp dir");
-    let data = dir.path().join("data");
-    tessera(&[
-        "serve",
-        "--listen",
-        "127.0.0.1:0",
-        "--data",
-        data.to_str().expect("utf-8 temp path"),
-        "--store",
-        url,
-    ])
+    Command::new(env!("CARGO_BIN_EXE_tessera"))
+        .args(["serve", "--listen", "127.0.0.1:0", "--data"])
+        .arg(dir.path().join("data"))
+        .args(args)
+        .envs(env.iter().copied())
+        .output()
+        .expect("run tessera")
+}
+
+/// `tessera serve --store URL`.
+fn serve_with_store(url: &str) -> Output {
+    serve_with(&["--store", url], &[])
 }
 
 #[test]
@@ -470,17 +473,9 @@ fn serve_refuses_a_job_store_it_cannot_use_naming_it() {
     );
 }
 
-/// `tessera serve --objects LOCATION` with everything else valid, in a new data directory.
+/// `tessera serve --objects LOCATION`, with `env`.
 fn serve_with_objects(location: &str, env: &[(&str, &str)]) -> Output {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let data = dir.path().join("data");
-    Command::new(env!("CARGO_BIN_EXE_tessera"))
-        .args(["serve", "--listen", "127.0.0.1:0", "--data"])
-        .arg(&data)
-        .args(["--objects", location])
-        .envs(env.iter().copied())
-        .output()
-        .expect("run tessera")
+    serve_with(&["--objects", location], env)
 }
 
 #[test]

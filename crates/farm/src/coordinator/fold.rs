@@ -11,7 +11,7 @@
 
 use std::any::Any;
 use std::collections::HashMap;
-use std::io::{BufReader, BufWriter};
+use std::io::{BufReader, BufWriter, Seek, Write};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
 
@@ -572,21 +572,15 @@ impl App {
         let name = self.artifact_key(pass.key());
         // Jobs that build the same key at once (reuse disabled) each write their own spool
         // file; the second store replaces one identical artifact with another.
-        let tmp = self.objects.spool_file(&name);
         let header = Header::new("artifact", &pass.schema());
-        let written = (|| {
-            let file = std::fs::File::create(&tmp).with_context(|| tmp.display().to_string())?;
-            artifact.write_to(&header, &mut BufWriter::new(file))?;
-            anyhow::Ok(crate::bundle::hash_file(&tmp)?)
-        })();
-        let (sha256, bytes) = match written {
-            Ok(w) => w,
-            Err(e) => {
-                let _ = std::fs::remove_file(&tmp);
-                return Err(e);
-            }
-        };
-        self.objects.put_file(&name, &tmp)?;
+        let (sha256, bytes) = self.objects.write(&name, |file| {
+            let mut w = BufWriter::new(&mut *file);
+            artifact.write_to(&header, &mut w)?;
+            w.flush()?;
+            drop(w);
+            file.rewind()?;
+            Ok(crate::bundle::hash_reader(&mut *file)?)
+        })?;
         let entry = CacheEntry {
             key: pass.key().to_string(),
             name: pass.name().to_string(),

@@ -317,11 +317,6 @@ pub(super) async fn download_artifact(
         true => app.store.cached(&key)?,
         false => None,
     };
-    // The store may name an artifact whose object is gone (evicted meanwhile).
-    let entry = match entry {
-        Some(e) if app.objects.exists_async(&e.path).await? => Some(e),
-        _ => None,
-    };
     let Some(entry) = entry else {
         return Err(AppError::not_found(format!("no artifact {key}")));
     };
