@@ -672,6 +672,11 @@ impl Scene {
     }
 
     /// The closest surface along `ray` (passing through where surfaces are not there).
+    /// The scene's BVHs alone (for measuring ray casting).
+    pub fn into_accel(self) -> Accel {
+        self.accel
+    }
+
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         let hit = if self.holes {
             self.through_holes(ray, f32::INFINITY)?

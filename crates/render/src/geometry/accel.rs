@@ -56,13 +56,8 @@ impl Boundable for Padded {
     }
 }
 
-/// Primitives per leaf of the binary BVH: one block of four triangles.
-const LEAF_SIZE: u32 = 4;
-/// obvhs's weight of traversal against intersection cost when collapsing leaves. Its default
-/// (3) packs walls of a room into shared leaves whose boxes span the room; 1 keeps leaves
-/// tight. Measured, interleaved runs: Cornell box closest hit +10 % (822 instead of 1038
-/// instructions a ray), occlusion +2 %, the 2 M-triangle height field unchanged.
-const COLLAPSE_TRAVERSAL_COST: f32 = 1.0;
+/// Triangles in a leaf: one block.
+const LEAF_TRIANGLES: u32 = 4;
 
 /// Bounding volume hierarchies over a scene's triangles and spheres.
 pub struct Accel {
@@ -91,8 +86,8 @@ impl Accel {
         let pad = Vec3A::splat(lo.abs().max(hi.abs()).max_element() * (16.0 * f32::EPSILON));
         let padded = |a: Vec3A, b: Vec3A| Padded(Aabb::new(a - pad, b + pad));
         let params = BvhBuildParams {
-            max_prims_per_leaf: LEAF_SIZE,
-            collapse_traversal_cost: COLLAPSE_TRAVERSAL_COST,
+            // One primitive per binary leaf: `Bvh4` collapses subtrees into blocks itself.
+            max_prims_per_leaf: 1,
             ..BvhBuildParams::medium_build()
         };
 
@@ -106,9 +101,8 @@ impl Accel {
                 .map(|t| padded(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
                 .collect();
             let bvh2 = build_bvh2(&bounds, params, &mut Duration::default());
-            Bvh4::from_bvh2(&bvh2, |first, count| {
+            Bvh4::from_bvh2(&bvh2, LEAF_TRIANGLES, |ids| {
                 let start = blocks.len() as u32;
-                let ids = &bvh2.primitive_indices[first as usize..(first + count) as usize];
                 for chunk in ids.chunks(4) {
                     let tris: Vec<[Vec3A; 3]> =
                         chunk.iter().map(|&i| triangles[i as usize]).collect();
@@ -129,13 +123,14 @@ impl Accel {
                 .map(|&(c, r)| padded(c - Vec3A::splat(r), c + Vec3A::splat(r)))
                 .collect();
             let bvh2 = build_bvh2(&bounds, params, &mut Duration::default());
-            Bvh4::from_bvh2(&bvh2, |first, count| {
+            // Spheres are tested one by one: a leaf is one sphere.
+            Bvh4::from_bvh2(&bvh2, 1, |ids| {
                 let start = sphere_list.len() as u32;
-                for &i in &bvh2.primitive_indices[first as usize..(first + count) as usize] {
+                for &i in ids {
                     let (center, radius) = spheres[i as usize];
                     sphere_list.push((Sphere { center, radius }, i));
                 }
-                (start, count)
+                (start, ids.len() as u32)
             })
         };
         Accel {
@@ -145,6 +140,32 @@ impl Accel {
             spheres: sphere_bvh,
             sphere_list,
         }
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.block_ids.iter().flatten().filter(|&&id| id != u32::MAX).count()
+    }
+
+    /// Inner nodes of the triangle BVH and its blocks of (up to) four triangles.
+    pub fn triangle_bvh_size(&self) -> (usize, usize) {
+        (self.triangles.node_count(), self.blocks.len())
+    }
+
+    pub fn sphere_count(&self) -> usize {
+        self.sphere_list.len()
+    }
+
+    /// Every triangle's vertices, in the order of their ids.
+    pub fn triangles(&self) -> Vec<[Vec3A; 3]> {
+        let mut out = vec![[Vec3A::ZERO; 3]; self.triangle_count()];
+        for (block, ids) in self.blocks.iter().zip(&self.block_ids) {
+            for (lane, &id) in ids.iter().enumerate() {
+                if id != u32::MAX {
+                    out[id as usize] = block.triangle(lane);
+                }
+            }
+        }
+        out
     }
 
     /// The closest hit with 0 < t < `t_max`.
@@ -329,6 +350,21 @@ mod tests {
     #[test]
     fn closed_box_does_not_leak_when_tiny() {
         assert_closed(Vec3A::new(2e-3, 0.0, -1e-3), 1e-3);
+    }
+
+    /// Every triangle lands in exactly one block lane, whatever subtrees became leaves.
+    #[test]
+    fn every_triangle_is_in_one_block() {
+        let mut tris = cube(Vec3A::ZERO, 1.0);
+        for i in 0..997u32 {
+            let o = Vec3A::new((i % 10) as f32, (i / 10 % 10) as f32, (i / 100) as f32) * 3.0;
+            tris.push([o, o + Vec3A::X, o + Vec3A::new(0.0, 1.0, 0.5)]);
+        }
+        let accel = Accel::build(&tris, &[]);
+        assert_eq!(accel.triangle_count(), tris.len());
+        assert_eq!(accel.triangles(), tris);
+        let (_, blocks) = accel.triangle_bvh_size();
+        assert!(blocks * 4 >= tris.len() && blocks <= tris.len());
     }
 
     #[test]

@@ -1,8 +1,9 @@
 //! A 4-wide BVH with uncompressed bounds (the layout of Embree's BVH4; Wald et al., "Getting
-//! Rid of Packets", 2008), built from `obvhs`'s binary BVH (PLOC, reinsertion, SAH leaf
-//! collapse): four children's bounds per node, stored axis by axis, tested with one SIMD slab
-//! test. Leaves are ranges of primitive *blocks* whose meaning belongs to the caller (four
-//! triangles, or one sphere).
+//! Rid of Packets", 2008): four children's bounds per node, stored axis by axis, tested with
+//! one SIMD slab test. Built from `obvhs`'s binary BVH (PLOC and reinsertion, one primitive per
+//! leaf), whose small subtrees become leaves by the surface area heuristic with the cost of a
+//! four-wide leaf test ([`Collapse`]). Leaves are ranges of primitive *blocks* whose meaning
+//! belongs to the caller (four triangles, or one sphere).
 //!
 //! Traversal visits the nearest hit child next without pushing it and pushes the others
 //! farthest first; shadow rays skip the ordering. Empty child slots have bounds (+∞, −∞),
@@ -108,6 +109,72 @@ pub struct Bvh4 {
     root: Option<Ref>,
 }
 
+/// Cost of testing one leaf of up to four primitives (one SIMD block), in units of one
+/// node's four-box test, for [`Collapse`].
+const LEAF_COST: f32 = 2.0;
+
+/// Which nodes of a binary BVH become leaves: every binary leaf, and every subtree of at most
+/// `max_leaf` primitives whose expected cost as one leaf, area × [`LEAF_COST`], is no more than
+/// as a subtree, area × 1 (its node) + its children's costs (the surface area heuristic,
+/// MacDonald & Booth 1990, with areas relative to the root). A block tests four triangles for
+/// the price of one, so small subtrees collapse unless their children are much smaller than
+/// they are (two distant walls of a room stay apart).
+struct Collapse {
+    leaf: Vec<bool>,
+}
+
+impl Collapse {
+    fn new(bvh2: &Bvh2, max_leaf: u32) -> Self {
+        let n = bvh2.nodes.len();
+        let mut leaf = vec![false; n];
+        let mut count = vec![0u32; n];
+        let mut cost = vec![0f32; n];
+        // Post-order without recursion: a node is finished once both children are.
+        let mut stack = vec![(0usize, false)];
+        while let Some((i, children_done)) = stack.pop() {
+            let node = &bvh2.nodes[i];
+            let area = node.aabb.half_area();
+            if node.prim_count > 0 {
+                leaf[i] = true;
+                count[i] = node.prim_count;
+                cost[i] = area * LEAF_COST * node.prim_count.div_ceil(4) as f32;
+                continue;
+            }
+            let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
+            if !children_done {
+                stack.extend([(i, true), (l, false), (r, false)]);
+                continue;
+            }
+            count[i] = count[l] + count[r];
+            let split = area + cost[l] + cost[r];
+            let as_leaf = area * LEAF_COST;
+            if count[i] <= max_leaf && as_leaf <= split {
+                leaf[i] = true;
+                cost[i] = as_leaf;
+            } else {
+                cost[i] = split;
+            }
+        }
+        Collapse { leaf }
+    }
+
+    fn is_leaf(&self, i: usize) -> bool {
+        self.leaf[i]
+    }
+}
+
+/// The primitives (indices into the binary BVH's input) of the subtree at node `i`.
+fn collect_prims(bvh2: &Bvh2, i: usize, out: &mut Vec<u32>) {
+    let node = &bvh2.nodes[i];
+    if node.prim_count > 0 {
+        let first = node.first_index as usize;
+        out.extend_from_slice(&bvh2.primitive_indices[first..first + node.prim_count as usize]);
+    } else {
+        collect_prims(bvh2, node.first_index as usize, out);
+        collect_prims(bvh2, node.first_index as usize + 1, out);
+    }
+}
+
 /// What a leaf callback tells the traversal.
 pub enum Visit {
     Continue,
@@ -115,12 +182,24 @@ pub enum Visit {
 }
 
 impl Bvh4 {
-    /// Collapses a binary BVH into four-wide nodes. `leaf` turns a binary leaf (a range of the
-    /// binary BVH's primitive order) into a range of blocks appended to the caller's storage.
-    pub fn from_bvh2(bvh2: &Bvh2, mut leaf: impl FnMut(u32, u32) -> (u32, u32)) -> Bvh4 {
+    /// Inner nodes.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Collapses a binary BVH of one primitive per leaf into four-wide nodes. A subtree of at
+    /// most `max_leaf` primitives becomes one leaf where the surface area heuristic prefers
+    /// it (see [`Collapse`]); `leaf` appends a leaf's primitives (indices into the binary
+    /// BVH's input) to the caller's storage and returns the range of blocks they take.
+    pub fn from_bvh2(
+        bvh2: &Bvh2,
+        max_leaf: u32,
+        mut leaf: impl FnMut(&[u32]) -> (u32, u32),
+    ) -> Bvh4 {
         let mut out = Bvh4::default();
         if !bvh2.nodes.is_empty() {
-            let root = out.convert(bvh2, 0, &mut leaf);
+            let collapse = Collapse::new(bvh2, max_leaf);
+            let root = out.convert(bvh2, &collapse, 0, &mut leaf, &mut Vec::new());
             out.root = Some(root);
         }
         out
@@ -129,20 +208,24 @@ impl Bvh4 {
     fn convert(
         &mut self,
         bvh2: &Bvh2,
+        collapse: &Collapse,
         i: usize,
-        leaf: &mut impl FnMut(u32, u32) -> (u32, u32),
+        leaf: &mut impl FnMut(&[u32]) -> (u32, u32),
+        prims: &mut Vec<u32>,
     ) -> Ref {
-        let n = &bvh2.nodes[i];
-        if n.prim_count > 0 {
-            let (first, count) = leaf(n.first_index, n.prim_count);
+        if collapse.is_leaf(i) {
+            prims.clear();
+            collect_prims(bvh2, i, prims);
+            let (first, count) = leaf(prims);
             return Ref::leaf(first, count);
         }
         // Open the largest inner children until there are four.
-        let mut kids = vec![n.first_index as usize, n.first_index as usize + 1];
+        let first = bvh2.nodes[i].first_index as usize;
+        let mut kids = vec![first, first + 1];
         while kids.len() < 4 {
             let area = |k: usize| bvh2.nodes[k].aabb.half_area();
             let Some(pos) = (0..kids.len())
-                .filter(|&p| bvh2.nodes[kids[p]].prim_count == 0)
+                .filter(|&p| !collapse.is_leaf(kids[p]))
                 .max_by(|&a, &b| area(kids[a]).total_cmp(&area(kids[b])))
             else {
                 break;
@@ -165,7 +248,7 @@ impl Bvh4 {
                 node.b[axis + 3][slot] = aabb.max[axis];
             }
             if let Some(&k) = kids.get(slot) {
-                node.child[slot] = self.convert(bvh2, k, leaf);
+                node.child[slot] = self.convert(bvh2, collapse, k, leaf, prims);
             }
         }
         self.nodes[index] = node;

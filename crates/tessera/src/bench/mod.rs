@@ -9,6 +9,8 @@
 //!   built per frame: time and flicker (`flythrough.rs`).
 //! - `tessera bench load SCENE`: reading, BVH building and the first pixels of a
 //!   production-size scene, with the memory it takes (`load.rs`).
+//! - `tessera bench rays`: ray casting throughput of the BVH, coherent and incoherent rays,
+//!   optionally against Embree (`rays.rs`).
 //! - `tessera bench dashboard`: the dashboard's page and API latency with a big store
 //!   (`dashboard.rs`).
 
@@ -18,6 +20,9 @@ mod farm;
 mod flythrough;
 mod load;
 mod plot;
+mod rays;
+#[cfg(feature = "embree")]
+mod embree;
 mod soak;
 
 pub use error::ErrorArgs;
@@ -43,6 +48,8 @@ pub enum BenchCommand {
     Flythrough(flythrough::FlythroughArgs),
     /// Load, BVH build and first pixels of a scene, and its memory.
     Load(load::LoadArgs),
+    /// Ray casting throughput on one core: closest hit and occlusion, coherent and incoherent.
+    Rays(rays::RaysArgs),
     /// The dashboard's page and API latency with 1,000 jobs and 100,000 tasks in the store.
     Dashboard(dashboard::DashboardArgs),
 }
@@ -54,6 +61,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         Some(BenchCommand::Soak(a)) => crate::block_on(soak::run(a)),
         Some(BenchCommand::Flythrough(a)) => crate::block_on(flythrough::run(a)),
         Some(BenchCommand::Load(a)) => load::run(a),
+        Some(BenchCommand::Rays(a)) => rays::run(a),
         Some(BenchCommand::Dashboard(a)) => crate::block_on(dashboard::run(a)),
         None => error::run(args.error),
     }
