@@ -42,8 +42,6 @@ pub struct RaysArgs {
 struct Case {
     name: String,
     accel: Accel,
-    triangles: usize,
-    spheres: usize,
     coherent: Vec<Ray>,
     incoherent: Vec<Ray>,
 }
@@ -118,8 +116,8 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
         let row = format!(
             "| {} | {} | {} | {nodes}, {blocks} | {} + {} |{}",
             case.name,
-            case.triangles,
-            case.spheres,
+            case.accel.triangle_count(),
+            case.accel.sphere_count(),
             case.coherent.len(),
             case.incoherent.len(),
             columns(&ours),
@@ -135,7 +133,7 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
 /// Embree's hit counts differ from ours, the count follows its figure.
 #[cfg(feature = "embree")]
 fn embree_columns(case: &Case, repeat: u32, ours: &Row) -> anyhow::Result<String> {
-    if case.spheres > 0 {
+    if case.accel.sphere_count() > 0 {
         return Ok(" — | — | — | — |".into());
     }
     let scene = super::embree::Scene::new(&case.accel.triangles())?;
@@ -219,8 +217,6 @@ fn scene_case(path: &Path, w: u32, h: u32) -> anyhow::Result<Case> {
         .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
     Ok(Case {
         name,
-        triangles: accel.triangle_count(),
-        spheres: accel.sphere_count(),
         accel,
         coherent,
         incoherent,
@@ -265,8 +261,6 @@ fn height_field(w: u32, h: u32) -> Case {
         .collect();
     Case {
         name: "height field".into(),
-        triangles: tris.len(),
-        spheres: 0,
         accel,
         coherent,
         incoherent,
