@@ -1,12 +1,12 @@
 //! Tiles and their accumulated samples.
 //!
 //! A tile is a rectangle of pixels and a range of sample indices. It accumulates, per pixel,
-//! weighted sums (Σw·L, Σw, Σ(w·L)², and the AOVs) — never normalised colour — in fixed point
+//! weighted sums (Σw·L, Σw, Σ(w·L)²) — never normalised colour — in fixed point
 //! (i128). Integer addition is associative, so sums merged from any split of the sample range,
 //! in any order, on any machine, are bit-identical; the image is divided out once, at the end
 //! (DESIGN: tiles carry Σw·L and Σw).
 
-use glam::{UVec2, Vec3A};
+use glam::UVec2;
 use half::bf16;
 use serde::{Deserialize, Serialize};
 
@@ -114,16 +114,6 @@ fn unfixed(v: i128, frac: i32) -> f64 {
     v as f64 * f64::from_bits(((1023 - frac) as u64) << 52)
 }
 
-/// What the first surface a camera ray hits looked like: the AOVs of one sample.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Aov {
-    pub albedo: Spectrum,
-    /// World-space shading normal.
-    pub normal: Vec3A,
-    /// Distance along the camera's axis.
-    pub depth: f32,
-}
-
 /// Fixed-point sums of one pixel.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct PixelSums {
@@ -131,17 +121,12 @@ pub struct PixelSums {
     pub w: i128,
     pub wl: [i128; 3],
     pub wl2: [i128; 3],
-    pub albedo: [i128; 3],
-    pub normal: [i128; 3],
-    pub depth: i128,
-    /// Σw over samples whose ray hit something.
-    pub hit_w: i128,
 }
 
 impl PixelSums {
     /// Adds a sample of radiance `l` (already finite) with filter weight `w`.
     #[inline]
-    pub fn add(&mut self, w: f32, l: Spectrum, hit: Option<&Aov>) {
+    pub fn add(&mut self, w: f32, l: Spectrum) {
         let first = |v: f32| fixed(v, FRAC, LIMIT);
         let wl = l * w;
         self.samples += 1;
@@ -151,26 +136,14 @@ impl PixelSums {
             self.wl[c] += first(v);
             self.wl2[c] += fixed(v * v, FRAC_SQ, LIMIT_SQ);
         }
-        if let Some(h) = hit {
-            self.hit_w += first(w);
-            self.depth += first(w * h.depth);
-            for c in 0..3 {
-                self.albedo[c] += first(w * h.albedo[c]);
-                self.normal[c] += first(w * h.normal[c]);
-            }
-        }
     }
 
     pub fn merge(&mut self, o: &PixelSums) {
         self.samples += o.samples;
         self.w += o.w;
-        self.hit_w += o.hit_w;
-        self.depth += o.depth;
         for c in 0..3 {
             self.wl[c] += o.wl[c];
             self.wl2[c] += o.wl2[c];
-            self.albedo[c] += o.albedo[c];
-            self.normal[c] += o.normal[c];
         }
     }
 
@@ -188,26 +161,15 @@ impl PixelSums {
         (s, unfixed(self.w, FRAC), m2)
     }
 
-    /// The pixel's final values.
+    /// The pixel's colour and its variance (its AOVs come from a pass of their own,
+    /// [`crate::method::aov`]).
     pub fn resolve(&self) -> Pixel {
         let w = unfixed(self.w, FRAC);
         let n = self.samples as f64;
         if w == 0.0 || n == 0.0 {
             return Pixel::default();
         }
-        let hit_w = unfixed(self.hit_w, FRAC);
-        let per_hit = |v: i128| {
-            if hit_w != 0.0 {
-                (unfixed(v, FRAC) / hit_w) as f32
-            } else {
-                0.0
-            }
-        };
-        let mut p = Pixel {
-            alpha: (hit_w / w) as f32,
-            depth: per_hit(self.depth),
-            ..Default::default()
-        };
+        let mut p = Pixel::default();
         let mean_w = w / n;
         for c in 0..3 {
             let s1 = unfixed(self.wl[c], FRAC);
@@ -219,8 +181,6 @@ impl PixelSums {
                 let var = ((s2 - s1 * s1 / n) / (n - 1.0)).max(0.0);
                 p.variance[c] = (var / (n * mean_w * mean_w)) as f32;
             }
-            p.albedo[c] = per_hit(self.albedo[c]);
-            p.normal[c] = per_hit(self.normal[c]);
         }
         p
     }
@@ -505,20 +465,20 @@ mod tests {
             .map(|i| {
                 (
                     1.0 + (i % 3) as f32 * 0.25,
-                    Vec3A::new(i as f32 * 0.37, 1e-3 / (i + 1) as f32, 1e4 * (i % 7) as f32),
+                    glam::Vec3A::new(i as f32 * 0.37, 1e-3 / (i + 1) as f32, 1e4 * (i % 7) as f32),
                 )
             })
             .collect();
         let mut whole = PixelSums::default();
         for (w, l) in &values {
-            whole.add(*w, *l, None);
+            whole.add(*w, *l);
         }
         let (mut a, mut b) = (PixelSums::default(), PixelSums::default());
         for (i, (w, l)) in values.iter().enumerate().rev() {
             if i % 2 == 0 {
-                a.add(*w, *l, None)
+                a.add(*w, *l)
             } else {
-                b.add(*w, *l, None)
+                b.add(*w, *l)
             }
         }
         b.merge(&a);
@@ -530,20 +490,11 @@ mod tests {
         let mut s = PixelSums::default();
         let ls = [1.0f32, 2.0, 3.0, 6.0];
         for l in ls {
-            s.add(
-                1.0,
-                Spectrum::splat(l),
-                Some(&Aov {
-                    albedo: Spectrum::ONE,
-                    normal: Vec3A::Z,
-                    depth: 4.0,
-                }),
-            );
+            s.add(1.0, Spectrum::splat(l));
         }
         let p = s.resolve();
         assert!((p.rgb[0] - 3.0).abs() < 1e-6);
         // Sample variance 14/3, variance of the mean 14/12.
         assert!((p.variance[1] - 14.0 / 12.0).abs() < 1e-5);
-        assert_eq!((p.alpha, p.depth, p.normal[2]), (1.0, 4.0, 1.0));
     }
 }

@@ -6,8 +6,10 @@
 use rayon::prelude::*;
 
 use crate::camera::{Camera, camera_ray};
-use crate::film::{Aov, Image, SampleRange, Tile, TileSums, tiles};
+use crate::film::{Image, SampleRange, Tile, TileSums, tiles};
 use crate::integrator::{Integrator, RayStats};
+use crate::method::aov::{self, AOV_SAMPLES};
+use crate::method::film::AovAcc;
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::Scene;
 
@@ -27,28 +29,24 @@ pub fn render_tile(
         for index in range.start..range.end {
             sampler.start_pixel_sample(pixel, index);
             let (ray, w) = camera_ray(scene, camera, pixel, &mut sampler);
-            let out = integrator.li(scene, ray, &mut sampler, &mut stats);
+            let mut l = integrator.li(scene, ray, &mut sampler, &mut stats) * exposure;
             stats.samples += 1;
-            let mut l = out.l * exposure;
             // DESIGN invariant 3: no NaN or Inf reaches the film. The sample counts as black
             // (every pixel keeps as many samples as its range), and is counted.
             if !l.is_finite() {
                 stats.nonfinite += 1;
                 l = crate::spectrum::Spectrum::ZERO;
             }
-            let aov = out.first_hit.map(|h| Aov {
-                albedo: h.albedo,
-                normal: h.normal,
-                depth: camera.depth(h.p),
-            });
-            acc.add(w, l, aov.as_ref());
+            acc.add(w, l);
         }
     }
     (sums, stats)
 }
 
 /// Renders a whole frame with tiles of `tile_size` pixels, samples `range`, on the current
-/// rayon pool: the tiles of [`tiles`] rendered in parallel and put in place in a fixed order.
+/// rayon pool: the tiles of [`tiles`] rendered in parallel and put in place in a fixed order,
+/// the AOVs from the first [`AOV_SAMPLES`] camera rays of the range (as a farm frame's AOV
+/// tasks trace them).
 pub fn render_frame(
     scene: &Scene,
     camera: &Camera,
@@ -56,15 +54,26 @@ pub fn render_frame(
     tile_size: u32,
     range: SampleRange,
 ) -> (Image, RayStats) {
-    let done: Vec<(TileSums, RayStats)> = tiles(scene.film.width, scene.film.height, tile_size)
+    let (width, height) = (scene.film.width, scene.film.height);
+    let aov_range = SampleRange {
+        start: range.start,
+        end: range.start + range.len().clamp(1, AOV_SAMPLES),
+    };
+    let done: Vec<_> = tiles(width, height, tile_size)
         .par_iter()
-        .map(|&tile| render_tile(scene, camera, integrator, tile, range))
+        .map(|&tile| {
+            let (sums, stats) = render_tile(scene, camera, integrator, tile, range);
+            (sums, aov::execute(scene, camera, tile, aov_range), stats)
+        })
         .collect();
-    let mut image = Image::new(scene.film.width, scene.film.height);
+    let mut film = Image::new(width, height);
+    let mut aovs = AovAcc::new(width, height);
     let mut stats = RayStats::default();
-    for (sums, s) in &done {
-        image.put(sums);
+    for (sums, aov, s) in &done {
+        film.put(sums);
+        aovs.fold(aov).expect("a tile's AOVs fit its frame");
         stats.add(s);
     }
+    let image = aovs.image(|i| (film.pixels[i].rgb, film.pixels[i].variance));
     (image, stats)
 }

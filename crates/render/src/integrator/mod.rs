@@ -173,23 +173,6 @@ pub(crate) fn direct_light(
     l
 }
 
-/// The first surface a camera ray hit, for the AOVs.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FirstHit {
-    pub albedo: Spectrum,
-    /// World-space shading normal.
-    pub normal: Vec3A,
-    /// World-space position (the film turns it into depth along the camera axis).
-    pub p: Vec3A,
-}
-
-/// Radiance along a camera ray, and what it hit first.
-#[derive(Debug, Clone, Copy)]
-pub struct RadianceSample {
-    pub l: Spectrum,
-    pub first_hit: Option<FirstHit>,
-}
-
 pub trait Integrator: Send + Sync {
     fn li(
         &self,
@@ -197,7 +180,7 @@ pub trait Integrator: Send + Sync {
         ray: Ray,
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
-    ) -> RadianceSample;
+    ) -> Spectrum;
 }
 
 /// A path tracer, or the direct-lighting estimator for `direct`.

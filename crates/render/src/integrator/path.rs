@@ -7,9 +7,8 @@ use tessera_scene::SubsurfaceMethod;
 
 use super::subsurface::hierarchical::{self, PointClouds};
 use super::subsurface::{probe, single, walk};
-use super::{Integrator, RadianceSample, RayStats, consistent, sample_direct};
+use super::{Integrator, RayStats, consistent, sample_direct};
 use crate::bsdf::TransportMode;
-use crate::integrator::FirstHit;
 use crate::math::Frame;
 use crate::ray::Ray;
 use crate::sampler::{PixelSampler, Sampler};
@@ -89,7 +88,7 @@ impl Integrator for PathIntegrator {
         ray: Ray,
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
-    ) -> RadianceSample {
+    ) -> Spectrum {
         self.trace(scene, ray, sampler, stats, None)
     }
 }
@@ -103,7 +102,7 @@ impl PathIntegrator {
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
         gather: Option<Gather>,
-    ) -> RadianceSample {
+    ) -> Spectrum {
         let start = PathStart {
             specular: true,
             prev_pdf: 0.0,
@@ -121,7 +120,7 @@ impl PathIntegrator {
         stats: &mut RayStats,
         gather: Option<Gather>,
         start: PathStart,
-    ) -> RadianceSample {
+    ) -> Spectrum {
         let mode = TransportMode::Radiance;
         let mut l = Spectrum::ZERO;
         let mut beta = Spectrum::ONE;
@@ -131,7 +130,6 @@ impl PathIntegrator {
         let mut specular = start.specular;
         let mut prev_p = ray.o;
         let mut prev_pdf = start.prev_pdf;
-        let mut first_hit = None;
         let mut depth = start.depth;
         let mut nonspecular = start.depth;
 
@@ -153,13 +151,6 @@ impl PathIntegrator {
                 break;
             };
             let material = scene.material(si.material);
-            if depth == 0 {
-                first_hit = Some(FirstHit {
-                    albedo: material.bsdf_at(&si).albedo(),
-                    normal: si.ns,
-                    p: si.p,
-                });
-            }
             let wo = -ray.d;
             if si.light != NO_LIGHT {
                 let light = scene.lights.get(si.light);
@@ -254,7 +245,7 @@ impl PathIntegrator {
                 }
             }
         }
-        RadianceSample { l, first_hit }
+        l
     }
 
     /// Subsurface transport from `si`, where the path refracted into a translucent object
@@ -342,7 +333,7 @@ impl PathIntegrator {
             depth: 1,
         };
         let rest = self.trace_from(scene, exit.ray, sampler, stats, None, start);
-        direct + exit.weight * rest.l
+        direct + exit.weight * rest
     }
 }
 

@@ -21,7 +21,7 @@ use tessera_scene::SceneDesc;
 use crate::analysis::Analysis;
 
 use super::{
-    Integrator, PathIntegrator, RadianceSample, RayStats, consistent, direct_light, scatter,
+    Integrator, PathIntegrator, RayStats, consistent, direct_light, scatter,
 };
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
@@ -400,7 +400,7 @@ impl Integrator for PhotonIntegrator {
         ray: Ray,
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
-    ) -> RadianceSample {
+    ) -> Spectrum {
         let s = &self.settings;
         let gather = |si: &SurfaceInteraction,
                       material: &Material,

@@ -3,7 +3,7 @@
 //! A task renders in the core's fixed-point sums ([`crate::film::TileSums`]: exact, the same
 //! whatever order its threads add in) and hands over only what the fold needs, per pixel:
 //! Σ w·L and Σ w in f32 and the centred second moment of w·L in bf16 (a statistic: 8 bits of
-//! precision are plenty) — 22 bytes, where the fixed-point sums are 248. Whole-film methods
+//! precision are plenty) — 22 bytes, where the fixed-point sums are 128. Whole-film methods
 //! add their light-tracing or chain splats (12 bytes) and leave out the second moment (their
 //! variance comes from batches, see [`Batches`]). The AOVs come from tasks of their own
 //! ([`super::aov`]), 24 bytes a pixel, once per frame.
@@ -358,11 +358,7 @@ mod tests {
         for (k, p) in t.pixels.iter_mut().enumerate() {
             for s in range.start..range.end {
                 let x = ((s * 7919 + k as u32 * 104_729 + seed) % 1000) as f32 / 250.0;
-                p.add(
-                    0.75 + (s % 3) as f32 * 0.25,
-                    Spectrum::new(x, 2.0 * x, 0.1),
-                    None,
-                );
+                p.add(0.75 + (s % 3) as f32 * 0.25, Spectrum::new(x, 2.0 * x, 0.1));
             }
         }
         t

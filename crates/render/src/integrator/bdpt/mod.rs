@@ -245,7 +245,7 @@ impl Bdpt {
                     stats.nonfinite += 1;
                     l = Spectrum::ZERO;
                 }
-                acc.add(fw, l, None);
+                acc.add(fw, l);
             }
         }
         (sums, stats)
