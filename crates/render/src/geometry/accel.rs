@@ -143,7 +143,11 @@ impl Accel {
     }
 
     pub fn triangle_count(&self) -> usize {
-        self.block_ids.iter().flatten().filter(|&&id| id != u32::MAX).count()
+        self.block_ids
+            .iter()
+            .flatten()
+            .filter(|&&id| id != u32::MAX)
+            .count()
     }
 
     /// Inner nodes of the triangle BVH and its blocks of (up to) four triangles.

@@ -20,9 +20,7 @@ use tessera_scene::SceneDesc;
 
 use crate::analysis::Analysis;
 
-use super::{
-    Integrator, PathIntegrator, RayStats, consistent, direct_light, scatter,
-};
+use super::{Integrator, PathIntegrator, RayStats, consistent, direct_light, scatter};
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
 use crate::film::Tile;

@@ -98,24 +98,25 @@ impl Scene {
         unsafe {
             let device = rtcNewDevice(std::ptr::null());
             if device.is_null() {
-                bail!("Embree: rtcNewDevice failed (error {})", rtcGetDeviceError(device));
+                bail!(
+                    "Embree: rtcNewDevice failed (error {})",
+                    rtcGetDeviceError(device)
+                );
             }
             let scene = rtcNewScene(device);
             let geometry = rtcNewGeometry(device, GEOMETRY_TYPE_TRIANGLE);
             let n = triangles.len();
-            let vertices = rtcSetNewGeometryBuffer(
-                geometry,
-                BUFFER_TYPE_VERTEX,
-                0,
-                FORMAT_FLOAT3,
-                12,
-                3 * n,
-            ) as *mut [f32; 3];
+            let vertices =
+                rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_VERTEX, 0, FORMAT_FLOAT3, 12, 3 * n)
+                    as *mut [f32; 3];
             let indices =
                 rtcSetNewGeometryBuffer(geometry, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3, 12, n)
                     as *mut [u32; 3];
             if vertices.is_null() || indices.is_null() {
-                bail!("Embree: no buffers for {n} triangles (error {})", rtcGetDeviceError(device));
+                bail!(
+                    "Embree: no buffers for {n} triangles (error {})",
+                    rtcGetDeviceError(device)
+                );
             }
             for (i, t) in triangles.iter().enumerate() {
                 for (k, v) in t.iter().enumerate() {

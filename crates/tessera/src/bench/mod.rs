@@ -15,14 +15,14 @@
 //!   (`dashboard.rs`).
 
 mod dashboard;
+#[cfg(feature = "embree")]
+mod embree;
 mod error;
 mod farm;
 mod flythrough;
 mod load;
 mod plot;
 mod rays;
-#[cfg(feature = "embree")]
-mod embree;
 mod soak;
 
 pub use error::ErrorArgs;

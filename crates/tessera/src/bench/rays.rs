@@ -84,7 +84,10 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
     let mut cases = Vec::new();
     if args.scenes.is_empty() {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-        for scene in ["scenes/cornell-box/scene.json", "scenes/cornell-glass/scene.json"] {
+        for scene in [
+            "scenes/cornell-box/scene.json",
+            "scenes/cornell-glass/scene.json",
+        ] {
             cases.push(scene_case(&root.join(scene), w, h)?);
         }
         cases.push(height_field(w, h));
@@ -211,10 +214,10 @@ fn scene_case(path: &Path, w: u32, h: u32) -> anyhow::Result<Case> {
         .collect();
     let accel = scene.into_accel();
     let incoherent = bounces(&accel, &coherent);
-    let name = path
-        .parent()
-        .and_then(|p| p.file_name())
-        .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let name = path.parent().and_then(|p| p.file_name()).map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
     Ok(Case {
         name,
         accel,
