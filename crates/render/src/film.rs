@@ -161,8 +161,8 @@ impl PixelSums {
         (s, unfixed(self.w, FRAC), m2)
     }
 
-    /// The pixel's colour and its variance (its AOVs come from a pass of their own,
-    /// [`crate::method::aov`]).
+    /// The pixel's colour and its variance (its AOVs come from the camera rays alone,
+    /// [`crate::render::first_hits`]).
     pub fn resolve(&self) -> Pixel {
         let w = unfixed(self.w, FRAC);
         let n = self.samples as f64;

@@ -44,6 +44,15 @@ pub fn render_tile(
 /// Most samples per pixel whose camera rays the AOVs average.
 pub const AOV_SAMPLES: u32 = 16;
 
+/// The samples whose camera rays give the AOVs of a render of samples `range`: its first
+/// [`AOV_SAMPLES`] (at least one).
+pub fn aov_range(range: SampleRange) -> SampleRange {
+    SampleRange {
+        start: range.start,
+        end: range.start + range.len().clamp(1, AOV_SAMPLES),
+    }
+}
+
 /// What the camera rays of a pixel's samples first hit: the filter weights of all of them and
 /// of those that hit a surface, and the weighted means over the hits.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -107,10 +116,7 @@ pub fn render_frame(
     tile_size: u32,
     range: SampleRange,
 ) -> (Image, RayStats) {
-    let aov_range = SampleRange {
-        start: range.start,
-        end: range.start + range.len().clamp(1, AOV_SAMPLES),
-    };
+    let aov_range = aov_range(range);
     let done: Vec<_> = tiles(scene.film.width, scene.film.height, tile_size)
         .par_iter()
         .map(|&tile| {

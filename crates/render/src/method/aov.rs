@@ -1,7 +1,7 @@
 //! The AOVs of a frame (alpha, albedo, normal, depth), the same for every method: tasks of
 //! their own in a frame's first step, each over a rectangle of pixels, tracing the camera rays
-//! of the first [`AOV_SAMPLES`] samples of each pixel — the rays the radiance samples start
-//! with — to the first surface they meet.
+//! of each pixel's first samples ([`crate::render::aov_range`]) — the rays the radiance
+//! samples start with — to the first surface they meet.
 
 use half::f16;
 
@@ -9,8 +9,7 @@ use super::TaskSpec;
 use super::film::AovSums;
 use crate::camera::Camera;
 use crate::film::{SampleRange, Tile, tiles};
-pub use crate::render::AOV_SAMPLES;
-use crate::render::first_hits;
+use crate::render::{aov_range, first_hits};
 use crate::scene::Scene;
 
 /// Kind of the AOV tasks.
@@ -21,13 +20,14 @@ const AOV_TILE: u32 = 128;
 /// The AOV tasks of step 0 of `frame` of a `width`×`height` film at `spp` samples per pixel,
 /// numbered from `first`.
 pub fn tasks(width: u32, height: u32, spp: u32, frame: u32, first: u32) -> Vec<TaskSpec> {
+    let r = aov_range(SampleRange { start: 0, end: spp });
     tiles(width, height, AOV_TILE)
         .into_iter()
         .enumerate()
         .map(|(i, t)| {
             TaskSpec::new(KIND, frame, 0, first + i as u32)
                 .with_rect(t)
-                .with_range(0, spp.clamp(1, AOV_SAMPLES))
+                .with_range(r.start, r.end)
         })
         .collect()
 }
