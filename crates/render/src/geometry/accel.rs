@@ -1,4 +1,4 @@
-//! Ray queries against all primitives: a 4-wide BVH ([`Bvh4`]) over blocks of four
+//! Ray queries against all primitives: an 8-wide BVH ([`Bvh8`]) over blocks of four
 //! triangles, and one over spheres, both built with `obvhs`'s binary builder.
 //!
 //! The slab test rounds, and a ray through the edge of a flat box (an axis-aligned face)
@@ -12,7 +12,7 @@ use obvhs::aabb::Aabb;
 use obvhs::bvh2::builder::build_bvh2;
 use obvhs::{Boundable, BvhBuildParams};
 
-use super::bvh4::{BoxRay, Bvh4, Visit, safe_inverse};
+use super::bvh8::{BoxRay, Bvh8, Visit, avx_available, safe_inverse};
 use super::sphere;
 use super::triangle::{self, Triangle4, TriangleRay};
 use crate::ray::Ray;
@@ -61,12 +61,15 @@ const LEAF_TRIANGLES: u32 = 4;
 
 /// Bounding volume hierarchies over a scene's triangles and spheres.
 pub struct Accel {
-    triangles: Bvh4,
+    triangles: Bvh8,
     /// Triangle blocks in leaf order, and each lane's triangle id (u32::MAX where unused).
     blocks: Vec<Triangle4>,
     block_ids: Vec<[u32; 4]>,
-    spheres: Bvh4,
+    spheres: Bvh8,
     sphere_list: Vec<(Sphere, u32)>,
+    /// Whether queries test a node's eight boxes in one AVX group (else in two SSE ones):
+    /// the same hits either way.
+    avx: bool,
 }
 
 impl Accel {
@@ -86,7 +89,7 @@ impl Accel {
         let pad = Vec3A::splat(lo.abs().max(hi.abs()).max_element() * (16.0 * f32::EPSILON));
         let padded = |a: Vec3A, b: Vec3A| Padded(Aabb::new(a - pad, b + pad));
         let params = BvhBuildParams {
-            // One primitive per binary leaf: `Bvh4` collapses subtrees into blocks itself.
+            // One primitive per binary leaf: `Bvh8` collapses subtrees into blocks itself.
             max_prims_per_leaf: 1,
             ..BvhBuildParams::medium_build()
         };
@@ -94,14 +97,14 @@ impl Accel {
         let mut blocks = Vec::new();
         let mut block_ids = Vec::new();
         let tri_bvh = if triangles.is_empty() {
-            Bvh4::default()
+            Bvh8::default()
         } else {
             let bounds: Vec<Padded> = triangles
                 .iter()
                 .map(|t| padded(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2])))
                 .collect();
             let bvh2 = build_bvh2(&bounds, params, &mut Duration::default());
-            Bvh4::from_bvh2(&bvh2, LEAF_TRIANGLES, |ids| {
+            Bvh8::from_bvh2(&bvh2, LEAF_TRIANGLES, |ids| {
                 let start = blocks.len() as u32;
                 for chunk in ids.chunks(4) {
                     let tris: Vec<[Vec3A; 3]> =
@@ -116,7 +119,7 @@ impl Accel {
         };
         let mut sphere_list = Vec::new();
         let sphere_bvh = if spheres.is_empty() {
-            Bvh4::default()
+            Bvh8::default()
         } else {
             let bounds: Vec<Padded> = spheres
                 .iter()
@@ -124,7 +127,7 @@ impl Accel {
                 .collect();
             let bvh2 = build_bvh2(&bounds, params, &mut Duration::default());
             // Spheres are tested one by one: a leaf is one sphere.
-            Bvh4::from_bvh2(&bvh2, 1, |ids| {
+            Bvh8::from_bvh2(&bvh2, 1, |ids| {
                 let start = sphere_list.len() as u32;
                 for &i in ids {
                     let (center, radius) = spheres[i as usize];
@@ -139,6 +142,7 @@ impl Accel {
             block_ids,
             spheres: sphere_bvh,
             sphere_list,
+            avx: avx_available(),
         }
     }
 
@@ -174,16 +178,33 @@ impl Accel {
 
     /// The closest hit with 0 < t < `t_max`.
     pub fn intersect(&self, ray: &Ray, t_max: f32) -> Option<PrimHit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx {
+            // SAFETY: `avx` is set only where the CPU has AVX.
+            return unsafe { self.intersect_avx(ray, t_max) };
+        }
+        self.intersect_with::<false>(ray, t_max)
+    }
+
+    /// [`Accel::intersect`] compiled for AVX, so that the node tests inline as one group.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn intersect_avx(&self, ray: &Ray, t_max: f32) -> Option<PrimHit> {
+        self.intersect_with::<true>(ray, t_max)
+    }
+
+    #[inline(always)]
+    fn intersect_with<const AVX: bool>(&self, ray: &Ray, t_max: f32) -> Option<PrimHit> {
         let box_ray = BoxRay::new(ray.o, safe_inverse(ray.d));
         let mut t_best = t_max;
         let best = match triangle::dominant_axis(ray.d) {
-            0 => self.closest_triangle::<0>(ray, &box_ray, &mut t_best),
-            1 => self.closest_triangle::<1>(ray, &box_ray, &mut t_best),
-            _ => self.closest_triangle::<2>(ray, &box_ray, &mut t_best),
+            0 => self.closest_triangle::<0, AVX>(ray, &box_ray, &mut t_best),
+            1 => self.closest_triangle::<1, AVX>(ray, &box_ray, &mut t_best),
+            _ => self.closest_triangle::<2, AVX>(ray, &box_ray, &mut t_best),
         };
         let mut best_sphere = None;
         self.spheres
-            .closest(&box_ray, &mut t_best, |first, count, t_max| {
+            .closest::<AVX>(&box_ray, &mut t_best, |first, count, t_max| {
                 for slot in first..first + count {
                     let (s, _) = self.sphere_list[slot as usize];
                     if let Some(t) = sphere::intersect(s.center, s.radius, ray.o, ray.d, *t_max) {
@@ -222,7 +243,7 @@ impl Accel {
     /// Closest triangle hit (block, lane, barycentrics), lowering `t_max`, for rays whose
     /// dominant axis is `KZ`.
     #[inline(always)]
-    fn closest_triangle<const KZ: usize>(
+    fn closest_triangle<const KZ: usize, const AVX: bool>(
         &self,
         ray: &Ray,
         box_ray: &BoxRay,
@@ -231,7 +252,7 @@ impl Accel {
         let tr = TriangleRay::<KZ>::new(ray.o, ray.d);
         let mut best = None;
         self.triangles
-            .closest(box_ray, t_max, |first, count, t_max| {
+            .closest::<AVX>(box_ray, t_max, |first, count, t_max| {
                 for block in first..first + count {
                     if let Some((lane, h)) =
                         triangle::intersect4(&tr, &self.blocks[block as usize], *t_max)
@@ -247,13 +268,30 @@ impl Accel {
 
     /// Whether anything is hit with 0 < t < `t_max`.
     pub fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx {
+            // SAFETY: `avx` is set only where the CPU has AVX.
+            return unsafe { self.occluded_avx(ray, t_max) };
+        }
+        self.occluded_with::<false>(ray, t_max)
+    }
+
+    /// [`Accel::occluded`] compiled for AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn occluded_avx(&self, ray: &Ray, t_max: f32) -> bool {
+        self.occluded_with::<true>(ray, t_max)
+    }
+
+    #[inline(always)]
+    fn occluded_with<const AVX: bool>(&self, ray: &Ray, t_max: f32) -> bool {
         let box_ray = BoxRay::new(ray.o, safe_inverse(ray.d));
         let hit = match triangle::dominant_axis(ray.d) {
-            0 => self.any_triangle::<0>(ray, &box_ray, t_max),
-            1 => self.any_triangle::<1>(ray, &box_ray, t_max),
-            _ => self.any_triangle::<2>(ray, &box_ray, t_max),
+            0 => self.any_triangle::<0, AVX>(ray, &box_ray, t_max),
+            1 => self.any_triangle::<1, AVX>(ray, &box_ray, t_max),
+            _ => self.any_triangle::<2, AVX>(ray, &box_ray, t_max),
         };
-        hit || self.spheres.any(&box_ray, t_max, |first, count| {
+        hit || self.spheres.any::<AVX>(&box_ray, t_max, |first, count| {
             (first..first + count).any(|slot| {
                 let (s, _) = self.sphere_list[slot as usize];
                 sphere::intersect(s.center, s.radius, ray.o, ray.d, t_max).is_some()
@@ -262,9 +300,14 @@ impl Accel {
     }
 
     #[inline(always)]
-    fn any_triangle<const KZ: usize>(&self, ray: &Ray, box_ray: &BoxRay, t_max: f32) -> bool {
+    fn any_triangle<const KZ: usize, const AVX: bool>(
+        &self,
+        ray: &Ray,
+        box_ray: &BoxRay,
+        t_max: f32,
+    ) -> bool {
         let tr = TriangleRay::<KZ>::new(ray.o, ray.d);
-        self.triangles.any(box_ray, t_max, |first, count| {
+        self.triangles.any::<AVX>(box_ray, t_max, |first, count| {
             (first..first + count).any(|block| {
                 triangle::intersect4(&tr, &self.blocks[block as usize], t_max).is_some()
             })
@@ -369,6 +412,86 @@ mod tests {
         assert_eq!(accel.triangles(), tris);
         let (_, blocks) = accel.triangle_bvh_size();
         assert!(blocks * 4 >= tris.len() && blocks <= tris.len());
+    }
+
+    /// The closest hit and occlusion of every ray equal a test of every primitive, through
+    /// both forms of the node test (eight lanes with AVX, two groups of four without): a soup
+    /// of thousands of triangles and some spheres, so that nodes are full and deep.
+    #[test]
+    fn queries_equal_a_test_of_every_primitive_with_and_without_avx() {
+        use crate::sampler::hash::{mix64, u32_to_unit};
+        let mut k = 0u64;
+        let mut u = || {
+            k += 1;
+            u32_to_unit(mix64(k) as u32)
+        };
+        let mut point = |scale: f32| Vec3A::new(u(), u(), u()) * scale;
+        let mut tris = Vec::new();
+        for _ in 0..3000 {
+            let o = point(10.0);
+            tris.push([o, o + point(0.8) - 0.4, o + point(0.8) - 0.4]);
+        }
+        let spheres: Vec<(Vec3A, f32)> = (0..40)
+            .map(|i| (point(10.0), 0.05 + 0.01 * i as f32))
+            .collect();
+        let mut accel = Accel::build(&tris, &spheres);
+        let brute = |ray: &Ray, t_max: f32| -> Option<(f32, Prim)> {
+            let mut best: Option<(f32, Prim)> = None;
+            for (i, t) in tris.iter().enumerate() {
+                let block = Triangle4::new(&[*t]);
+                let limit = best.map_or(t_max, |b| b.0);
+                let hit = match triangle::dominant_axis(ray.d) {
+                    0 => triangle::intersect4(&TriangleRay::<0>::new(ray.o, ray.d), &block, limit),
+                    1 => triangle::intersect4(&TriangleRay::<1>::new(ray.o, ray.d), &block, limit),
+                    _ => triangle::intersect4(&TriangleRay::<2>::new(ray.o, ray.d), &block, limit),
+                };
+                if let Some((_, h)) = hit {
+                    best = Some((
+                        h.t,
+                        Prim::Triangle {
+                            id: i as u32,
+                            b: h.b,
+                        },
+                    ));
+                }
+            }
+            for (i, &(c, r)) in spheres.iter().enumerate() {
+                let limit = best.map_or(t_max, |b| b.0);
+                if let Some(t) = sphere::intersect(c, r, ray.o, ray.d, limit) {
+                    best = Some((t, Prim::Sphere { id: i as u32 }));
+                }
+            }
+            best
+        };
+        let rays: Vec<(Ray, f32)> = (0..2000)
+            .map(|i| {
+                let o = point(12.0) - 1.0;
+                let d = (point(2.0) - 1.0).normalize();
+                // Some rays end early, where the occlusion test must stop too.
+                (Ray::new(o, d), if i % 3 == 0 { 2.0 } else { f32::INFINITY })
+            })
+            .collect();
+        let mut forms = vec![false];
+        if avx_available() {
+            forms.push(true);
+        }
+        let mut hits = 0;
+        for avx in forms {
+            accel.avx = avx;
+            for (ray, t_max) in &rays {
+                let want = brute(ray, *t_max);
+                let got = accel.intersect(ray, *t_max).map(|h| (h.t, h.prim));
+                assert_eq!(got, want, "closest hit (avx {avx}) of {ray:?}");
+                assert_eq!(
+                    accel.occluded(ray, *t_max),
+                    want.is_some(),
+                    "occlusion (avx {avx}) of {ray:?}"
+                );
+                hits += want.is_some() as u32;
+            }
+        }
+        // Neither all hits nor all misses: the comparison means something.
+        assert!(hits > 200 && hits < 3800, "{hits} hits");
     }
 
     #[test]

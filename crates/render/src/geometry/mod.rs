@@ -1,7 +1,7 @@
 //! Geometry: primitive intersection and the acceleration structure.
 
 pub mod accel;
-pub mod bvh4;
+pub mod bvh8;
 pub mod sphere;
 pub mod triangle;
 

@@ -98,10 +98,16 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
     }
     println!(
         "one thread; Mrays/s (best of {repeat}); coherent: camera rays ({w}x{h}, 16x16 tiles); \
-         incoherent: random bounce rays from their hits (height field: random near-vertical rays)"
+         incoherent: random bounce rays from their hits (height field: random near-vertical rays); \
+         BVH node test: {}",
+        if tessera_render::geometry::bvh8::avx_available() {
+            "eight boxes at once (AVX)"
+        } else {
+            "two groups of four boxes (SSE)"
+        }
     );
     println!();
-    let mut header = "| scene | triangles | spheres | BVH4 nodes, blocks | rays | coherent closest | coherent occluded | incoherent closest | incoherent occluded |".to_string();
+    let mut header = "| scene | triangles | spheres | BVH nodes, blocks | rays | coherent closest | coherent occluded | incoherent closest | incoherent occluded |".to_string();
     let mut rule = "|---|---:|---:|---:|---:|---:|---:|---:|---:|".to_string();
     if cfg!(feature = "embree") {
         header += " Embree 3: coherent closest | coherent occluded | incoherent closest | incoherent occluded |";

@@ -1,9 +1,12 @@
-//! A 4-wide BVH with uncompressed bounds (the layout of Embree's BVH4; Wald et al., "Getting
-//! Rid of Packets", 2008): four children's bounds per node, stored axis by axis, tested with
-//! one SIMD slab test. Built from `obvhs`'s binary BVH (PLOC and reinsertion, one primitive per
-//! leaf), whose small subtrees become leaves by the surface area heuristic with the cost of a
-//! four-wide leaf test ([`Collapse`]). Leaves are ranges of primitive *blocks* whose meaning
-//! belongs to the caller (four triangles, or one sphere).
+//! An 8-wide BVH with uncompressed bounds (the layout of Embree's BVH8; Wald et al., "Getting
+//! Rid of Packets", 2008, at width eight): eight children's bounds per node, stored plane by
+//! plane, tested with one eight-lane slab test where the CPU has AVX (chosen at run time) and
+//! as two four-lane tests where it has only SSE — the same operations lane by lane, so the
+//! same hits. Built from `obvhs`'s binary BVH (PLOC and reinsertion, one primitive per leaf):
+//! each node opens the largest inner children until it has eight, and small subtrees become
+//! leaves by the surface area heuristic with the cost of a four-wide leaf test
+//! ([`Collapse`]). Leaves are ranges of primitive *blocks* whose meaning belongs to the caller
+//! (four triangles, or one sphere).
 //!
 //! Traversal visits the nearest hit child next without pushing it and pushes the others
 //! farthest first; shadow rays skip the ordering. Empty child slots have bounds (+∞, −∞),
@@ -44,13 +47,22 @@ impl Ref {
     }
 }
 
-/// Four children: `b[axis]` their minima and `b[axis + 3]` their maxima along x, y, z.
+/// Children per node.
+const WIDTH: usize = 8;
+/// Four-wide SIMD groups per node.
+const GROUPS: usize = WIDTH / 4;
+
+/// Eight children: `b[axis][g]` the minima of children 4g..4g+4 and `b[axis + 3][g]` their
+/// maxima along x, y, z.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
 struct Node {
-    b: [Vec4; 6],
-    child: [Ref; 4],
+    b: [[Vec4; GROUPS]; 6],
+    child: [Ref; WIDTH],
 }
+
+// `BoxRay::test_avx` loads each plane of eight bounds as one aligned 32-byte row.
+const _: () = assert!(std::mem::align_of::<Node>() >= 32);
 
 /// Per-ray data for the slab tests.
 #[derive(Debug, Clone, Copy)]
@@ -88,29 +100,90 @@ impl BoxRay {
         }
     }
 
-    /// Entry distances of a node's four children and the mask of those hit within
-    /// [0, t_max].
+    /// Entry distances of a node's children and the mask of those hit within [0, t_max]:
+    /// eight lanes at once with `AVX` (the caller has checked the CPU has it, see
+    /// [`avx_available`]), else as two four-wide groups. Both give the same bits: the same
+    /// IEEE operations, lane by lane.
     #[inline(always)]
-    fn test(&self, n: &Node, t_max: f32) -> (Vec4, u32) {
-        let t = |plane: usize, axis: usize| (n.b[plane] - self.o[axis]) * self.inv[axis];
-        let near = t(self.near[0], 0)
-            .max(t(self.near[1], 1))
-            .max(t(self.near[2], 2).max(Vec4::ZERO));
-        let far = t(self.far[0], 0)
-            .min(t(self.far[1], 1))
-            .min(t(self.far[2], 2).min(Vec4::splat(t_max)));
-        (near, near.cmple(far).bitmask())
+    fn test<const AVX: bool>(&self, n: &Node, t_max: f32) -> ([f32; WIDTH], u32) {
+        #[cfg(target_arch = "x86_64")]
+        if AVX {
+            // SAFETY: `AVX` is true only where the CPU has AVX (`avx_available`).
+            return unsafe { self.test_avx(n, t_max) };
+        }
+        let mut entry = [0.0f32; WIDTH];
+        let mut mask = 0;
+        for g in 0..GROUPS {
+            let t = |plane: usize, axis: usize| (n.b[plane][g] - self.o[axis]) * self.inv[axis];
+            let near = t(self.near[0], 0)
+                .max(t(self.near[1], 1))
+                .max(t(self.near[2], 2).max(Vec4::ZERO));
+            let far = t(self.far[0], 0)
+                .min(t(self.far[1], 1))
+                .min(t(self.far[2], 2).min(Vec4::splat(t_max)));
+            entry[4 * g..4 * g + 4].copy_from_slice(&near.to_array());
+            mask |= near.cmple(far).bitmask() << (4 * g);
+        }
+        (entry, mask)
+    }
+
+    /// [`BoxRay::test`] in one eight-lane group.
+    ///
+    /// # Safety
+    /// The CPU must have AVX. Its intrinsics inline only into a caller compiled for AVX
+    /// (`Accel`'s `*_avx` entry points), which this always-inlined body becomes part of.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn test_avx(&self, n: &Node, t_max: f32) -> ([f32; WIDTH], u32) {
+        use std::arch::x86_64::*;
+        // SAFETY: the CPU has AVX (the caller's contract). `Node` is 64-byte aligned and each
+        // plane's eight floats are a 32-byte row of it, so the loads are aligned and inside
+        // the node; `entry` holds eight floats.
+        unsafe {
+            let plane = |i: usize| _mm256_load_ps(n.b[i].as_ptr().cast::<f32>());
+            let splat = |v: Vec4| _mm256_broadcast_ps(&__m128::from(v));
+            let t = |p: usize, axis: usize| {
+                _mm256_mul_ps(
+                    _mm256_sub_ps(plane(p), splat(self.o[axis])),
+                    splat(self.inv[axis]),
+                )
+            };
+            let near = _mm256_max_ps(
+                _mm256_max_ps(t(self.near[0], 0), t(self.near[1], 1)),
+                _mm256_max_ps(t(self.near[2], 2), _mm256_setzero_ps()),
+            );
+            let far = _mm256_min_ps(
+                _mm256_min_ps(t(self.far[0], 0), t(self.far[1], 1)),
+                _mm256_min_ps(t(self.far[2], 2), _mm256_set1_ps(t_max)),
+            );
+            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+            let mut entry = [0.0f32; WIDTH];
+            _mm256_storeu_ps(entry.as_mut_ptr(), near);
+            (entry, mask)
+        }
+    }
+}
+
+/// Whether this CPU runs [`BoxRay::test`]'s eight-lane form (AVX).
+pub fn avx_available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 
 #[derive(Debug, Clone, Default)]
-pub struct Bvh4 {
+pub struct Bvh8 {
     nodes: Vec<Node>,
     root: Option<Ref>,
 }
 
 /// Cost of testing one leaf of up to four primitives (one SIMD block), in units of one
-/// node's four-box test, for [`Collapse`].
+/// node's box test, for [`Collapse`].
 const LEAF_COST: f32 = 2.0;
 
 /// Which nodes of a binary BVH become leaves: every binary leaf, and every subtree of at most
@@ -181,13 +254,13 @@ pub enum Visit {
     Stop,
 }
 
-impl Bvh4 {
+impl Bvh8 {
     /// Inner nodes.
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
 
-    /// Collapses a binary BVH of one primitive per leaf into four-wide nodes. A subtree of at
+    /// Collapses a binary BVH of one primitive per leaf into eight-wide nodes. A subtree of at
     /// most `max_leaf` primitives becomes one leaf where the surface area heuristic prefers
     /// it (see [`Collapse`]); `leaf` appends a leaf's primitives (indices into the binary
     /// BVH's input) to the caller's storage and returns the range of blocks they take.
@@ -195,8 +268,8 @@ impl Bvh4 {
         bvh2: &Bvh2,
         max_leaf: u32,
         mut leaf: impl FnMut(&[u32]) -> (u32, u32),
-    ) -> Bvh4 {
-        let mut out = Bvh4::default();
+    ) -> Bvh8 {
+        let mut out = Bvh8::default();
         if !bvh2.nodes.is_empty() {
             let collapse = Collapse::new(bvh2, max_leaf);
             let root = out.convert(bvh2, &collapse, 0, &mut leaf, &mut Vec::new());
@@ -219,10 +292,10 @@ impl Bvh4 {
             let (first, count) = leaf(prims);
             return Ref::leaf(first, count);
         }
-        // Open the largest inner children until there are four.
+        // Open the largest inner children until there are eight.
         let first = bvh2.nodes[i].first_index as usize;
         let mut kids = vec![first, first + 1];
-        while kids.len() < 4 {
+        while kids.len() < WIDTH {
             let area = |k: usize| bvh2.nodes[k].aabb.half_area();
             let Some(pos) = (0..kids.len())
                 .filter(|&p| !collapse.is_leaf(kids[p]))
@@ -237,15 +310,15 @@ impl Bvh4 {
         let index = self.nodes.len();
         let empty = Aabb::empty();
         self.nodes.push(Node {
-            b: [Vec4::ZERO; 6],
-            child: [Ref(0); 4],
+            b: [[Vec4::ZERO; GROUPS]; 6],
+            child: [Ref(0); WIDTH],
         });
         let mut node = self.nodes[index];
-        for slot in 0..4 {
+        for slot in 0..WIDTH {
             let aabb = kids.get(slot).map_or(empty, |&k| bvh2.nodes[k].aabb);
             for axis in 0..3 {
-                node.b[axis][slot] = aabb.min[axis];
-                node.b[axis + 3][slot] = aabb.max[axis];
+                node.b[axis][slot / 4][slot % 4] = aabb.min[axis];
+                node.b[axis + 3][slot / 4][slot % 4] = aabb.max[axis];
             }
             if let Some(&k) = kids.get(slot) {
                 node.child[slot] = self.convert(bvh2, collapse, k, leaf, prims);
@@ -258,16 +331,16 @@ impl Bvh4 {
     /// Visits the leaves the ray may hit within [0, t_max], nearest first. `leaf` gets a block
     /// range and may lower `t_max`; it returns [`Visit::Stop`] to end the traversal.
     #[inline(always)]
-    pub fn closest(
+    pub fn closest<const AVX: bool>(
         &self,
         ray: &BoxRay,
         t_max: &mut f32,
         mut leaf: impl FnMut(u32, u32, &mut f32) -> Visit,
     ) {
         let Some(root) = self.root else { return };
-        // Each level pushes at most three entries; 256 covers 85 levels. Left uninitialised:
+        // Each level pushes at most seven entries; 512 covers 73 levels. Left uninitialised:
         // zeroing it would cost more than a whole traversal of a small scene.
-        let mut stack = [MaybeUninit::<(Ref, f32)>::uninit(); 256];
+        let mut stack = [MaybeUninit::<(Ref, f32)>::uninit(); 512];
         let mut top = 0usize;
         let mut cur = root;
         loop {
@@ -278,8 +351,7 @@ impl Bvh4 {
                 }
             } else {
                 let node = &self.nodes[cur.0 as usize];
-                let (t, mask) = ray.test(node, *t_max);
-                let t = t.to_array();
+                let (t, mask) = ray.test::<AVX>(node, *t_max);
                 if mask != 0 {
                     let a = mask.trailing_zeros() as usize;
                     let rest = mask & (mask - 1);
@@ -296,27 +368,26 @@ impl Bvh4 {
                         cur = node.child[near];
                         continue;
                     }
-                    // Three or four: sort by entry distance, nearest last.
-                    let mut hits = [(0.0f32, Ref(0)); 4];
-                    let mut n = 0;
+                    // Three or more: insert them onto the stack sorted by entry distance,
+                    // nearest on top, and take the nearest.
+                    let base = top;
                     let mut m = mask;
                     while m != 0 {
                         let slot = m.trailing_zeros() as usize;
                         m &= m - 1;
-                        let entry = (t[slot], node.child[slot]);
-                        let mut j = n;
-                        while j > 0 && hits[j - 1].0 < entry.0 {
-                            hits[j] = hits[j - 1];
+                        let d = t[slot];
+                        let mut j = top;
+                        // SAFETY: entries from `base` to `top` were written in this loop.
+                        while j > base && unsafe { stack[j - 1].assume_init().1 } < d {
+                            stack[j] = stack[j - 1];
                             j -= 1;
                         }
-                        hits[j] = entry;
-                        n += 1;
-                    }
-                    for &(d, c) in &hits[..n - 1] {
-                        stack[top].write((c, d));
+                        stack[j].write((node.child[slot], d));
                         top += 1;
                     }
-                    cur = hits[n - 1].1;
+                    top -= 1;
+                    // SAFETY: written just above.
+                    cur = unsafe { stack[top].assume_init().0 };
                     continue;
                 }
             }
@@ -339,9 +410,14 @@ impl Bvh4 {
     /// Visits the leaves the ray may hit within [0, t_max], in any order, until `leaf`
     /// returns true.
     #[inline(always)]
-    pub fn any(&self, ray: &BoxRay, t_max: f32, mut leaf: impl FnMut(u32, u32) -> bool) -> bool {
+    pub fn any<const AVX: bool>(
+        &self,
+        ray: &BoxRay,
+        t_max: f32,
+        mut leaf: impl FnMut(u32, u32) -> bool,
+    ) -> bool {
         let Some(root) = self.root else { return false };
-        let mut stack = [MaybeUninit::<Ref>::uninit(); 256];
+        let mut stack = [MaybeUninit::<Ref>::uninit(); 512];
         let mut top = 0usize;
         let mut cur = root;
         loop {
@@ -352,7 +428,7 @@ impl Bvh4 {
                 }
             } else {
                 let node = &self.nodes[cur.0 as usize];
-                let (_, mut mask) = ray.test(node, t_max);
+                let (_, mut mask) = ray.test::<AVX>(node, t_max);
                 if mask != 0 {
                     let slot = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
