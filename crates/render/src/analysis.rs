@@ -344,7 +344,11 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         decisions.push(Decision {
             topic: "integrator",
             choice: name.clone(),
-            reason: format!("set by the scene (auto would choose {auto} because {reason})"),
+            reason: if auto == "direct" {
+                format!("set by the scene (auto would choose direct because {reason})")
+            } else {
+                format!("set by the scene (auto would measure the methods on it: {reason})")
+            },
         });
         name
     };
@@ -580,6 +584,18 @@ mod tests {
         assert_eq!(a.method, "path");
         assert!(
             a.decisions[0].reason.contains("auto would choose direct"),
+            "{:?}",
+            a.decisions[0]
+        );
+        // Where indirect light matters, auto measures rather than picks the path tracer.
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
+        let d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let a = analyze(&d);
+        assert!(
+            a.decisions[0]
+                .reason
+                .contains("auto would measure the methods on it"),
             "{:?}",
             a.decisions[0]
         );
