@@ -277,6 +277,22 @@ pub fn photons_per_iteration(desc: &SceneDesc) -> u32 {
     desc.integrator.photon.photons.unwrap_or(DEFAULT_PHOTONS)
 }
 
+/// The name under which chunk `chunk` of iteration `t`'s photons for frame `frame` is handed
+/// from `auto`'s pilot to the render ([`crate::method::TaskCtx::reuse`]): everything the
+/// photons depend on besides the scene.
+pub fn photons_key(
+    photon: &PhotonSettings,
+    settings: &SppmSettings,
+    frame: u32,
+    t: u32,
+    chunk: &Range<u32>,
+) -> String {
+    format!(
+        "sppm photons: frame {frame}, iteration {t}, photons {}..{} of {}, max depth {}, {:?} sampler, seed {}",
+        chunk.start, chunk.end, settings.photons, photon.max_depth, photon.sampler, photon.seed
+    )
+}
+
 /// An iteration of `photons` photons in gathering chunks: photon offsets within the
 /// iteration, in order.
 pub fn chunks(photons: u32) -> Vec<Range<u32>> {

@@ -72,6 +72,9 @@ impl Resources for TaskResources<'_> {
     ) -> Result<Loaded, String> {
         self.step.memo(name, make)
     }
+    fn reuse(&self, key: &str) -> Option<Loaded> {
+        self.step.reuse(key)
+    }
     fn progress(&self, work: u64) {
         let before = self.reported.fetch_add(work, Ordering::Relaxed);
         let counted = (before + work)
@@ -124,6 +127,15 @@ impl Resources for StepResources<'_> {
             .clone();
         cell.get_or_init(make).clone()
     }
+
+    fn reuse(&self, key: &str) -> Option<Loaded> {
+        self.local
+            .artifacts
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(key)
+            .cloned()
+    }
 }
 
 impl<'a> Local<'a> {
@@ -146,7 +158,7 @@ impl<'a> Local<'a> {
     }
 
     /// Takes artifacts built before (by `auto`'s pilot, for one): a pass whose key is among
-    /// them is not built again.
+    /// them is not built again, and a task's [`super::TaskCtx::reuse`] finds the others.
     pub fn with_artifacts(self, artifacts: impl IntoIterator<Item = (String, Loaded)>) -> Self {
         self.artifacts
             .lock()

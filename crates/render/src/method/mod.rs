@@ -121,6 +121,11 @@ pub trait Resources: Sync {
     /// `work` more units of the task done (for progress bars; units are the task's pixels ×
     /// samples, or its photons or points).
     fn progress(&self, _work: u64) {}
+    /// A value made before the job ran and handed to it under `key` (`auto`'s pilot gives
+    /// the render SPPM's first photons); `None` where nothing was (always on the farm).
+    fn reuse(&self, _key: &str) -> Option<Loaded> {
+        None
+    }
 }
 
 /// What a task runs with.
@@ -169,6 +174,11 @@ impl TaskCtx<'_> {
             .memo(name, &make)?
             .downcast::<T>()
             .map_err(|_| format!("memo {name} has another type"))
+    }
+
+    /// The value handed to the job under `key`, if one was and it is a `T`.
+    pub fn reuse<T: Send + Sync + 'static>(&self, key: &str) -> Option<Arc<T>> {
+        self.resources.reuse(key)?.downcast::<T>().ok()
     }
 
     pub fn progress(&self, work: u64) {

@@ -19,7 +19,7 @@ use crate::camera::Camera;
 use crate::film::{Image, Tile};
 use crate::integrator::RayStats;
 use crate::integrator::sppm::{self, Sppm, SppmSettings, SppmState, VisiblePoints, radius2};
-use crate::photon::PhotonSettings;
+use crate::photon::{KdTree, Photon, PhotonSettings};
 
 pub static SPPM: MethodInfo = MethodInfo {
     name: "sppm",
@@ -264,7 +264,14 @@ impl Method for SppmMethod {
                     ));
                 }
                 let sppm = Sppm::new(ctx.scene, &self.photon, self.settings);
-                let photons = sppm.shoot(task.step, task.start..task.end, true);
+                let chunk = task.start..task.end;
+                // `auto`'s pilot shoots the first iterations' photons and hands them on.
+                let key =
+                    sppm::photons_key(&self.photon, &self.settings, task.frame, task.step, &chunk);
+                let photons = match ctx.reuse::<KdTree<Photon>>(&key) {
+                    Some(p) => p,
+                    None => std::sync::Arc::new(sppm.shoot(task.step, chunk, true)),
+                };
                 let gathering = Instant::now();
                 let sums = sppm.gather_parallel(&vps, &r2, &photons);
                 pixels_s += gathering.elapsed().as_secs_f64();

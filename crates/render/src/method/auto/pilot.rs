@@ -20,13 +20,16 @@
 //!    v = relMSE × k is the relative variance of one sample per pixel. For the photon
 //!    map, what does not fall with samples (kernel bias, irradiance interpolation, the photon
 //!    map's own noise): b = mean((Ā − R)² / (R² + 0.01)) − var(Ā) − var(R), floored at 0.
-//!    SPPM renders k iterations with two seeds: v from their difference as above, and b, its
-//!    kernel bias, as for the photon map but only where it exceeds var(R) as the judges' v
-//!    put it (a consensus of a few bidirectional samples is often noisier than SPPM's first
-//!    iterations, and its halves' agreement where both miss rare paths would pass for
-//!    bias). Its noise falls
-//!    as 1/n while each pixel's radius holds photons of many iterations, its bias as
-//!    n^(−2/3) (the radii's rate with α = 2/3: Knaus & Zwicker 2011).
+//!    SPPM renders k iterations with the job's seed, and as the second half the photons of
+//!    its iterations k..2k gathered from the initial radii at the next seed's camera paths
+//!    (the same estimator on independent samples): v from their difference as above, and b,
+//!    its kernel bias, as for the photon map but only where it exceeds var(R) as the judges'
+//!    v put it (a consensus of a few bidirectional samples is often noisier than SPPM's first
+//!    iterations, and its halves' agreement where both miss rare paths would pass for bias).
+//!    The photons of those 2k iterations (shot whatever the film) are the render's first 2k
+//!    iterations' and are handed on to it. Its noise falls as 1/n while each pixel's radius
+//!    holds photons of many iterations, its bias as n^(−2/3) (the radii's rate with α = 2/3:
+//!    Knaus & Zwicker 2011).
 //! 3. **Prediction** at full size: samples to reach relMSE E are v / E (unbiased),
 //!    v / (E − b) (photon map; none if b is near E), the least n with
 //!    v / n + b (k / n)^(2/3) ≤ E (SPPM); time is the
@@ -38,7 +41,8 @@
 //! After the first three candidates, the pilot stops measuring once it has spent a tenth of
 //! the best prediction so far (of a candidate without a caveat); candidates not measured are
 //! said to be. Candidates run in the order path, BDPT, VCM (unbiased: the consensus needs
-//! them), SPPM (one iteration's photons), photon map (a whole photon map), PSSMLT, MLT.
+//! them), SPPM (two iterations' photons), photon map (a whole photon map), PSSMLT, MLT; the
+//! photons and the photon map are reused by the render where that method wins.
 
 use std::time::Instant;
 
@@ -46,9 +50,12 @@ use tessera_scene::{FilterDesc, SceneDesc, SubsurfaceMethod};
 
 use super::Choice;
 use crate::analysis::{Analysis, analyze, concentrated_lights};
+use crate::camera::Camera;
 use crate::film::{Image, MAX_SPP};
+use crate::integrator::sppm::{self, Sppm, SppmSettings, SppmState};
 use crate::method::local::{Local, Progress};
 use crate::method::{Job, Loaded, plan};
+use crate::photon::{KdTree, Photon, PhotonSettings};
 use crate::scene::Scene;
 
 mod predict;
@@ -367,9 +374,9 @@ fn candidates(desc: &SceneDesc, analysis: &Analysis) -> (Vec<Candidate>, Vec<Str
         );
     }
     // The unbiased methods without passes first: they are cheap to measure and make the
-    // consensus. SPPM's iterations trace all their photons whatever the film: one each, less
-    // than photon mapping's pass, which is measured at full cost (and reused by the render
-    // when it wins).
+    // consensus. SPPM's iterations trace all their photons whatever the film: two, less than
+    // photon mapping's pass, which is measured at full cost (both reused by the render when
+    // they win).
     // Caustics of a concentrated light are paths the path tracer finds only by hitting the
     // light through the specular chain: rare, bright samples, which a pilot of a few thousand
     // paths does not see, so their variance cannot be measured. Light tracing (BDPT, VCM)
@@ -462,6 +469,73 @@ fn rgb(image: &Image) -> Vec<[f64; 3]> {
     image.pixels.iter().map(|p| p.rgb.map(f64::from)).collect()
 }
 
+/// The photons of SPPM's first `iterations` iterations of `frame` for `desc` (its settings
+/// applied to `scene`), by the keys its photon tasks look them up under.
+fn sppm_photons(
+    desc: &SceneDesc,
+    scene: &Scene,
+    frame: u32,
+    iterations: u32,
+) -> Vec<(String, Loaded)> {
+    let (photon, settings) = SppmSettings::resolve(desc, &analyze(desc));
+    let sppm = Sppm::new(scene, &photon, settings);
+    let mut out = Vec::new();
+    for t in 0..iterations {
+        for chunk in sppm::chunks(settings.photons) {
+            let key = sppm::photons_key(&photon, &settings, frame, t, &chunk);
+            out.push((
+                key,
+                std::sync::Arc::new(sppm.shoot(t, chunk, true)) as Loaded,
+            ));
+        }
+    }
+    out
+}
+
+/// SPPM's second half: the photons of iterations k..2k of the job's seed (`photons`, by key:
+/// those the render's iterations k..2k use) gathered at the camera paths of the next seed's
+/// first k iterations, from the initial radii: the same estimator as the first half's k
+/// iterations, on independent samples.
+/// Its image, and the wall seconds of its camera paths and gathering.
+fn sppm_second_half(
+    desc: &SceneDesc,
+    scene: &Scene,
+    frame: u32,
+    k: u32,
+    photons: &[(String, Loaded)],
+) -> Result<(Vec<[f64; 3]>, f64), String> {
+    let start = Instant::now();
+    let (photon, settings) = SppmSettings::resolve(desc, &analyze(desc));
+    // Camera paths of the next seed: iteration k's of the job's seed would be the next points
+    // of the first half's low-discrepancy sequence, anticorrelated with them.
+    let other = PhotonSettings {
+        seed: photon.seed.wrapping_add(1),
+        ..photon
+    };
+    let sppm = Sppm::new(scene, &other, settings);
+    let camera = Camera::new(&desc.camera_at(frame), &desc.film);
+    let mut state = SppmState::new(desc.film.width, desc.film.height, settings.initial_radius);
+    for t in k..2 * k {
+        let vps = sppm.visible_points_parallel(&camera, t - k);
+        let r2 = state.radii2();
+        let mut sums = Vec::new();
+        for chunk in sppm::chunks(settings.photons) {
+            let key = sppm::photons_key(&photon, &settings, frame, t, &chunk);
+            let tree = photons
+                .iter()
+                .find(|(k, _)| *k == key)
+                .and_then(|(_, p)| p.clone().downcast::<KdTree<Photon>>().ok())
+                .ok_or_else(|| format!("auto: sppm's pilot lost its photons ({key})"))?;
+            sums.push(sppm.gather_parallel(&vps, &r2, &tree));
+        }
+        state.add_iteration(&vps.camera, sums.iter().map(Vec::as_slice), settings.alpha);
+    }
+    Ok((
+        rgb(&state.image(camera.exposure)),
+        start.elapsed().as_secs_f64(),
+    ))
+}
+
 /// Renders candidate `c`'s pilot of `pilot` (a film `width` pixels wide at full size).
 fn run(
     c: &Candidate,
@@ -493,11 +567,18 @@ fn run(
     local.passes()?;
     let setup_s = start.elapsed().as_secs_f64();
     let rendering = Instant::now();
+    // SPPM's photons do not depend on the film: the pilot's are the render's first 2k
+    // iterations', shot here and handed on with the passes.
+    let photons = match c.model {
+        Model::Progressive => sppm_photons(&desc, scene, frame, 2 * c.k),
+        _ => Vec::new(),
+    };
+    let local = local.with_artifacts(photons.iter().cloned());
     let (mut state, first) = local.frame_with_state(frame)?;
     let a = rgb(&first.image);
     let mut pixels_s = first.pixels_s;
-    // SPPM's later iterations are not a second sample of its first ones: it renders anew.
     let continued = match c.model {
+        // SPPM's later iterations gather in smaller radii: not a second sample of its first.
         Model::Progressive => None,
         _ => local.more(frame, state.as_mut(), 2 * c.k),
     };
@@ -515,6 +596,18 @@ fn run(
                 .iter()
                 .zip(&a)
                 .map(|(m, x)| [0, 1, 2].map(|i| 2.0 * m[i] - x[i]))
+                .collect();
+            (b, both)
+        }
+        None if c.model == Model::Progressive => {
+            let second = Instant::now();
+            let (b, b_pixels_s) = sppm_second_half(&desc, scene, frame, c.k, &photons)?;
+            frame_s += second.elapsed().as_secs_f64();
+            pixels_s = pixels_s.map(|a| a + b_pixels_s);
+            let both = a
+                .iter()
+                .zip(&b)
+                .map(|(x, y)| [0, 1, 2].map(|i| 0.5 * (x[i] + y[i])))
                 .collect();
             (b, both)
         }
@@ -547,4 +640,52 @@ fn run(
         pixels_s,
         pilot_s: start.elapsed().as_secs_f64(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// SPPM's photons handed on by the pilot are the ones the render would shoot: a render
+    /// that takes them is the render that shoots its own, bit for bit, and it does take them
+    /// (photons of other iterations under the same keys change the image).
+    #[test]
+    fn sppm_renders_alike_with_the_pilots_photons() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenes/indirect-room/scene.json");
+        let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        desc.film.width = 32;
+        desc.film.height = 24;
+        desc.integrator.method = "sppm".into();
+        desc.integrator.spp = 3;
+        desc.integrator.photon.photons = Some(20_000);
+        let mut scene = Scene::build(&desc);
+        scene.set_settings(&desc);
+        let render = |given: Vec<(String, Loaded)>| {
+            let job = Job::new(desc.clone(), 1);
+            let p = plan(&job).unwrap_or_else(|e| panic!("{e}"));
+            let noop = |_: Progress| {};
+            let local = Local::new(p.as_ref(), &scene, &desc, 1, &noop).with_artifacts(given);
+            local.passes().unwrap_or_else(|e| panic!("{e}"));
+            let image = local.frame(1).unwrap_or_else(|e| panic!("{e}")).image;
+            image.pixels.iter().map(|p| p.rgb).collect::<Vec<_>>()
+        };
+        let given = sppm_photons(&desc, &scene, 1, 2);
+        assert!(!given.is_empty());
+        assert!(
+            given
+                .iter()
+                .all(|(k, _)| k.starts_with("sppm photons: frame 1, iteration "))
+        );
+        let own = render(Vec::new());
+        assert_eq!(render(given.clone()), own);
+        // The same keys holding the photons of iterations 2 and 3.
+        let later = sppm_photons(&desc, &scene, 1, 4);
+        let swapped: Vec<(String, Loaded)> = given
+            .iter()
+            .zip(later.iter().skip(given.len()))
+            .map(|((key, _), (_, photons))| (key.clone(), photons.clone()))
+            .collect();
+        assert_ne!(render(swapped), own);
+    }
 }
