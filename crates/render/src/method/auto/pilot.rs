@@ -523,7 +523,7 @@ fn sppm_second_half(
             let key = sppm::photons_key(&photon, &settings, frame, t, &chunk);
             let tree = photons
                 .iter()
-                .find(|(k, _)| *k == key)
+                .find(|(name, _)| *name == key)
                 .and_then(|(_, p)| p.clone().downcast::<KdTree<Photon>>().ok())
                 .ok_or_else(|| format!("auto: sppm's pilot lost its photons ({key})"))?;
             sums.push(sppm.gather_parallel(&vps, &r2, &tree));
