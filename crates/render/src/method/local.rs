@@ -98,12 +98,7 @@ impl TaskResources<'_> {
 
 impl Resources for StepResources<'_> {
     fn artifact(&self, key: &str, _load: LoadFn) -> Result<Loaded, String> {
-        self.local
-            .artifacts
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .get(key)
-            .cloned()
+        self.reuse(key)
             .ok_or_else(|| format!("artifact {} was not built", short(key)))
     }
 

@@ -465,6 +465,14 @@ struct Run {
     pilot_s: f64,
 }
 
+/// The pixel-wise mean of two images.
+fn mean(a: &[[f64; 3]], b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| [0, 1, 2].map(|i| 0.5 * (x[i] + y[i])))
+        .collect()
+}
+
 fn rgb(image: &Image) -> Vec<[f64; 3]> {
     image.pixels.iter().map(|p| p.rgb.map(f64::from)).collect()
 }
@@ -604,11 +612,7 @@ fn run(
             let (b, b_pixels_s) = sppm_second_half(&desc, scene, frame, c.k, &photons)?;
             frame_s += second.elapsed().as_secs_f64();
             pixels_s = pixels_s.map(|a| a + b_pixels_s);
-            let both = a
-                .iter()
-                .zip(&b)
-                .map(|(x, y)| [0, 1, 2].map(|i| 0.5 * (x[i] + y[i])))
-                .collect();
+            let both = mean(&a, &b);
             (b, both)
         }
         None => {
@@ -624,11 +628,7 @@ fn run(
             frame_s += second.elapsed().as_secs_f64();
             pixels_s = pixels_s.zip(other.pixels_s).map(|(a, b)| a + b);
             let b = rgb(&other.image);
-            let both = a
-                .iter()
-                .zip(&b)
-                .map(|(x, y)| [0, 1, 2].map(|i| 0.5 * (x[i] + y[i])))
-                .collect();
+            let both = mean(&a, &b);
             (b, both)
         }
     };
