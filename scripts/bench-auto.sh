@@ -2,9 +2,13 @@
 # Speed against error on six scenes with every method and `auto` (issue 25's "must show"):
 # `tessera bench` per scene into bench-report/auto/SCENE/, then a table of the wall seconds to
 # relMSE 1e-2 with auto's ratio to the best fixed method (scripts/bench-auto-table.py).
-# Usage: scripts/bench-auto.sh [TESSERA] (default target/release/tessera). Long (the README's
-# dated section says how long it took); run it with nothing else running.
+# Usage: scripts/bench-auto.sh [--hd] [TESSERA] (default target/release/tessera). Long (the
+# README's dated section says how long it took); run it with nothing else running.
+# --hd: also the Cornell box at 1920×1080, the size users work at, against Mitsuba 3's
+# reference (not committed: scripts/references/run.sh renders it first when it is missing).
 set -eu
+HD=0
+if [ "${1:-}" = --hd ]; then HD=1; shift; fi
 T=${1:-target/release/tessera}
 OUT=bench-report/auto
 ALL=auto,path,bdpt,vcm,photon,sppm,pssmlt,mlt
@@ -18,6 +22,13 @@ run cornell-box scenes/cornell-box/reference.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,
 # The same box at 512×512 (Mitsuba's reference, scripts/references/make.py reference-512):
 # renders of seconds, where the pilot's fixed cost weighs less.
 run cornell-box scenes/cornell-box/reference-512.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,48 512
+if [ "$HD" = 1 ]; then
+    HD_REF=scenes/cornell-box/reference-1920x1080.exr
+    [ -f "$HD_REF" ] || scripts/references/run.sh reference-1920x1080 --out scenes/cornell-box --tessera "$T"
+    run cornell-box "$HD_REF" "$ALL" 1,2,3,4,6,8,12,16,24,32,48 1920x1080
+else
+    echo "== cornell-box 1920x1080: not run (scripts/bench-auto.sh --hd)"
+fi
 run cornell-glass scenes/cornell-glass/reference-128.exr "$ALL" "$SPP"
 run indirect-room scenes/indirect-room/reference-128.exr "$ALL" "$SPP"
 run pool scenes/pool/reference-96.exr "$ALL" "$SPP"
