@@ -28,6 +28,7 @@ if [ "$HD" = 1 ]; then
     run cornell-box "$HD_REF" "$ALL" 1,2,3,4,6,8,12,16,24,32,48 1920x1080
 else
     echo "== cornell-box 1920x1080: not run (scripts/bench-auto.sh --hd)"
+    rm -rf "$OUT/cornell-box-1920x1080" # an earlier run's row is not this run's
 fi
 run cornell-glass scenes/cornell-glass/reference-128.exr "$ALL" "$SPP"
 run indirect-room scenes/indirect-room/reference-128.exr "$ALL" "$SPP"
