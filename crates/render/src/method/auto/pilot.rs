@@ -607,27 +607,27 @@ fn run(
                 .collect();
             (b, both)
         }
-        None if c.model == Model::Progressive => {
-            let second = Instant::now();
-            let (b, b_pixels_s) = sppm_second_half(&desc, scene, frame, c.k, &photons)?;
-            frame_s += second.elapsed().as_secs_f64();
-            pixels_s = pixels_s.map(|a| a + b_pixels_s);
-            let both = mean(&a, &b);
-            (b, both)
-        }
         None => {
-            let mut other = desc.clone();
-            other.integrator.seed = other.integrator.seed.wrapping_add(1);
-            let job = Job::new(other.clone(), frame);
-            let p = plan(&job)?;
-            scene.set_settings(&other);
-            let local = Local::new(p.as_ref(), scene, &other, threads, &noop);
-            local.passes()?;
-            let second = Instant::now();
-            let other = local.frame(frame)?;
-            frame_s += second.elapsed().as_secs_f64();
-            pixels_s = pixels_s.zip(other.pixels_s).map(|(a, b)| a + b);
-            let b = rgb(&other.image);
+            let b = if c.model == Model::Progressive {
+                let second = Instant::now();
+                let (b, b_pixels_s) = sppm_second_half(&desc, scene, frame, c.k, &photons)?;
+                frame_s += second.elapsed().as_secs_f64();
+                pixels_s = pixels_s.map(|a| a + b_pixels_s);
+                b
+            } else {
+                let mut other = desc.clone();
+                other.integrator.seed = other.integrator.seed.wrapping_add(1);
+                let job = Job::new(other.clone(), frame);
+                let p = plan(&job)?;
+                scene.set_settings(&other);
+                let local = Local::new(p.as_ref(), scene, &other, threads, &noop);
+                local.passes()?;
+                let second = Instant::now();
+                let other = local.frame(frame)?;
+                frame_s += second.elapsed().as_secs_f64();
+                pixels_s = pixels_s.zip(other.pixels_s).map(|(a, b)| a + b);
+                rgb(&other.image)
+            };
             let both = mean(&a, &b);
             (b, both)
         }
