@@ -10,7 +10,7 @@ mean and its variance the batches' sample variance over `batches` (the variance 
 The film is box-filtered: a pixel is the integral of radiance over its square, which the
 tests render the same way.
 
-    scripts/references/run.sh            # installs Mitsuba 3 and renders every scene
+    scripts/references/run.sh            # installs Mitsuba 3 and renders every test scene
     scripts/references/run.sh veach-mis  # one scene
     scripts/references/run.sh reference-512 --out scenes/cornell-box  # the bench's 512² box
     scripts/references/run.sh reference-1920x1080 --out scenes/cornell-box  # its HD box
