@@ -66,7 +66,7 @@ impl<T> Default for KdTree<T> {
     }
 }
 
-impl<T: Positioned> KdTree<T> {
+impl<T: Positioned + Send> KdTree<T> {
     pub fn build(mut photons: Vec<T>) -> KdTree<T> {
         let mut axes = vec![0u8; photons.len()];
         balance(&mut photons, &mut axes);
@@ -197,7 +197,7 @@ impl<const N: usize> Visit for Knn<N> {
 
 /// Puts the median of `photons` on its widest axis at the middle, smaller ones before and
 /// larger after, recursively, down to leaves of at most [`LEAF`] points.
-fn balance<T: Positioned>(photons: &mut [T], axes: &mut [u8]) {
+fn balance<T: Positioned + Send>(photons: &mut [T], axes: &mut [u8]) {
     if photons.len() <= LEAF {
         return;
     }
@@ -220,9 +220,18 @@ fn balance<T: Positioned>(photons: &mut [T], axes: &mut [u8]) {
     axes[mid] = axis as u8;
     let (left, rest) = photons.split_at_mut(mid);
     let (left_axes, rest_axes) = axes.split_at_mut(mid);
-    balance(left, left_axes);
-    balance(&mut rest[1..], &mut rest_axes[1..]);
+    let (right, right_axes) = (&mut rest[1..], &mut rest_axes[1..]);
+    if left.len() >= PARALLEL {
+        rayon::join(|| balance(left, left_axes), || balance(right, right_axes));
+    } else {
+        balance(left, left_axes);
+        balance(right, right_axes);
+    }
 }
+
+/// Subarrays of at least this many points balance their halves on the rayon pool (the tree
+/// is the same: each half's order depends on that half alone).
+const PARALLEL: usize = 8192;
 
 /// The k nearest photons found so far: a max-heap on distance once full, its top the radius.
 /// Its capacity `N` is the most `k` it serves, kept on the stack (and cleared per search, so
@@ -323,10 +332,27 @@ mod tests {
             .collect()
     }
 
+    /// Every split point has the points of its subarray's first half at or below it on its
+    /// axis and those of the second half at or above.
+    fn assert_balanced(tree: &KdTree, lo: usize, hi: usize) {
+        if hi - lo <= LEAF {
+            return;
+        }
+        let mid = (lo + hi) / 2;
+        let axis = tree.axes[mid] as usize;
+        let split = tree.points[mid][axis];
+        assert!(tree.points[lo..mid].iter().all(|p| p[axis] <= split));
+        assert!(tree.points[mid + 1..hi].iter().all(|p| p[axis] >= split));
+        assert_balanced(tree, lo, mid);
+        assert_balanced(tree, mid + 1, hi);
+    }
+
     #[test]
     fn nearest_matches_brute_force_with_and_without_flattening() {
-        let photons = random_photons(5000);
+        // Enough points that the build balances subarrays on the rayon pool.
+        let photons = random_photons(5 * PARALLEL);
         let tree = KdTree::build(photons.clone());
+        assert_balanced(&tree, 0, photons.len());
         for (qi, flatten) in [(0u64, 0.0f32), (1, 0.0), (2, 24.0), (3, 24.0), (4, 3.0)] {
             let h = hash(&[qi, 99]);
             let q = Vec3A::new(u32_to_unit(h as u32), u32_to_unit((h >> 32) as u32), 0.1);

@@ -39,12 +39,18 @@
 //!    at the job's spp (the same image quality, sooner), or the lowest error within a time.
 //!
 //! After the first three candidates, the pilot stops measuring once it has spent a tenth of
-//! the best prediction so far (of a candidate without a caveat); candidates not measured are
-//! said to be. Candidates run in the order path, BDPT, VCM (unbiased: the consensus needs
-//! them), SPPM (two iterations' photons), photon map (a whole photon map), PSSMLT, MLT; the
-//! photons and the photon map are reused by the render where that method wins.
+//! the best prediction so far (of a candidate without a caveat), or would with SPPM's photons
+//! (timed on their first chunk); candidates not measured are said to be. Candidates run in
+//! the order path, BDPT, VCM (unbiased: the consensus needs them), SPPM (two iterations'
+//! photons), photon map (a whole photon map), PSSMLT, MLT — the photon map before SPPM where
+//! the film has more pixels than an SPPM iteration has photons, and a path tracer with a
+//! caveat last unless the goal is its own error at the job's spp; the photons and the photon
+//! map are reused by the render where that method wins.
 
+use std::ops::Range;
 use std::time::Instant;
+
+use rayon::prelude::*;
 
 use tessera_scene::{FilterDesc, SceneDesc, SubsurfaceMethod};
 
@@ -163,7 +169,8 @@ const PILOT_PIXELS: (u64, u64) = (256, 4096);
 /// The pilot stops once it has spent this share of the best prediction.
 const PILOT_SHARE: f64 = 0.1;
 /// The first candidates are measured whatever the pilot has spent: the path tracer, BDPT and
-/// VCM need no passes, so cost little, and make the consensus that judges the biased ones.
+/// VCM need no passes, so cost little, and make the consensus that judges the biased ones
+/// (the path tracer only where it has no caveat: see [`measured_first`]).
 const ALWAYS_MEASURED: usize = 3;
 /// A biased candidate is said unable to reach an error its floor is this close to.
 const FLOOR_MARGIN: f64 = 0.8;
@@ -212,7 +219,8 @@ fn measure(
             artifacts: Vec::new(),
         });
     }
-    let (candidates, mut ruled_out) = candidates(desc, &analysis);
+    let (mut candidates, mut ruled_out) = candidates(desc, &analysis);
+    let always = measured_first(&mut candidates, goal);
     let film = (desc.film.width as u64) * (desc.film.height as u64);
     let pilot = pilot_desc(desc);
 
@@ -230,15 +238,25 @@ fn measure(
             Goal::Seconds(t) => t,
             _ => best,
         };
-        if i >= ALWAYS_MEASURED && spent > PILOT_SHARE * budget {
+        if i >= always && spent > PILOT_SHARE * budget {
             ruled_out.push(format!(
                 "{}: not measured: the pilot had spent {spent:.2} s, a tenth of the best prediction ({budget:.2} s)",
                 c.label
             ));
             continue;
         }
-        match run(c, &pilot, desc.film.width, scene, frame, threads) {
-            Ok(r) => runs.push((i, r)),
+        // What is left of the share, for a candidate that can tell its cost before its pilot.
+        let left = if i >= always {
+            PILOT_SHARE * budget - spent
+        } else {
+            f64::INFINITY
+        };
+        match run(c, &pilot, desc.film.width, scene, frame, threads, left) {
+            Ok(Pilot::Ran(r)) => runs.push((i, r)),
+            Ok(Pilot::TooDear(why)) => ruled_out.push(format!(
+                "{}: not measured: {why}, past a tenth of the best prediction ({budget:.2} s)",
+                c.label
+            )),
             Err(e) => ruled_out.push(format!("{}: cannot run: {e}", c.label)),
         }
         let (m, t) = predict(
@@ -376,7 +394,7 @@ fn candidates(desc: &SceneDesc, analysis: &Analysis) -> (Vec<Candidate>, Vec<Str
     // The unbiased methods without passes first: they are cheap to measure and make the
     // consensus. SPPM's iterations trace all their photons whatever the film: two, less than
     // photon mapping's pass, which is measured at full cost (both reused by the render when
-    // they win).
+    // they win), so SPPM goes first unless the film is large (`photon_map_first`).
     // Caustics of a concentrated light are paths the path tracer finds only by hitting the
     // light through the specular chain: rare, bright samples, which a pilot of a few thousand
     // paths does not see, so their variance cannot be measured. Light tracing (BDPT, VCM)
@@ -392,7 +410,7 @@ fn candidates(desc: &SceneDesc, analysis: &Analysis) -> (Vec<Candidate>, Vec<Str
             concentrated.join(", ")
         )
     });
-    let list = vec![
+    let mut list = vec![
         Candidate {
             caveat,
             ..c("path", "path", None, Model::Unbiased, 16)
@@ -404,7 +422,39 @@ fn candidates(desc: &SceneDesc, analysis: &Analysis) -> (Vec<Candidate>, Vec<Str
         c("pssmlt", "pssmlt", None, Model::Unbiased, 4),
         c("mlt", "mlt", None, Model::Unbiased, 4),
     ];
+    if photon_map_first(desc) {
+        list.swap(3, 4);
+    }
     (list, Vec::new())
+}
+
+/// Puts the candidates with a caveat last, unless the goal is the path tracer's error at the
+/// job's spp (which its pilot measures): chosen only where nothing else can be, they are
+/// measured only if the pilot has time left. Returns how many candidates are measured
+/// whatever the pilot has spent: the first [`ALWAYS_MEASURED`] less those moved.
+fn measured_first(candidates: &mut [Candidate], goal: Goal) -> usize {
+    let first = ALWAYS_MEASURED.min(candidates.len());
+    if matches!(goal, Goal::PathSpp(_)) {
+        return first;
+    }
+    let moved = candidates[..first]
+        .iter()
+        .filter(|c| c.caveat.is_some())
+        .count();
+    candidates.sort_by_key(|c| c.caveat.is_some());
+    first - moved
+}
+
+/// Whether the photon map is measured before SPPM: where the film has more pixels than an
+/// SPPM iteration has photons. Each SPPM iteration then costs more than a camera path per
+/// pixel, its photons aside, where the photon map traces its photons once and the film once
+/// (with final gathering); SPPM's few cheap iterations are what win it small films. Measured
+/// first, the likelier winner lets the tenth-of-the-best rule skip the other: SPPM's pilot
+/// iterations are wasted where the photon map wins, the photon map's whole pass where SPPM
+/// does.
+fn photon_map_first(desc: &SceneDesc) -> bool {
+    let film = u64::from(desc.film.width) * u64::from(desc.film.height);
+    film > u64::from(sppm::photons_per_iteration(desc))
 }
 
 /// The scene at about 1/16 of its pixels (within [`PILOT_PIXELS`]), same view. A filter with
@@ -465,6 +515,13 @@ struct Run {
     pilot_s: f64,
 }
 
+/// What a candidate's pilot came to.
+enum Pilot {
+    Ran(Run),
+    /// Not measured: what it would cost, and why that is too much.
+    TooDear(String),
+}
+
 /// The pixel-wise mean of two images.
 fn mean(a: &[[f64; 3]], b: &[[f64; 3]]) -> Vec<[f64; 3]> {
     a.iter()
@@ -479,25 +536,53 @@ fn rgb(image: &Image) -> Vec<[f64; 3]> {
 
 /// The photons of SPPM's first `iterations` iterations of `frame` for `desc` (its settings
 /// applied to `scene`), by the keys its photon tasks look them up under.
+/// Those in `have` (by key) are taken, not shot again.
 fn sppm_photons(
     desc: &SceneDesc,
     scene: &Scene,
     frame: u32,
     iterations: u32,
+    have: &[(String, Loaded)],
 ) -> Vec<(String, Loaded)> {
     let (photon, settings) = SppmSettings::resolve(desc, &analyze(desc));
     let sppm = Sppm::new(scene, &photon, settings);
-    let mut out = Vec::new();
-    for t in 0..iterations {
-        for chunk in sppm::chunks(settings.photons) {
+    let work: Vec<(u32, Range<u32>)> = (0..iterations)
+        .flat_map(|t| {
+            sppm::chunks(settings.photons)
+                .into_iter()
+                .map(move |c| (t, c))
+        })
+        .collect();
+    work.into_par_iter()
+        .map(|(t, chunk)| {
             let key = sppm::photons_key(&photon, &settings, frame, t, &chunk);
-            out.push((
-                key,
-                std::sync::Arc::new(sppm.shoot(t, chunk, true)) as Loaded,
-            ));
-        }
-    }
-    out
+            let shot = have.iter().find(|(k, _)| *k == key).map(|(_, p)| p.clone());
+            let photons =
+                shot.unwrap_or_else(|| std::sync::Arc::new(sppm.shoot(t, chunk, false)) as Loaded);
+            (key, photons)
+        })
+        .collect()
+}
+
+/// SPPM's first chunk of photons (by key), and the wall seconds that `iterations` iterations'
+/// photons are predicted to take at its pace.
+fn sppm_probe(
+    desc: &SceneDesc,
+    scene: &Scene,
+    frame: u32,
+    iterations: u32,
+) -> (Vec<(String, Loaded)>, f64) {
+    let start = Instant::now();
+    let (photon, settings) = SppmSettings::resolve(desc, &analyze(desc));
+    let chunks = sppm::chunks(settings.photons);
+    let Some(first) = chunks.first().cloned() else {
+        return (Vec::new(), 0.0);
+    };
+    let key = sppm::photons_key(&photon, &settings, frame, 0, &first);
+    let tree = Sppm::new(scene, &photon, settings).shoot(0, first, true);
+    let s = start.elapsed().as_secs_f64();
+    let all = s * (chunks.len() as f64) * f64::from(iterations);
+    (vec![(key, std::sync::Arc::new(tree) as Loaded)], all)
 }
 
 /// SPPM's second half: the photons of iterations k..2k of the job's seed (`photons`, by key:
@@ -552,7 +637,8 @@ fn run(
     scene: &mut Scene,
     frame: u32,
     threads: usize,
-) -> Result<Run, String> {
+    left: f64,
+) -> Result<Pilot, String> {
     let start = Instant::now();
     let mut desc = pilot.clone();
     desc.integrator.method = c.method.into();
@@ -577,8 +663,18 @@ fn run(
     let rendering = Instant::now();
     // SPPM's photons do not depend on the film: the pilot's are the render's first 2k
     // iterations', shot here and handed on with the passes.
+    // Its first chunk tells what all its photons cost, and they may cost more than is left.
     let photons = match c.model {
-        Model::Progressive => sppm_photons(&desc, scene, frame, 2 * c.k),
+        Model::Progressive => {
+            let (probe, all) = sppm_probe(&desc, scene, frame, 2 * c.k);
+            if all > left {
+                return Ok(Pilot::TooDear(format!(
+                    "its photons would take {all:.2} s at its first chunk's pace, more than the {:.2} s left",
+                    left.max(0.0)
+                )));
+            }
+            sppm_photons(&desc, scene, frame, 2 * c.k, &probe)
+        }
         _ => Vec::new(),
     };
     let local = local.with_artifacts(photons.iter().cloned());
@@ -632,19 +728,68 @@ fn run(
             (b, both)
         }
     };
-    Ok(Run {
+    Ok(Pilot::Ran(Run {
         images: Halves { a, b, both },
         artifacts,
         setup_s,
         frame_s,
         pixels_s,
         pilot_s: start.elapsed().as_secs_f64(),
-    })
+    }))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// SPPM is measured before the photon map unless the film has more pixels than an SPPM
+    /// iteration has photons.
+    #[test]
+    fn photon_map_goes_first_on_films_larger_than_an_iteration() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenes/cornell-box/scene.json");
+        let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let order = |desc: &SceneDesc| -> Vec<String> {
+            let (list, _) = candidates(desc, &analyze(desc));
+            list.into_iter()
+                .map(|c| c.label)
+                .filter(|l| l == "sppm" || l == "photon")
+                .collect()
+        };
+        desc.film.width = 256;
+        desc.film.height = 256;
+        assert_eq!(order(&desc), ["sppm", "photon"]);
+        desc.film.width = 1920;
+        desc.film.height = 1080;
+        assert_eq!(order(&desc), ["photon", "sppm"]);
+        desc.integrator.photon.photons = Some(1920 * 1080);
+        assert_eq!(order(&desc), ["sppm", "photon"]);
+    }
+
+    /// The pool's path tracer has a caveat (caustics of a small light): for a target error it
+    /// is measured last and the first two candidates (BDPT, VCM) whatever the pilot has
+    /// spent; for the path tracer's own error at the job's spp it stays first.
+    #[test]
+    fn a_path_tracer_with_a_caveat_is_measured_last_unless_its_error_is_the_goal() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/pool/scene.json");
+        let desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let labels = |goal| {
+            let (mut list, _) = candidates(&desc, &analyze(&desc));
+            let always = measured_first(&mut list, goal);
+            (
+                always,
+                list.into_iter().map(|c| c.label).collect::<Vec<_>>(),
+            )
+        };
+        let (always, order) = labels(Goal::Error(0.01));
+        assert_eq!(always, 2);
+        assert_eq!(order[..2], ["bdpt", "vcm"]);
+        assert_eq!(order.last().map(String::as_str), Some("path"));
+        let (always, order) = labels(Goal::PathSpp(16));
+        assert_eq!(always, ALWAYS_MEASURED);
+        assert_eq!(order[..3], ["path", "bdpt", "vcm"]);
+    }
 
     /// SPPM's photons handed on by the pilot are the ones the render would shoot: a render
     /// that takes them is the render that shoots its own, bit for bit, and it does take them
@@ -670,7 +815,7 @@ mod tests {
             let image = local.frame(1).unwrap_or_else(|e| panic!("{e}")).image;
             image.pixels.iter().map(|p| p.rgb).collect::<Vec<_>>()
         };
-        let given = sppm_photons(&desc, &scene, 1, 2);
+        let given = sppm_photons(&desc, &scene, 1, 2, &[]);
         assert!(!given.is_empty());
         assert!(
             given
@@ -680,7 +825,7 @@ mod tests {
         let own = render(Vec::new());
         assert_eq!(render(given.clone()), own);
         // The same keys holding the photons of iterations 2 and 3.
-        let later = sppm_photons(&desc, &scene, 1, 4);
+        let later = sppm_photons(&desc, &scene, 1, 4, &[]);
         let swapped: Vec<(String, Loaded)> = given
             .iter()
             .zip(later.iter().skip(given.len()))
