@@ -47,25 +47,22 @@
 //! caveat last unless the goal is its own error at the job's spp; the photons and the photon
 //! map are reused by the render where that method wins.
 
-use std::ops::Range;
 use std::time::Instant;
-
-use rayon::prelude::*;
 
 use tessera_scene::{FilterDesc, SceneDesc, SubsurfaceMethod};
 
 use super::Choice;
 use crate::analysis::{Analysis, analyze, concentrated_lights};
-use crate::camera::Camera;
 use crate::film::{Image, MAX_SPP};
-use crate::integrator::sppm::{self, Sppm, SppmSettings, SppmState};
+use crate::integrator::sppm;
 use crate::method::local::{Local, Progress};
 use crate::method::{Job, Loaded, plan};
-use crate::photon::{KdTree, Photon, PhotonSettings};
 use crate::scene::Scene;
 
 mod predict;
+mod progressive;
 use predict::{choose, describe, predict, rel};
+use progressive::{sppm_photons, sppm_probe, sppm_second_half};
 
 /// What the job asks of its render.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -423,7 +420,10 @@ fn candidates(desc: &SceneDesc, analysis: &Analysis) -> (Vec<Candidate>, Vec<Str
         c("mlt", "mlt", None, Model::Unbiased, 4),
     ];
     if photon_map_first(desc) {
-        list.swap(3, 4);
+        let at = |label: &str| list.iter().position(|c| c.label == label);
+        if let (Some(sppm), Some(photon)) = (at("sppm"), at("photon")) {
+            list.swap(sppm, photon);
+        }
     }
     (list, Vec::new())
 }
@@ -532,101 +532,6 @@ fn mean(a: &[[f64; 3]], b: &[[f64; 3]]) -> Vec<[f64; 3]> {
 
 fn rgb(image: &Image) -> Vec<[f64; 3]> {
     image.pixels.iter().map(|p| p.rgb.map(f64::from)).collect()
-}
-
-/// The photons of SPPM's first `iterations` iterations of `frame` for `desc` (its settings
-/// applied to `scene`), by the keys its photon tasks look them up under.
-/// Those in `have` (by key) are taken, not shot again.
-fn sppm_photons(
-    desc: &SceneDesc,
-    scene: &Scene,
-    frame: u32,
-    iterations: u32,
-    have: &[(String, Loaded)],
-) -> Vec<(String, Loaded)> {
-    let (photon, settings) = SppmSettings::resolve(desc, &analyze(desc));
-    let sppm = Sppm::new(scene, &photon, settings);
-    let work: Vec<(u32, Range<u32>)> = (0..iterations)
-        .flat_map(|t| {
-            sppm::chunks(settings.photons)
-                .into_iter()
-                .map(move |c| (t, c))
-        })
-        .collect();
-    work.into_par_iter()
-        .map(|(t, chunk)| {
-            let key = sppm::photons_key(&photon, &settings, frame, t, &chunk);
-            let shot = have.iter().find(|(k, _)| *k == key).map(|(_, p)| p.clone());
-            let photons =
-                shot.unwrap_or_else(|| std::sync::Arc::new(sppm.shoot(t, chunk, false)) as Loaded);
-            (key, photons)
-        })
-        .collect()
-}
-
-/// SPPM's first chunk of photons (by key), and the wall seconds that `iterations` iterations'
-/// photons are predicted to take at its pace.
-fn sppm_probe(
-    desc: &SceneDesc,
-    scene: &Scene,
-    frame: u32,
-    iterations: u32,
-) -> (Vec<(String, Loaded)>, f64) {
-    let start = Instant::now();
-    let (photon, settings) = SppmSettings::resolve(desc, &analyze(desc));
-    let chunks = sppm::chunks(settings.photons);
-    let Some(first) = chunks.first().cloned() else {
-        return (Vec::new(), 0.0);
-    };
-    let key = sppm::photons_key(&photon, &settings, frame, 0, &first);
-    let tree = Sppm::new(scene, &photon, settings).shoot(0, first, true);
-    let s = start.elapsed().as_secs_f64();
-    let all = s * (chunks.len() as f64) * f64::from(iterations);
-    (vec![(key, std::sync::Arc::new(tree) as Loaded)], all)
-}
-
-/// SPPM's second half: the photons of iterations k..2k of the job's seed (`photons`, by key:
-/// those the render's iterations k..2k use) gathered at the camera paths of the next seed's
-/// first k iterations, from the initial radii: the same estimator as the first half's k
-/// iterations, on independent samples.
-/// Its image, and the wall seconds of its camera paths and gathering.
-fn sppm_second_half(
-    desc: &SceneDesc,
-    scene: &Scene,
-    frame: u32,
-    k: u32,
-    photons: &[(String, Loaded)],
-) -> Result<(Vec<[f64; 3]>, f64), String> {
-    let start = Instant::now();
-    let (photon, settings) = SppmSettings::resolve(desc, &analyze(desc));
-    // Camera paths of the next seed: iteration k's of the job's seed would be the next points
-    // of the first half's low-discrepancy sequence, anticorrelated with them.
-    let other = PhotonSettings {
-        seed: photon.seed.wrapping_add(1),
-        ..photon
-    };
-    let sppm = Sppm::new(scene, &other, settings);
-    let camera = Camera::new(&desc.camera_at(frame), &desc.film);
-    let mut state = SppmState::new(desc.film.width, desc.film.height, settings.initial_radius);
-    for t in k..2 * k {
-        let vps = sppm.visible_points_parallel(&camera, t - k);
-        let r2 = state.radii2();
-        let mut sums = Vec::new();
-        for chunk in sppm::chunks(settings.photons) {
-            let key = sppm::photons_key(&photon, &settings, frame, t, &chunk);
-            let tree = photons
-                .iter()
-                .find(|(name, _)| *name == key)
-                .and_then(|(_, p)| p.clone().downcast::<KdTree<Photon>>().ok())
-                .ok_or_else(|| format!("auto: sppm's pilot lost its photons ({key})"))?;
-            sums.push(sppm.gather_parallel(&vps, &r2, &tree));
-        }
-        state.add_iteration(&vps.camera, sums.iter().map(Vec::as_slice), settings.alpha);
-    }
-    Ok((
-        rgb(&state.image(camera.exposure)),
-        start.elapsed().as_secs_f64(),
-    ))
 }
 
 /// Renders candidate `c`'s pilot of `pilot` (a film `width` pixels wide at full size).
@@ -742,13 +647,18 @@ fn run(
 mod tests {
     use super::*;
 
+    /// The scene description of `scenes/NAME/scene.json`.
+    pub(super) fn scene(name: &str) -> SceneDesc {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join(format!("../../scenes/{name}/scene.json"));
+        tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"))
+    }
+
     /// SPPM is measured before the photon map unless the film has more pixels than an SPPM
     /// iteration has photons.
     #[test]
     fn photon_map_goes_first_on_films_larger_than_an_iteration() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../scenes/cornell-box/scene.json");
-        let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let mut desc = scene("cornell-box");
         let order = |desc: &SceneDesc| -> Vec<String> {
             let (list, _) = candidates(desc, &analyze(desc));
             list.into_iter()
@@ -771,9 +681,7 @@ mod tests {
     /// spent; for the path tracer's own error at the job's spp it stays first.
     #[test]
     fn a_path_tracer_with_a_caveat_is_measured_last_unless_its_error_is_the_goal() {
-        let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/pool/scene.json");
-        let desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let desc = scene("pool");
         let labels = |goal| {
             let (mut list, _) = candidates(&desc, &analyze(&desc));
             let always = measured_first(&mut list, goal);
@@ -789,48 +697,5 @@ mod tests {
         let (always, order) = labels(Goal::PathSpp(16));
         assert_eq!(always, ALWAYS_MEASURED);
         assert_eq!(order[..3], ["path", "bdpt", "vcm"]);
-    }
-
-    /// SPPM's photons handed on by the pilot are the ones the render would shoot: a render
-    /// that takes them is the render that shoots its own, bit for bit, and it does take them
-    /// (photons of other iterations under the same keys change the image).
-    #[test]
-    fn sppm_renders_alike_with_the_pilots_photons() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../scenes/indirect-room/scene.json");
-        let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-        desc.film.width = 32;
-        desc.film.height = 24;
-        desc.integrator.method = "sppm".into();
-        desc.integrator.spp = 3;
-        desc.integrator.photon.photons = Some(20_000);
-        let mut scene = Scene::build(&desc);
-        scene.set_settings(&desc);
-        let render = |given: Vec<(String, Loaded)>| {
-            let job = Job::new(desc.clone(), 1);
-            let p = plan(&job).unwrap_or_else(|e| panic!("{e}"));
-            let noop = |_: Progress| {};
-            let local = Local::new(p.as_ref(), &scene, &desc, 1, &noop).with_artifacts(given);
-            local.passes().unwrap_or_else(|e| panic!("{e}"));
-            let image = local.frame(1).unwrap_or_else(|e| panic!("{e}")).image;
-            image.pixels.iter().map(|p| p.rgb).collect::<Vec<_>>()
-        };
-        let given = sppm_photons(&desc, &scene, 1, 2, &[]);
-        assert!(!given.is_empty());
-        assert!(
-            given
-                .iter()
-                .all(|(k, _)| k.starts_with("sppm photons: frame 1, iteration "))
-        );
-        let own = render(Vec::new());
-        assert_eq!(render(given.clone()), own);
-        // The same keys holding the photons of iterations 2 and 3.
-        let later = sppm_photons(&desc, &scene, 1, 4, &[]);
-        let swapped: Vec<(String, Loaded)> = given
-            .iter()
-            .zip(later.iter().skip(given.len()))
-            .map(|((key, _), (_, photons))| (key.clone(), photons.clone()))
-            .collect();
-        assert_ne!(render(swapped), own);
     }
 }
