@@ -54,7 +54,7 @@ use tessera_scene::{FilterDesc, SceneDesc, SubsurfaceMethod};
 use super::Choice;
 use crate::analysis::{Analysis, analyze, concentrated_lights};
 use crate::film::{Image, MAX_SPP};
-use crate::integrator::sppm;
+use crate::integrator::sppm::{self, SppmSettings};
 use crate::method::local::{Local, Progress};
 use crate::method::{Job, Loaded, plan};
 use crate::scene::Scene;
@@ -62,7 +62,7 @@ use crate::scene::Scene;
 mod predict;
 mod progressive;
 use predict::{choose, describe, predict, rel};
-use progressive::{sppm_photons, sppm_probe, sppm_second_half};
+use progressive::{sppm_photons, sppm_second_half};
 
 /// What the job asks of its render.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -567,20 +567,22 @@ fn run(
     let setup_s = start.elapsed().as_secs_f64();
     let rendering = Instant::now();
     // SPPM's photons do not depend on the film: the pilot's are the render's first 2k
-    // iterations', shot here and handed on with the passes.
-    // Its first chunk tells what all its photons cost, and they may cost more than is left.
-    let photons = match c.model {
-        Model::Progressive => {
-            let (probe, all) = sppm_probe(&desc, scene, frame, 2 * c.k);
-            if all > left {
-                return Ok(Pilot::TooDear(format!(
-                    "its photons would take {all:.2} s at its first chunk's pace, more than the {:.2} s left",
-                    left.max(0.0)
-                )));
+    // iterations', shot here and handed on with the passes, unless they cost more than is left.
+    let sppm =
+        (c.model == Model::Progressive).then(|| SppmSettings::resolve(&desc, &analyze(&desc)));
+    let photons = match &sppm {
+        Some((photon, settings)) => {
+            match sppm_photons(scene, photon, *settings, frame, 2 * c.k, left) {
+                Ok(photons) => photons,
+                Err(all) => {
+                    return Ok(Pilot::TooDear(format!(
+                        "its photons would take {all:.2} s at its first chunk's pace, more than the {:.2} s left",
+                        left.max(0.0)
+                    )));
+                }
             }
-            sppm_photons(&desc, scene, frame, 2 * c.k, &probe)
         }
-        _ => Vec::new(),
+        None => Vec::new(),
     };
     let local = local.with_artifacts(photons.iter().cloned());
     let (mut state, first) = local.frame_with_state(frame)?;
@@ -609,9 +611,10 @@ fn run(
             (b, both)
         }
         None => {
-            let b = if c.model == Model::Progressive {
+            let b = if let Some((photon, settings)) = &sppm {
                 let second = Instant::now();
-                let (b, b_pixels_s) = sppm_second_half(&desc, scene, frame, c.k, &photons)?;
+                let (b, b_pixels_s) =
+                    sppm_second_half(&desc, scene, photon, *settings, frame, c.k, &photons)?;
                 frame_s += second.elapsed().as_secs_f64();
                 pixels_s = pixels_s.map(|a| a + b_pixels_s);
                 b

@@ -1,32 +1,34 @@
-//! SPPM's pilot: its photons, shot whatever the film and handed on to the render, a probe of
-//! their cost, and its second half (see the parent module, step 2).
+//! SPPM's pilot: its photons, shot whatever the film and handed on to the render, their cost
+//! told by the first chunk, and its second half (see the parent module, step 2).
 
 use std::ops::Range;
+use std::sync::Arc;
 use std::time::Instant;
 
 use rayon::prelude::*;
 use tessera_scene::SceneDesc;
 
 use super::rgb;
-use crate::analysis::analyze;
 use crate::camera::Camera;
 use crate::integrator::sppm::{self, Sppm, SppmSettings, SppmState};
 use crate::method::Loaded;
 use crate::photon::{KdTree, Photon, PhotonSettings};
 use crate::scene::Scene;
 
-/// The photons of SPPM's first `iterations` iterations of `frame` for `desc` (its settings
-/// applied to `scene`), by the keys its photon tasks look them up under.
-/// Those in `have` (by key) are taken, not shot again.
+/// The photons of SPPM's first `iterations` iterations of `frame` (`photon`, `settings`:
+/// SPPM's settings, resolved for the job), by the keys its photon tasks look them up under.
+/// The first chunk is shot and timed alone: where all of them would take more than `left`
+/// wall seconds at its pace, the rest are not shot and that prediction is the error.
 pub(super) fn sppm_photons(
-    desc: &SceneDesc,
     scene: &Scene,
+    photon: &PhotonSettings,
+    settings: SppmSettings,
     frame: u32,
     iterations: u32,
-    have: &[(String, Loaded)],
-) -> Vec<(String, Loaded)> {
-    let (photon, settings) = SppmSettings::resolve(desc, &analyze(desc));
-    let sppm = Sppm::new(scene, &photon, settings);
+    left: f64,
+) -> Result<Vec<(String, Loaded)>, f64> {
+    let start = Instant::now();
+    let sppm = Sppm::new(scene, photon, settings);
     let work: Vec<(u32, Range<u32>)> = (0..iterations)
         .flat_map(|t| {
             sppm::chunks(settings.photons)
@@ -34,36 +36,31 @@ pub(super) fn sppm_photons(
                 .map(move |c| (t, c))
         })
         .collect();
-    work.into_par_iter()
-        .map(|(t, chunk)| {
-            let key = sppm::photons_key(&photon, &settings, frame, t, &chunk);
-            let shot = have.iter().find(|(k, _)| *k == key).map(|(_, p)| p.clone());
-            let photons =
-                shot.unwrap_or_else(|| std::sync::Arc::new(sppm.shoot(t, chunk, false)) as Loaded);
-            (key, photons)
-        })
-        .collect()
-}
-
-/// SPPM's first chunk of photons (by key), and the wall seconds that `iterations` iterations'
-/// photons are predicted to take at its pace.
-pub(super) fn sppm_probe(
-    desc: &SceneDesc,
-    scene: &Scene,
-    frame: u32,
-    iterations: u32,
-) -> (Vec<(String, Loaded)>, f64) {
-    let start = Instant::now();
-    let (photon, settings) = SppmSettings::resolve(desc, &analyze(desc));
-    let chunks = sppm::chunks(settings.photons);
-    let Some(first) = chunks.first().cloned() else {
-        return (Vec::new(), 0.0);
+    let shoot = |(t, chunk): &(u32, Range<u32>)| {
+        let key = sppm::photons_key(photon, &settings, frame, *t, chunk);
+        (
+            key,
+            Arc::new(sppm.shoot(*t, chunk.clone(), false)) as Loaded,
+        )
     };
-    let key = sppm::photons_key(&photon, &settings, frame, 0, &first);
-    let tree = Sppm::new(scene, &photon, settings).shoot(0, first, true);
-    let s = start.elapsed().as_secs_f64();
-    let all = s * (chunks.len() as f64) * f64::from(iterations);
-    (vec![(key, std::sync::Arc::new(tree) as Loaded)], all)
+    let Some((first, rest)) = work.split_first() else {
+        return Ok(Vec::new());
+    };
+    // The first chunk alone, on every thread, as the probe: its pace is the others' in parallel.
+    let probe = {
+        let key = sppm::photons_key(photon, &settings, frame, first.0, &first.1);
+        (
+            key,
+            Arc::new(sppm.shoot(first.0, first.1.clone(), true)) as Loaded,
+        )
+    };
+    let all = start.elapsed().as_secs_f64() * work.len() as f64;
+    if all > left {
+        return Err(all);
+    }
+    let mut shot = vec![probe];
+    shot.par_extend(rest.par_iter().map(shoot));
+    Ok(shot)
 }
 
 /// SPPM's second half: the photons of iterations k..2k of the job's seed (`photons`, by key:
@@ -74,17 +71,18 @@ pub(super) fn sppm_probe(
 pub(super) fn sppm_second_half(
     desc: &SceneDesc,
     scene: &Scene,
+    photon: &PhotonSettings,
+    settings: SppmSettings,
     frame: u32,
     k: u32,
     photons: &[(String, Loaded)],
 ) -> Result<(Vec<[f64; 3]>, f64), String> {
     let start = Instant::now();
-    let (photon, settings) = SppmSettings::resolve(desc, &analyze(desc));
     // Camera paths of the next seed: iteration k's of the job's seed would be the next points
     // of the first half's low-discrepancy sequence, anticorrelated with them.
     let other = PhotonSettings {
         seed: photon.seed.wrapping_add(1),
-        ..photon
+        ..*photon
     };
     let sppm = Sppm::new(scene, &other, settings);
     let camera = Camera::new(&desc.camera_at(frame), &desc.film);
@@ -94,7 +92,7 @@ pub(super) fn sppm_second_half(
         let r2 = state.radii2();
         let mut sums = Vec::new();
         for chunk in sppm::chunks(settings.photons) {
-            let key = sppm::photons_key(&photon, &settings, frame, t, &chunk);
+            let key = sppm::photons_key(photon, &settings, frame, t, &chunk);
             let tree = photons
                 .iter()
                 .find(|(name, _)| *name == key)
@@ -114,6 +112,7 @@ pub(super) fn sppm_second_half(
 mod tests {
     use super::super::tests::scene;
     use super::*;
+    use crate::analysis::analyze;
     use crate::method::local::{Local, Progress};
     use crate::method::{Job, plan};
 
@@ -139,7 +138,12 @@ mod tests {
             let image = local.frame(1).unwrap_or_else(|e| panic!("{e}")).image;
             image.pixels.iter().map(|p| p.rgb).collect::<Vec<_>>()
         };
-        let given = sppm_photons(&desc, &scene, 1, 2, &[]);
+        let (photon, settings) = SppmSettings::resolve(&desc, &analyze(&desc));
+        let photons = |iterations| {
+            sppm_photons(&scene, &photon, settings, 1, iterations, f64::INFINITY)
+                .unwrap_or_else(|s| panic!("too dear at {s} s"))
+        };
+        let given = photons(2);
         assert!(!given.is_empty());
         assert!(
             given
@@ -149,7 +153,7 @@ mod tests {
         let own = render(Vec::new());
         assert_eq!(render(given.clone()), own);
         // The same keys holding the photons of iterations 2 and 3.
-        let later = sppm_photons(&desc, &scene, 1, 4, &[]);
+        let later = photons(4);
         let swapped: Vec<(String, Loaded)> = given
             .iter()
             .zip(later.iter().skip(given.len()))
@@ -158,29 +162,41 @@ mod tests {
         assert_ne!(render(swapped), own);
     }
 
-    /// The probe's chunk is the one `sppm_photons` would shoot under its key, and is taken
-    /// from it, not shot again.
+    /// The first chunk, shot alone to time it, is the one its key names, as the others are;
+    /// where all would take more than is left, nothing more is shot.
     #[test]
-    fn the_probes_chunk_is_the_pilots_first() {
+    fn the_first_chunk_times_the_photons_and_is_theirs() {
         let mut desc = scene("indirect-room");
         desc.integrator.method = "sppm".into();
         desc.integrator.photon.photons = Some(2 * sppm::PHOTONS_PER_CHUNK);
         let mut scene = Scene::build(&desc);
         scene.set_settings(&desc);
-        let (probe, all) = sppm_probe(&desc, &scene, 1, 2);
-        assert_eq!(probe.len(), 1);
-        assert!(all > 0.0);
+        let (photon, settings) = SppmSettings::resolve(&desc, &analyze(&desc));
         let tree = |p: &Loaded| {
             p.clone()
                 .downcast::<KdTree<Photon>>()
                 .unwrap_or_else(|_| panic!("not photons"))
         };
-        let shot = sppm_photons(&desc, &scene, 1, 2, &[]);
-        assert_eq!(shot.len(), 4);
-        assert_eq!(shot[0].0, probe[0].0);
-        assert_eq!(*tree(&shot[0].1), *tree(&probe[0].1));
-        let given = sppm_photons(&desc, &scene, 1, 2, &probe);
-        assert!(std::sync::Arc::ptr_eq(&given[0].1, &probe[0].1));
-        assert_eq!(*tree(&given[1].1), *tree(&shot[1].1));
+        let shot = sppm_photons(&scene, &photon, settings, 1, 2, f64::INFINITY)
+            .unwrap_or_else(|s| panic!("too dear at {s} s"));
+        let sppm = Sppm::new(&scene, &photon, settings);
+        let chunks = sppm::chunks(settings.photons);
+        assert_eq!(chunks.len(), 2);
+        let expected: Vec<(u32, Range<u32>)> = (0..2)
+            .flat_map(|t| chunks.iter().map(move |c| (t, c.clone())))
+            .collect();
+        assert_eq!(shot.len(), expected.len());
+        for ((key, photons), (t, chunk)) in shot.iter().zip(&expected) {
+            assert_eq!(*key, sppm::photons_key(&photon, &settings, 1, *t, chunk));
+            assert_eq!(
+                *tree(photons),
+                sppm.shoot(*t, chunk.clone(), false),
+                "{key}"
+            );
+        }
+        match sppm_photons(&scene, &photon, settings, 1, 2, 0.0) {
+            Err(all) => assert!(all > 0.0),
+            Ok(shot) => panic!("{} chunks shot with no time left", shot.len()),
+        }
     }
 }
