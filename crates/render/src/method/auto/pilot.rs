@@ -7,7 +7,9 @@
 //!    environment's sun) put a caveat on the path tracer: it finds them only by hitting the
 //!    light through the specular chain, rare bright samples a pilot does not see, so it is
 //!    measured (its error at the job's spp may be the goal) but chosen only when nothing else
-//!    can be.
+//!    can be. Where the camera sees a specular surface, BDPT carries the same caveat: the
+//!    caustics seen there are specular–diffuse–specular paths, which none of its connections
+//!    join (it stays a judge: its mean is unbiased).
 //! 2. **Pilots**: each remaining candidate renders the scene at about 1/16 of its pixels (at
 //!    least 256, at most 4096; a Mitchell filter as a box, whose weights cannot cancel) with
 //!    `k` samples, then `k` more, as two independent halves A and B (where the method cannot
@@ -49,10 +51,12 @@
 
 use std::time::Instant;
 
+use glam::Vec2;
 use tessera_scene::{FilterDesc, SceneDesc, SubsurfaceMethod};
 
 use super::Choice;
 use crate::analysis::{Analysis, analyze, concentrated_lights};
+use crate::camera::Camera;
 use crate::film::{Image, MAX_SPP};
 use crate::integrator::sppm::{self, SppmSettings};
 use crate::method::local::{Local, Progress};
@@ -216,7 +220,8 @@ fn measure(
             artifacts: Vec::new(),
         });
     }
-    let (mut candidates, mut ruled_out) = candidates(desc, &analysis);
+    let seen = sees_specular(desc, scene, frame);
+    let (mut candidates, mut ruled_out) = candidates(desc, &analysis, seen);
     let always = measured_first(&mut candidates, goal);
     let film = (desc.film.width as u64) * (desc.film.height as u64);
     let pilot = pilot_desc(desc);
@@ -339,7 +344,8 @@ fn measure(
 }
 
 /// The candidates the scene's features leave, in pilot order, and what they ruled out.
-fn candidates(desc: &SceneDesc, analysis: &Analysis) -> (Vec<Candidate>, Vec<String>) {
+/// `seen`: whether the camera sees a specular surface ([`sees_specular`]).
+fn candidates(desc: &SceneDesc, analysis: &Analysis, seen: bool) -> (Vec<Candidate>, Vec<String>) {
     let c = |label: &str, method, subsurface, model, k| Candidate {
         label: label.to_string(),
         method,
@@ -407,12 +413,24 @@ fn candidates(desc: &SceneDesc, analysis: &Analysis) -> (Vec<Candidate>, Vec<Str
             concentrated.join(", ")
         )
     });
+    // Seen in a specular surface, those caustics are specular–diffuse–specular paths: no
+    // connection of BDPT's subpaths can join them (each end of the join is specular), so it
+    // too finds them only by hitting the light, where VCM merges and photon maps gather.
+    let bdpt_caveat = (!concentrated.is_empty() && seen).then(|| {
+        format!(
+            "its caustics of {} seen in a specular surface are rare, bright samples a pilot does not see",
+            concentrated.join(", ")
+        )
+    });
     let mut list = vec![
         Candidate {
             caveat,
             ..c("path", "path", None, Model::Unbiased, 16)
         },
-        c("bdpt", "bdpt", None, Model::Unbiased, 4),
+        Candidate {
+            caveat: bdpt_caveat,
+            ..c("bdpt", "bdpt", None, Model::Unbiased, 4)
+        },
         c("vcm", "vcm", None, Model::Unbiased, 4),
         c("sppm", "sppm", None, Model::Progressive, 1),
         c("photon", "photon", None, Model::Biased, 4),
@@ -428,21 +446,36 @@ fn candidates(desc: &SceneDesc, analysis: &Analysis) -> (Vec<Candidate>, Vec<Str
     (list, Vec::new())
 }
 
-/// Puts the candidates with a caveat last, unless the goal is the path tracer's error at the
-/// job's spp (which its pilot measures): chosen only where nothing else can be, they are
-/// measured only if the pilot has time left. Returns how many candidates are measured
-/// whatever the pilot has spent: the first [`ALWAYS_MEASURED`] less those moved.
+/// Puts the candidates with a caveat that judge no other (the path tracer: the consensus
+/// leaves it out where a bidirectional method is measured) last, unless the goal is the path
+/// tracer's error at the job's spp (which its pilot measures): chosen only where nothing else
+/// can be, they are measured only if the pilot has time left. Returns how many candidates are
+/// measured whatever the pilot has spent: the first [`ALWAYS_MEASURED`] less those moved.
 fn measured_first(candidates: &mut [Candidate], goal: Goal) -> usize {
     let first = ALWAYS_MEASURED.min(candidates.len());
     if matches!(goal, Goal::PathSpp(_)) {
         return first;
     }
-    let moved = candidates[..first]
-        .iter()
-        .filter(|c| c.caveat.is_some())
-        .count();
-    candidates.sort_by_key(|c| c.caveat.is_some());
+    let last = |c: &Candidate| c.caveat.is_some() && c.label == "path";
+    let moved = candidates[..first].iter().filter(|c| last(c)).count();
+    candidates.sort_by_key(last);
     first - moved
+}
+
+/// Whether the camera sees a specular surface: a grid of rays through frame `frame`'s film.
+fn sees_specular(desc: &SceneDesc, scene: &Scene, frame: u32) -> bool {
+    const GRID: u32 = 32;
+    let camera = Camera::new(&desc.camera_at(frame), &desc.film);
+    let (w, h) = (desc.film.width as f32, desc.film.height as f32);
+    (0..GRID * GRID).any(|i| {
+        let film = Vec2::new(
+            ((i % GRID) as f32 + 0.5) / GRID as f32 * w,
+            ((i / GRID) as f32 + 0.5) / GRID as f32 * h,
+        );
+        scene
+            .intersect(&camera.generate_ray(film, Vec2::splat(0.5)))
+            .is_some_and(|si| scene.material(si.material).flags.specular)
+    })
 }
 
 /// Whether the photon map is measured before SPPM: where the film has more pixels than an
@@ -663,7 +696,7 @@ mod tests {
     fn photon_map_goes_first_on_films_larger_than_an_iteration() {
         let mut desc = scene("cornell-box");
         let order = |desc: &SceneDesc| -> Vec<String> {
-            let (list, _) = candidates(desc, &analyze(desc));
+            let (list, _) = candidates(desc, &analyze(desc), false);
             list.into_iter()
                 .map(|c| c.label)
                 .filter(|l| l == "sppm" || l == "photon")
@@ -679,15 +712,30 @@ mod tests {
         assert_eq!(order(&desc), ["sppm", "photon"]);
     }
 
+    /// The scene built from `desc`, with its settings.
+    pub(super) fn built(desc: &SceneDesc) -> Scene {
+        let mut scene = Scene::build(desc);
+        scene.set_settings(desc);
+        scene
+    }
+
     /// The pool's path tracer has a caveat (caustics of a small light): for a target error it
     /// is measured last and the first two candidates (BDPT, VCM) whatever the pilot has
-    /// spent; for the path tracer's own error at the job's spp it stays first.
+    /// spent; for the path tracer's own error at the job's spp it stays first. BDPT's caveat
+    /// (the caustics are seen through the water) does not move it: it judges the others.
     #[test]
     fn a_path_tracer_with_a_caveat_is_measured_last_unless_its_error_is_the_goal() {
         let desc = scene("pool");
+        let seen = sees_specular(&desc, &built(&desc), 1);
+        assert!(seen);
         let labels = |goal| {
-            let (mut list, _) = candidates(&desc, &analyze(&desc));
+            let (mut list, _) = candidates(&desc, &analyze(&desc), seen);
             let always = measured_first(&mut list, goal);
+            assert!(
+                list.iter()
+                    .find(|c| c.label == "bdpt")
+                    .is_some_and(|c| c.caveat.is_some())
+            );
             (
                 always,
                 list.into_iter().map(|c| c.label).collect::<Vec<_>>(),
@@ -700,5 +748,32 @@ mod tests {
         let (always, order) = labels(Goal::PathSpp(16));
         assert_eq!(always, ALWAYS_MEASURED);
         assert_eq!(order[..3], ["path", "bdpt", "vcm"]);
+    }
+
+    /// BDPT has a caveat where caustics of a concentrated light are seen in a specular
+    /// surface: the glass box's camera sees its sphere, the plain box's sees nothing specular
+    /// (and has no such caustics).
+    #[test]
+    fn bdpt_has_a_caveat_where_caustics_are_seen_in_a_specular_surface() {
+        let caveat = |name: &str| {
+            let desc = scene(name);
+            let seen = sees_specular(&desc, &built(&desc), 1);
+            let (list, _) = candidates(&desc, &analyze(&desc), seen);
+            let bdpt = list.into_iter().find(|c| c.label == "bdpt");
+            (seen, bdpt.and_then(|c| c.caveat))
+        };
+        let (seen, glass) = caveat("cornell-glass");
+        assert!(seen);
+        assert!(
+            glass
+                .as_ref()
+                .is_some_and(|c| c.contains("seen in a specular surface")),
+            "{glass:?}"
+        );
+        assert_eq!(caveat("cornell-box"), (false, None));
+        // The same caustics unseen: no caveat.
+        let desc = scene("cornell-glass");
+        let (list, _) = candidates(&desc, &analyze(&desc), false);
+        assert!(list.iter().all(|c| c.label != "bdpt" || c.caveat.is_none()));
     }
 }

@@ -110,7 +110,7 @@ pub(super) fn sppm_second_half(
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::scene;
+    use super::super::tests::{built, scene};
     use super::*;
     use crate::analysis::analyze;
     use crate::method::local::{Local, Progress};
@@ -127,8 +127,7 @@ mod tests {
         desc.integrator.method = "sppm".into();
         desc.integrator.spp = 3;
         desc.integrator.photon.photons = Some(20_000);
-        let mut scene = Scene::build(&desc);
-        scene.set_settings(&desc);
+        let scene = built(&desc);
         let render = |given: Vec<(String, Loaded)>| {
             let job = Job::new(desc.clone(), 1);
             let p = plan(&job).unwrap_or_else(|e| panic!("{e}"));
@@ -169,8 +168,7 @@ mod tests {
         let mut desc = scene("indirect-room");
         desc.integrator.method = "sppm".into();
         desc.integrator.photon.photons = Some(2 * sppm::PHOTONS_PER_CHUNK);
-        let mut scene = Scene::build(&desc);
-        scene.set_settings(&desc);
+        let scene = built(&desc);
         let (photon, settings) = SppmSettings::resolve(&desc, &analyze(&desc));
         let tree = |p: &Loaded| {
             p.clone()
