@@ -7,9 +7,10 @@
 //!    environment's sun) put a caveat on the path tracer: it finds them only by hitting the
 //!    light through the specular chain, rare bright samples a pilot does not see, so it is
 //!    measured (its error at the job's spp may be the goal) but chosen only when nothing else
-//!    can be. Where the camera sees a specular surface, BDPT carries the same caveat: the
-//!    caustics seen there are specular–diffuse–specular paths, which none of its connections
-//!    join (it stays a judge: its mean is unbiased).
+//!    can be. Where the camera also sees a specular surface, BDPT carries the same caveat:
+//!    caustics seen in it are specular–diffuse–specular paths, which none of its connections
+//!    join (it stays a judge: its mean is unbiased). Whether that surface shows a caustic is
+//!    not checked; where it does not, VCM, which has BDPT's strategies, stays a candidate.
 //! 2. **Pilots**: each remaining candidate renders the scene at about 1/16 of its pixels (at
 //!    least 256, at most 4096; a Mitchell filter as a box, whose weights cannot cancel) with
 //!    `k` samples, then `k` more, as two independent halves A and B (where the method cannot

@@ -17,8 +17,9 @@ use crate::scene::Scene;
 
 /// The photons of SPPM's first `iterations` iterations of `frame` (`photon`, `settings`:
 /// SPPM's settings, resolved for the job), by the keys its photon tasks look them up under.
-/// The first chunk is shot and timed alone: where all of them would take more than `left`
-/// wall seconds at its pace, the rest are not shot and that prediction is the error.
+/// The first chunk is shot and timed alone: where the shooter's setup and all the chunks at
+/// its pace would take more than `left` wall seconds, the rest are not shot and that
+/// prediction is the error.
 pub(super) fn sppm_photons(
     scene: &Scene,
     photon: &PhotonSettings,
@@ -29,6 +30,7 @@ pub(super) fn sppm_photons(
 ) -> Result<Vec<(String, Loaded)>, f64> {
     let start = Instant::now();
     let sppm = Sppm::new(scene, photon, settings);
+    let setup_s = start.elapsed().as_secs_f64();
     let work: Vec<(u32, Range<u32>)> = (0..iterations)
         .flat_map(|t| {
             sppm::chunks(settings.photons)
@@ -36,30 +38,23 @@ pub(super) fn sppm_photons(
                 .map(move |c| (t, c))
         })
         .collect();
-    let shoot = |(t, chunk): &(u32, Range<u32>)| {
+    let shoot = |(t, chunk): &(u32, Range<u32>), parallel: bool| {
         let key = sppm::photons_key(photon, &settings, frame, *t, chunk);
-        (
-            key,
-            Arc::new(sppm.shoot(*t, chunk.clone(), false)) as Loaded,
-        )
+        let tree = sppm.shoot(*t, chunk.clone(), parallel);
+        (key, Arc::new(tree) as Loaded)
     };
     let Some((first, rest)) = work.split_first() else {
         return Ok(Vec::new());
     };
     // The first chunk alone, on every thread, as the probe: its pace is the others' in parallel.
-    let probe = {
-        let key = sppm::photons_key(photon, &settings, frame, first.0, &first.1);
-        (
-            key,
-            Arc::new(sppm.shoot(first.0, first.1.clone(), true)) as Loaded,
-        )
-    };
-    let all = start.elapsed().as_secs_f64() * work.len() as f64;
+    let chunk = Instant::now();
+    let probe = shoot(first, true);
+    let all = setup_s + chunk.elapsed().as_secs_f64() * work.len() as f64;
     if all > left {
         return Err(all);
     }
     let mut shot = vec![probe];
-    shot.par_extend(rest.par_iter().map(shoot));
+    shot.par_extend(rest.par_iter().map(|w| shoot(w, false)));
     Ok(shot)
 }
 
