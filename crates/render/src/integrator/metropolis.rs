@@ -9,6 +9,7 @@
 //! whether its groups are rendered together or as separate farm tasks merged in any order.
 
 use std::ops::Range;
+use std::time::Instant;
 
 use rayon::prelude::*;
 
@@ -85,7 +86,7 @@ pub(super) fn render_groups<C: Chains>(
         end: direct.end as u32,
     };
     let (mut sums, mut stats) = direct_light(&ctx, s.max_depth, range)?;
-    let (chains, st) = chain_groups(m, &ctx, mutations, groups, progress);
+    let (chains, st, _) = chain_groups(m, &ctx, mutations, groups, progress);
     stats.add(&st);
     sums.brightness = chains.brightness;
     sums.chain = chains.splats;
@@ -117,14 +118,16 @@ pub(super) fn direct_light(
 }
 
 /// Groups `groups` of the chains of a frame with `mutations` per pixel: their share of the
-/// brightness samples and bootstrap paths, and their chains' splats.
+/// brightness samples and bootstrap paths, and their chains' splats; and the wall seconds of
+/// the work that does not grow with the film or the mutations (see [`GroupWork::fixed_s`]).
 fn chain_groups<C: Chains>(
     m: &C,
     ctx: &Ctx,
     mutations: u32,
     groups: Range<u32>,
     progress: &(dyn Fn(u64) + Sync),
-) -> (ChainSums, RayStats) {
+) -> (ChainSums, RayStats, f64) {
+    let started = Instant::now();
     let s = m.settings();
     let (w, h) = (ctx.scene.film.width, ctx.scene.film.height);
     let mut out = ChainSums {
@@ -132,7 +135,7 @@ fn chain_groups<C: Chains>(
         brightness: (0, 0),
     };
     if s.max_depth < MIN_DEPTH {
-        return (out, RayStats::default());
+        return (out, RayStats::default(), 0.0);
     }
     let all = (mutations as f64 * super::pssmlt::ctx_area(ctx)) as u64;
     let (brightness, mut stats) = brightness_samples(
@@ -150,6 +153,8 @@ fn chain_groups<C: Chains>(
         |scratch, i| m.bootstrap_weight(ctx, scratch, i),
     );
     stats.add(&st);
+    // The fewest brightness samples and the bootstrap paths are the same whatever the film.
+    let fixed_s = started.elapsed().as_secs_f64();
     let splats = Splats::new(w, h);
     let chain_stats: Vec<RayStats> = chain_list(s.chains, all, groups.clone())
         .into_par_iter()
@@ -166,7 +171,7 @@ fn chain_groups<C: Chains>(
         stats.add(st);
     }
     out.splats = splats.totals();
-    (out, stats)
+    (out, stats, fixed_s)
 }
 
 /// The part of `n` items group `g` owns.
@@ -285,6 +290,16 @@ fn chain_list(chains: u32, all: u64, groups: Range<u32>) -> Vec<(u64, u64, u32)>
         .collect()
 }
 
+/// A group of chains as [`Metropolis::chains`] renders it.
+pub struct GroupWork {
+    pub sums: ChainSums,
+    pub stats: RayStats,
+    /// Wall seconds of its work that grows neither with the film nor with the mutations: the
+    /// fewest brightness samples and the bootstrap paths (more brightness samples come with
+    /// a large budget; those are counted here too).
+    pub fixed_s: f64,
+}
+
 #[derive(Debug, Clone, Copy)]
 pub enum Metropolis {
     /// Primary sample space (Kelemen et al.), multiplexed.
@@ -338,12 +353,17 @@ impl Metropolis {
         mutations: u32,
         group: u32,
         progress: &(dyn Fn(u64) + Sync),
-    ) -> Result<(ChainSums, RayStats), String> {
+    ) -> Result<GroupWork, String> {
         let ctx = self.ctx(scene, camera)?;
         let g = group..group + 1;
-        Ok(match self {
+        let (sums, stats, fixed_s) = match self {
             Metropolis::Pssmlt(m) => chain_groups(m, &ctx, mutations, g, progress),
             Metropolis::Mlt(m) => chain_groups(m, &ctx, mutations, g, progress),
+        };
+        Ok(GroupWork {
+            sums,
+            stats,
+            fixed_s,
         })
     }
 

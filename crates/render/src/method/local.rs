@@ -31,6 +31,15 @@ pub enum Progress {
     Done(u64),
 }
 
+/// What [`Local::passes_within`] came to.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Built {
+    /// A line per pass saying what it built.
+    Passes(Vec<String>),
+    /// Not built: at least this many wall seconds, more than allowed.
+    TooDear(f64),
+}
+
 /// Runs a planned job in this process.
 pub struct Local<'a> {
     pub plan: &'a dyn Plan,
@@ -170,6 +179,21 @@ impl<'a> Local<'a> {
 
     /// Builds the job's passes in order; returns a line per pass saying what it built.
     pub fn passes(&self) -> Result<Vec<String>, String> {
+        match self.passes_within(f64::INFINITY)? {
+            Built::Passes(lines) => Ok(lines),
+            Built::TooDear(s) => Err(format!("the passes would take {s:.2} s, more than any")),
+        }
+    }
+
+    /// [`Self::passes`], unless they would take more than `left` wall seconds: the first pass
+    /// not built yet runs its first wave of tasks (one per thread) and stops there when its
+    /// remaining tasks at that wave's pace would take the seconds spent past `left`. What
+    /// follows its tasks (balancing its trees, say) and the passes after it are not counted:
+    /// the prediction is a lower bound, and once a pass is under way the rest are built, so
+    /// that no work is thrown away half done.
+    pub fn passes_within(&self, left: f64) -> Result<Built, String> {
+        let start = Instant::now();
+        let mut probe = left.is_finite();
         let mut lines = Vec::new();
         for (i, pass) in self.plan.passes().into_iter().enumerate() {
             let have = self
@@ -191,7 +215,25 @@ impl<'a> Local<'a> {
                 pass: Some(pass.name()),
                 work: tasks.iter().map(TaskSpec::work).sum(),
             });
-            self.run(&tasks, None, |task, p| pass.fold(state.as_mut(), task, p))?;
+            // Tasks that parallelise themselves run one at a time: their wave is one task.
+            let wave = match tasks.first() {
+                Some(t) if self.whole_film(t) => 1,
+                _ => self.threads.min(tasks.len()),
+            };
+            let mut fold = |task: &TaskSpec, p| pass.fold(state.as_mut(), task, p);
+            let (first, rest) = tasks.split_at(if probe { wave } else { 0 });
+            probe = false;
+            if !first.is_empty() {
+                let waving = Instant::now();
+                self.run(first, None, &mut fold)?;
+                let pace = waving.elapsed().as_secs_f64();
+                let all =
+                    start.elapsed().as_secs_f64() + pace * rest.len().div_ceil(wave.max(1)) as f64;
+                if all > left {
+                    return Ok(Built::TooDear(all));
+                }
+            }
+            self.run(rest, None, &mut fold)?;
             let (artifact, line) = pass.finish(state)?;
             let loaded = pass.load(artifact)?;
             self.artifacts
@@ -200,7 +242,7 @@ impl<'a> Local<'a> {
                 .insert(pass.key().to_string(), loaded);
             lines.push(line);
         }
-        Ok(lines)
+        Ok(Built::Passes(lines))
     }
 
     /// Renders frame `frame` (after [`Self::passes`]) to the end of its steps.

@@ -14,10 +14,10 @@ use super::ranges::{RangeFrame, RangePartial, Ranges};
 use std::time::Duration;
 
 use super::registry::MethodInfo;
-use super::{Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
+use super::{Finished, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::film::Image;
 use crate::integrator::RayStats;
-use crate::integrator::metropolis::{GROUPS, Metropolis};
+use crate::integrator::metropolis::{GROUPS, GroupWork, Metropolis};
 
 /// Kind of the direct-light tasks.
 pub const DIRECT: &str = "direct";
@@ -36,6 +36,9 @@ pub enum MetroPartial {
         brightness: f64,
         count: u64,
         stats: RayStats,
+        /// Wall seconds of the group's bootstrap (see [`GroupWork::fixed_s`]).
+        #[serde(default)]
+        fixed_s: f64,
     },
 }
 
@@ -51,6 +54,9 @@ pub struct MetroFrame {
     brightness: f64,
     count: u64,
     exposure: f32,
+    /// The groups' bootstrap seconds, summed.
+    #[serde(default)]
+    fixed_s: f64,
 }
 
 pub static PSSMLT: MethodInfo = MethodInfo {
@@ -143,6 +149,7 @@ impl Method for MetropolisMethod {
             brightness: 0.0,
             count: 0,
             exposure: self.ranges.camera(frame).exposure,
+            fixed_s: 0.0,
         }
     }
 
@@ -163,16 +170,21 @@ impl Method for MetropolisMethod {
             }
             CHAINS => {
                 self.ranges.check(task)?;
-                let (sums, stats) =
-                    self.m
-                        .chains(ctx.scene, &camera, self.mutations, task.start, &|n| {
-                            ctx.progress(n)
-                        })?;
+                let GroupWork {
+                    sums,
+                    stats,
+                    fixed_s,
+                } = self
+                    .m
+                    .chains(ctx.scene, &camera, self.mutations, task.start, &|n| {
+                        ctx.progress(n)
+                    })?;
                 Ok(MetroPartial::Chains {
                     splats: splats_from_fixed(&sums.splats),
                     brightness: sums.brightness.0 as f64 / 4_294_967_296.0,
                     count: sums.brightness.1,
                     stats,
+                    fixed_s,
                 })
             }
             other => Err(format!("{} has no {other} tasks", self.m.name())),
@@ -187,7 +199,9 @@ impl Method for MetropolisMethod {
                 brightness,
                 count,
                 stats,
+                fixed_s,
             } => {
+                f.fixed_s += fixed_s;
                 add_splats(&mut f.chain, &splats)?;
                 let b = if count > 0 {
                     brightness / count as f64
@@ -210,7 +224,13 @@ impl Method for MetropolisMethod {
             f.direct.batches(),
             f.groups.batches
         );
-        Ok(self.ranges.finish(&mut f.direct, image, how))
+        Ok(match self.ranges.finish(&mut f.direct, image, how) {
+            Next::Done(done) => Next::Done(Finished {
+                fixed_s: f.fixed_s,
+                ..done
+            }),
+            next => next,
+        })
     }
 
     fn preview(&self, _frame: u32, f: &MetroFrame) -> Image {

@@ -267,6 +267,10 @@ pub struct Finished {
     /// not the photons each iteration shoots whatever the film); `None` where all of it grows
     /// with the pixels. `auto`'s pilot, rendered at a fraction of the pixels, scales this part.
     pub pixels_s: Option<f64>,
+    /// Wall seconds of the frame's work that grows neither with its pixels nor with its
+    /// samples (a Metropolis frame's bootstrap: [`crate::integrator::metropolis::GroupWork`]);
+    /// 0 where there is none. A render pays it once, a pilot once per frame it renders.
+    pub fixed_s: f64,
 }
 
 /// What follows a step.

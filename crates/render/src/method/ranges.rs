@@ -240,6 +240,7 @@ impl Ranges {
         };
         Next::Done(Finished {
             pixels_s: None,
+            fixed_s: 0.0,
             image,
             stats: f.stats,
             metadata: vec![

@@ -366,6 +366,7 @@ impl Method for SppmMethod {
         let estimate = (f.state.iterations >= 2).then(|| crate::metrics::estimated_rel_mse(&image));
         Ok(Next::Done(Finished {
             pixels_s: Some(f.pixels_s),
+            fixed_s: 0.0,
             image,
             stats: f.stats,
             metadata: vec![

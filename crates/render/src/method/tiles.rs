@@ -260,6 +260,7 @@ impl Tiles {
         ));
         Finished {
             pixels_s: None,
+            fixed_s: 0.0,
             image: self.image(f),
             stats: f.stats,
             metadata,

@@ -35,15 +35,17 @@
 //!    Knaus & Zwicker 2011).
 //! 3. **Prediction** at full size: samples to reach relMSE E are v / E (unbiased),
 //!    v / (E − b) (photon map; none if b is near E), the least n with
-//!    v / n + b (k / n)^(2/3) ≤ E (SPPM); time is the
-//!    passes' time (view-independent, so the pilot's) plus the samples at the pilot's time per
-//!    sample and pixel (SPPM's photons, shot whatever the film, at the pilot's time per
+//!    v / n + b (k / n)^(2/3) ≤ E (SPPM); time is what the render pays once (the passes,
+//!    view-independent, and a Metropolis frame's bootstrap, both as the pilot timed them) plus
+//!    the samples at the pilot's time per sample and pixel (SPPM's photons, shot whatever the film, at the pilot's time per
 //!    iteration). The goal is a relMSE (`target_error`), the error path tracing reaches
 //!    at the job's spp (the same image quality, sooner), or the lowest error within a time.
 //!
 //! After the first three candidates, the pilot stops measuring once it has spent a tenth of
 //! the best prediction so far (of a candidate without a caveat), or would with SPPM's photons
-//! (timed on their first chunk); candidates not measured are said to be. Candidates run in
+//! (timed on their first chunk) or a candidate's passes (timed on their first tasks: the
+//! photon map's); candidates not measured are said to be. A Metropolis frame's bootstrap,
+//! which grows with neither pixels nor samples, counts with the passes as paid once. Candidates run in
 //! the order path, BDPT, VCM (unbiased: the consensus needs them), SPPM (two iterations'
 //! photons), photon map (a whole photon map), PSSMLT, MLT — the photon map before SPPM where
 //! the film has more pixels than an SPPM iteration has photons, and a path tracer with a
@@ -60,7 +62,7 @@ use crate::analysis::{Analysis, analyze, concentrated_lights};
 use crate::camera::Camera;
 use crate::film::{Image, MAX_SPP};
 use crate::integrator::sppm::{self, SppmSettings};
-use crate::method::local::{Local, Progress};
+use crate::method::local::{Built, Local, Progress};
 use crate::method::{Job, Loaded, plan};
 use crate::scene::Scene;
 
@@ -123,7 +125,8 @@ pub struct Measurement {
     pub label: String,
     /// Wall seconds of the pilot (both halves and the passes).
     pub pilot_s: f64,
-    /// Wall seconds of the view-independent passes (photon maps, point clouds).
+    /// Wall seconds the render pays once, whatever its pixels and samples: the
+    /// view-independent passes (photon maps, point clouds) and a Metropolis frame's bootstrap.
     pub setup_s: f64,
     /// Wall seconds per sample per pixel over the full film.
     pub sample_s: f64,
@@ -541,8 +544,10 @@ struct Run {
     images: Halves,
     /// The passes of the first half (the job's seed).
     artifacts: Vec<(String, Loaded)>,
+    /// Wall seconds the render pays once: the passes, and a frame's work that grows with
+    /// neither pixels nor samples ([`crate::method::Finished::fixed_s`]).
     setup_s: f64,
-    /// Wall seconds of the 2k samples, and of the part of them that grows with the pixels
+    /// Wall seconds of the 2k samples (less their frames' fixed work), and of the part of them that grows with the pixels
     /// (see [`crate::method::Finished::pixels_s`]).
     frame_s: f64,
     pixels_s: Option<f64>,
@@ -597,7 +602,15 @@ fn run(
     let p = plan(&job)?;
     scene.set_settings(&desc);
     let local = Local::new(p.as_ref(), scene, &desc, threads, &noop);
-    local.passes()?;
+    // The passes (a photon map, its irradiance cache) are the render's where it wins, and
+    // built here whatever the film: timed on their first tasks, they stop there when dearer
+    // than what is left.
+    if let Built::TooDear(all) = local.passes_within(left)? {
+        return Ok(Pilot::TooDear(format!(
+            "its passes would take at least {all:.2} s at their first tasks' pace, more than the {:.2} s left",
+            left.max(0.0)
+        )));
+    }
     let setup_s = start.elapsed().as_secs_f64();
     let rendering = Instant::now();
     // SPPM's photons do not depend on the film: the pilot's are the render's first 2k
@@ -622,6 +635,9 @@ fn run(
     let (mut state, first) = local.frame_with_state(frame)?;
     let a = rgb(&first.image);
     let mut pixels_s = first.pixels_s;
+    // Work that grows with neither pixels nor samples: its seconds over the frames rendered,
+    // and how many frames.
+    let mut fixed = (first.fixed_s, 1.0);
     let continued = match c.model {
         // SPPM's later iterations gather in smaller radii: not a second sample of its first.
         Model::Progressive => None,
@@ -633,8 +649,9 @@ fn run(
     let (b, both) = match continued {
         Some(done) => {
             let done = done?;
-            // The continued frame's is the whole frame's.
+            // The continued frame's are the whole frame's.
             pixels_s = done.pixels_s;
+            fixed = (done.fixed_s, 1.0);
             let both = rgb(&done.image);
             // The second half: the 2k mean less the first half's share.
             let b = both
@@ -664,6 +681,7 @@ fn run(
                 let other = local.frame(frame)?;
                 frame_s += second.elapsed().as_secs_f64();
                 pixels_s = pixels_s.zip(other.pixels_s).map(|(a, b)| a + b);
+                fixed = (fixed.0 + other.fixed_s, 2.0);
                 rgb(&other.image)
             };
             let both = mean(&a, &b);
@@ -673,8 +691,9 @@ fn run(
     Ok(Pilot::Ran(Run {
         images: Halves { a, b, both },
         artifacts,
-        setup_s,
-        frame_s,
+        // A frame's fixed work is paid once by the render, as its passes are.
+        setup_s: setup_s + fixed.0 / fixed.1,
+        frame_s: frame_s - fixed.0,
         pixels_s,
         pilot_s: start.elapsed().as_secs_f64(),
     }))
@@ -711,6 +730,66 @@ mod tests {
         assert_eq!(order(&desc), ["photon", "sppm"]);
         desc.integrator.photon.photons = Some(1920 * 1080);
         assert_eq!(order(&desc), ["sppm", "photon"]);
+    }
+
+    /// A Metropolis frame's bootstrap (100 000 brightness samples and as many bootstrap
+    /// paths, whatever the film) is paid once by the render: the pilot counts it with the
+    /// passes, not with the samples it scales to the full film. On a 16×16 film with one
+    /// mutation per pixel a half, it is most of the pilot.
+    #[test]
+    fn a_metropolis_pilot_counts_its_bootstrap_once_and_apart_from_its_samples() {
+        let mut desc = scene("cornell-box");
+        desc.film.width = 16;
+        desc.film.height = 16;
+        let mut built = built(&desc);
+        for method in ["pssmlt", "mlt"] {
+            let c = Candidate {
+                label: method.into(),
+                method,
+                subsurface: None,
+                model: Model::Unbiased,
+                k: 1,
+                caveat: None,
+            };
+            let Ok(Pilot::Ran(r)) = run(&c, &desc, 1024, &mut built, 1, 2, f64::INFINITY) else {
+                panic!("{method}'s pilot did not run");
+            };
+            assert!(
+                r.setup_s > r.frame_s && r.frame_s > 0.0,
+                "{method}: setup {} s, samples {} s",
+                r.setup_s,
+                r.frame_s
+            );
+        }
+    }
+
+    /// The photon map's pilot times its passes' first tasks and stops there when they would
+    /// cost more than is left, as SPPM's photons do; with time enough it builds them and
+    /// hands them on.
+    #[test]
+    fn a_photon_map_pilot_stops_at_its_first_tasks_when_its_passes_cost_more_than_is_left() {
+        let mut desc = scene("cornell-box");
+        desc.film.width = 32;
+        desc.film.height = 32;
+        let mut built = built(&desc);
+        let c = Candidate {
+            label: "photon".into(),
+            method: "photon",
+            subsurface: None,
+            model: Model::Biased,
+            k: 1,
+            caveat: None,
+        };
+        match run(&c, &desc, 256, &mut built, 1, 2, 0.0) {
+            Ok(Pilot::TooDear(why)) => assert!(why.contains("its passes would take"), "{why}"),
+            Ok(Pilot::Ran(_)) => panic!("the photon map's pilot ran with no time left"),
+            Err(e) => panic!("{e}"),
+        }
+        match run(&c, &desc, 256, &mut built, 1, 2, f64::INFINITY) {
+            Ok(Pilot::Ran(r)) => assert!(!r.artifacts.is_empty(), "no photon map handed on"),
+            Ok(Pilot::TooDear(why)) => panic!("{why}"),
+            Err(e) => panic!("{e}"),
+        }
     }
 
     /// The scene built from `desc`, with its settings.

@@ -246,7 +246,7 @@ pub(super) fn describe(m: &Measurement) -> String {
         .map(|b| format!(", floor {b:.2e}"))
         .unwrap_or_default();
     let measured = format!(
-        "1-spp relMSE {:.2e}{floor}, {:.3} s per spp, passes {:.2} s; pilot {:.2} s",
+        "1-spp relMSE {:.2e}{floor}, {:.3} s per spp, setup {:.2} s; pilot {:.2} s",
         m.rel_var, m.sample_s, m.setup_s, m.pilot_s
     );
     let caveat = m
