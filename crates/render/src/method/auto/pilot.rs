@@ -119,6 +119,17 @@ struct Candidate {
     caveat: Option<String>,
 }
 
+impl Candidate {
+    /// Whether its pilot judges the others (is part of their consensus): the unbiased
+    /// candidates but the path tracer, whose pilot does not see the paths it finds too rarely
+    /// (caustics of small lights, light seen through glass), which make its image dark there
+    /// and its variance look small. It judges only where no other unbiased candidate was
+    /// measured.
+    fn judges(&self) -> bool {
+        self.model == Model::Unbiased && self.label != "path"
+    }
+}
+
 /// One candidate as the pilot measured it, and what it predicts at full size.
 #[derive(Debug, Clone)]
 pub struct Measurement {
@@ -460,7 +471,7 @@ fn measured_first(candidates: &mut [Candidate], goal: Goal) -> usize {
     if matches!(goal, Goal::PathSpp(_)) {
         return first;
     }
-    let last = |c: &Candidate| c.caveat.is_some() && c.label == "path";
+    let last = |c: &Candidate| c.caveat.is_some() && !c.judges();
     let moved = candidates[..first].iter().filter(|c| last(c)).count();
     candidates.sort_by_key(last);
     first - moved

@@ -63,14 +63,14 @@ pub(super) fn predict(
     film: u64,
 ) -> (Vec<Measurement>, Option<f64>) {
     let pixels: Vec<&Halves> = runs.iter().map(|(_, r)| &r.images).collect();
-    // The consensus leaves the path tracer out where a bidirectional method was measured:
-    // paths it finds too rarely to see in a pilot (caustics of small lights, light seen
-    // through glass) make its pilot's variance look small and its image dark there.
+    // The consensus: the judges (`Candidate::judges`), else every unbiased candidate.
     let judges_of = |all: bool| -> Vec<usize> {
         runs.iter()
             .enumerate()
-            .filter(|(_, (i, _))| candidates[*i].model == Model::Unbiased)
-            .filter(|(_, (i, _))| all || candidates[*i].label != "path")
+            .filter(|(_, (i, _))| {
+                let c = &candidates[*i];
+                c.judges() || (all && c.model == Model::Unbiased)
+            })
             .map(|(j, _)| j)
             .collect()
     };
