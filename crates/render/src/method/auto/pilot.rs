@@ -43,8 +43,9 @@
 //!
 //! After the first three candidates, the pilot stops measuring once it has spent a tenth of
 //! the best prediction so far (of a candidate without a caveat), or would with SPPM's photons
-//! (timed on their first chunk) or a candidate's passes (timed on their first tasks: the
-//! photon map's); candidates not measured are said to be. A Metropolis frame's bootstrap,
+//! (timed on their first chunk), a candidate's passes (timed on their first tasks: the
+//! photon map's) or a Metropolis pilot's frames (timed on one group of chains); candidates
+//! not measured are said to be. A Metropolis frame's bootstrap,
 //! which grows with neither pixels nor samples, counts with the passes as paid once. Candidates run in
 //! the order path, BDPT, VCM (unbiased: the consensus needs them), SPPM (two iterations'
 //! photons), photon map (a whole photon map), PSSMLT, MLT — the photon map before SPPM where
@@ -61,6 +62,7 @@ use super::Choice;
 use crate::analysis::{Analysis, analyze, concentrated_lights};
 use crate::camera::Camera;
 use crate::film::{Image, MAX_SPP};
+use crate::integrator::metropolis::{GROUPS, Metropolis};
 use crate::integrator::sppm::{self, SppmSettings};
 use crate::method::local::{Built, Local, Progress};
 use crate::method::{Job, Loaded, plan};
@@ -477,6 +479,27 @@ fn measured_first(candidates: &mut [Candidate], goal: Goal) -> usize {
     first - moved
 }
 
+/// For a Metropolis candidate with `left` seconds (finite) to spend: renders one group of a
+/// pilot frame's chains (its share of the bootstrap and of the mutations; see
+/// [`crate::integrator::metropolis::GROUPS`]) and returns what the pilot's two frames would
+/// take at that pace when it is more than `left`.
+fn metropolis_pilot_s(
+    c: &Candidate,
+    desc: &SceneDesc,
+    scene: &Scene,
+    frame: u32,
+    left: f64,
+) -> Result<Option<f64>, String> {
+    let Some(m) = Metropolis::new(c.method, desc).filter(|_| left.is_finite()) else {
+        return Ok(None);
+    };
+    let camera = Camera::new(&desc.camera_at(frame), &desc.film);
+    let probe = Instant::now();
+    m.chains(scene, &camera, c.k, 0, &|_| {})?;
+    let all = probe.elapsed().as_secs_f64() * 2.0 * GROUPS as f64;
+    Ok((all > left).then_some(all))
+}
+
 /// Whether the camera sees a specular surface: a grid of rays through frame `frame`'s film.
 fn sees_specular(desc: &SceneDesc, scene: &Scene, frame: u32) -> bool {
     const GRID: u32 = 32;
@@ -623,6 +646,14 @@ fn run(
         )));
     }
     let setup_s = start.elapsed().as_secs_f64();
+    // A Metropolis frame's bootstrap costs the same whatever the film: timed on one of its
+    // groups, it stops here when its two frames would cost more than is left.
+    if let Some(all) = metropolis_pilot_s(c, &desc, scene, frame, left)? {
+        return Ok(Pilot::TooDear(format!(
+            "its two frames would take {all:.2} s at its first group's pace, more than the {:.2} s left",
+            left.max(0.0)
+        )));
+    }
     let rendering = Instant::now();
     // SPPM's photons do not depend on the film: the pilot's are the render's first 2k
     // iterations', shot here and handed on with the passes, unless they cost more than is left.
@@ -746,7 +777,8 @@ mod tests {
     /// A Metropolis frame's bootstrap (100 000 brightness samples and as many bootstrap
     /// paths, whatever the film) is paid once by the render: the pilot counts it with the
     /// passes, not with the samples it scales to the full film. On a 16×16 film with one
-    /// mutation per pixel a half, it is most of the pilot.
+    /// mutation per pixel a half, it is most of the pilot. Timed on one group of chains
+    /// first, the pilot stops there when its frames cost more than is left.
     #[test]
     fn a_metropolis_pilot_counts_its_bootstrap_once_and_apart_from_its_samples() {
         let mut desc = scene("cornell-box");
@@ -771,6 +803,12 @@ mod tests {
                 r.setup_s,
                 r.frame_s
             );
+            // With no time left it stops after one group of chains.
+            match run(&c, &desc, 1024, &mut built, 1, 2, 0.0) {
+                Ok(Pilot::TooDear(why)) => assert!(why.contains("its two frames"), "{why}"),
+                Ok(Pilot::Ran(_)) => panic!("{method}'s pilot ran with no time left"),
+                Err(e) => panic!("{e}"),
+            }
         }
     }
 
