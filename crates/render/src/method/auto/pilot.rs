@@ -774,6 +774,18 @@ mod tests {
         assert_eq!(order(&desc), ["sppm", "photon"]);
     }
 
+    /// Candidate `method` (its own label) with one pilot sample a half.
+    fn one_sample(method: &'static str, model: Model) -> Candidate {
+        Candidate {
+            label: method.into(),
+            method,
+            subsurface: None,
+            model,
+            k: 1,
+            caveat: None,
+        }
+    }
+
     /// A Metropolis frame's bootstrap (100 000 brightness samples and as many bootstrap
     /// paths, whatever the film) is paid once by the render: the pilot counts it with the
     /// passes, not with the samples it scales to the full film. On a 16×16 film with one
@@ -786,14 +798,7 @@ mod tests {
         desc.film.height = 16;
         let mut built = built(&desc);
         for method in ["pssmlt", "mlt"] {
-            let c = Candidate {
-                label: method.into(),
-                method,
-                subsurface: None,
-                model: Model::Unbiased,
-                k: 1,
-                caveat: None,
-            };
+            let c = one_sample(method, Model::Unbiased);
             let Ok(Pilot::Ran(r)) = run(&c, &desc, 1024, &mut built, 1, 2, f64::INFINITY) else {
                 panic!("{method}'s pilot did not run");
             };
@@ -821,14 +826,7 @@ mod tests {
         desc.film.width = 32;
         desc.film.height = 32;
         let mut built = built(&desc);
-        let c = Candidate {
-            label: "photon".into(),
-            method: "photon",
-            subsurface: None,
-            model: Model::Biased,
-            k: 1,
-            caveat: None,
-        };
+        let c = one_sample("photon", Model::Biased);
         match run(&c, &desc, 256, &mut built, 1, 2, 0.0) {
             Ok(Pilot::TooDear(why)) => assert!(why.contains("its passes would take"), "{why}"),
             Ok(Pilot::Ran(_)) => panic!("the photon map's pilot ran with no time left"),
