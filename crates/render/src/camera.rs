@@ -222,6 +222,11 @@ impl Camera {
         })
     }
 
+    /// The film's size in pixels (width, height).
+    pub fn film_size(&self) -> Vec2 {
+        self.size
+    }
+
     /// Width in scene units of one pixel's footprint at the depth of `p` (pinhole).
     #[inline]
     pub fn pixel_footprint(&self, p: Vec3A) -> f32 {

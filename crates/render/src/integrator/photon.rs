@@ -330,15 +330,16 @@ impl PhotonIntegrator {
         );
         let mut records: Vec<Record> = Vec::new();
         let r_max = scene.radius;
+        // The camera's film, not the scene's: an `auto` pilot renders a smaller film from the
+        // records of the render's.
+        let size = camera.film_size() + Vec2::splat(s as f32);
         for pixel in tile.pixels() {
             sampler.start_pixel_sample(pixel, 0);
             let film = Vec2::new(
                 (pixel.x * s) as f32 + 0.5 * s as f32,
                 (pixel.y * s) as f32 + 0.5 * s as f32,
             );
-            if film.x >= scene.film.width as f32 + s as f32
-                || film.y >= scene.film.height as f32 + s as f32
-            {
+            if film.x >= size.x || film.y >= size.y {
                 continue;
             }
             let ray = camera.generate_ray(film, Vec2::splat(0.5));

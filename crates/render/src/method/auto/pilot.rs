@@ -65,6 +65,7 @@ use crate::film::{Image, MAX_SPP};
 use crate::integrator::metropolis::{GROUPS, Metropolis};
 use crate::integrator::sppm::{self, SppmSettings};
 use crate::method::local::{Built, Local, Progress};
+use crate::method::photon::{PHOTON, PhotonMethod};
 use crate::method::{Job, Loaded, plan};
 use crate::scene::Scene;
 
@@ -270,7 +271,7 @@ fn measure(
         } else {
             f64::INFINITY
         };
-        match run(c, &pilot, desc.film.width, scene, frame, threads, left) {
+        match run(c, &pilot, desc, scene, frame, threads, left) {
             Ok(Pilot::Ran(r)) => runs.push((i, r)),
             Ok(Pilot::TooDear(why)) => ruled_out.push(format!(
                 "{}: not measured: {why}, past a tenth of the best prediction ({budget:.2} s)",
@@ -607,11 +608,11 @@ fn rgb(image: &Image) -> Vec<[f64; 3]> {
     image.pixels.iter().map(|p| p.rgb.map(f64::from)).collect()
 }
 
-/// Renders candidate `c`'s pilot of `pilot` (a film `width` pixels wide at full size).
+/// Renders candidate `c`'s pilot of `pilot` (the scene `full` at a smaller film).
 fn run(
     c: &Candidate,
     pilot: &SceneDesc,
-    width: u32,
+    full: &SceneDesc,
     scene: &mut Scene,
     frame: u32,
     threads: usize,
@@ -624,16 +625,16 @@ fn run(
     if let Some(s) = c.subsurface {
         desc.integrator.subsurface = s;
     }
-    // Irradiance records are placed every `spacing` pixels: as many in the pilot as in the
-    // render, or the pilot's cache interpolates over distances the render's never does.
-    if let Some(ic) = &mut desc.integrator.photon.irradiance_cache {
-        let scale = pilot.film.width as f64 / width.max(1) as f64;
-        let spacing = ic.spacing.unwrap_or(crate::photon::DEFAULT_SPACING) as f64;
-        ic.spacing = Some((spacing * scale).round().max(1.0) as u32);
-    }
     let noop = |_: Progress| {};
     let job = Job::new(desc.clone(), frame);
-    let p = plan(&job)?;
+    let p = if c.method == PHOTON.name {
+        // The photon map's irradiance cache is the render's (its film's, its key).
+        let mut render = full.clone();
+        render.integrator.method = c.method.into();
+        PhotonMethod::pilot_plan(&job, &render)?
+    } else {
+        plan(&job)?
+    };
     scene.set_settings(&desc);
     let local = Local::new(p.as_ref(), scene, &desc, threads, &noop);
     // The passes (a photon map, its irradiance cache) are the render's where it wins, and
@@ -799,7 +800,7 @@ mod tests {
         let mut built = built(&desc);
         for method in ["pssmlt", "mlt"] {
             let c = one_sample(method, Model::Unbiased);
-            let Ok(Pilot::Ran(r)) = run(&c, &desc, 1024, &mut built, 1, 2, f64::INFINITY) else {
+            let Ok(Pilot::Ran(r)) = run(&c, &desc, &desc, &mut built, 1, 2, f64::INFINITY) else {
                 panic!("{method}'s pilot did not run");
             };
             assert!(
@@ -809,7 +810,7 @@ mod tests {
                 r.frame_s
             );
             // With no time left it stops after one group of chains.
-            match run(&c, &desc, 1024, &mut built, 1, 2, 0.0) {
+            match run(&c, &desc, &desc, &mut built, 1, 2, 0.0) {
                 Ok(Pilot::TooDear(why)) => assert!(why.contains("its two frames"), "{why}"),
                 Ok(Pilot::Ran(_)) => panic!("{method}'s pilot ran with no time left"),
                 Err(e) => panic!("{e}"),
@@ -827,15 +828,58 @@ mod tests {
         desc.film.height = 32;
         let mut built = built(&desc);
         let c = one_sample("photon", Model::Biased);
-        match run(&c, &desc, 256, &mut built, 1, 2, 0.0) {
+        match run(&c, &desc, &desc, &mut built, 1, 2, 0.0) {
             Ok(Pilot::TooDear(why)) => assert!(why.contains("its passes would take"), "{why}"),
             Ok(Pilot::Ran(_)) => panic!("the photon map's pilot ran with no time left"),
             Err(e) => panic!("{e}"),
         }
-        match run(&c, &desc, 256, &mut built, 1, 2, f64::INFINITY) {
+        match run(&c, &desc, &desc, &mut built, 1, 2, f64::INFINITY) {
             Ok(Pilot::Ran(r)) => assert!(!r.artifacts.is_empty(), "no photon map handed on"),
             Ok(Pilot::TooDear(why)) => panic!("{why}"),
             Err(e) => panic!("{e}"),
+        }
+    }
+
+    /// The photon map's pilot renders its small film from the render's irradiance cache:
+    /// built from the render's film under the render's key, so that the render takes every
+    /// pass of the pilot's as its own, and the records are those the render would make.
+    #[test]
+    fn a_photon_map_pilot_builds_the_render_s_irradiance_cache() {
+        let mut desc = scene("cornell-box");
+        desc.film.width = 96;
+        desc.film.height = 96;
+        let pilot = pilot_desc(&desc);
+        assert!(pilot.film.width < desc.film.width, "the pilot's film is the render's");
+        let mut built = built(&desc);
+        let c = one_sample("photon", Model::Biased);
+        let Ok(Pilot::Ran(r)) = run(&c, &pilot, &desc, &mut built, 1, 2, f64::INFINITY) else {
+            panic!("the photon map's pilot did not run");
+        };
+        let mut render = desc.clone();
+        render.integrator.method = "photon".into();
+        let job = Job::new(render.clone(), 1);
+        let p = plan(&job).expect("the render plans");
+        built.set_settings(&render);
+        let local = Local::new(p.as_ref(), &built, &render, 2, &|_| {});
+        local.passes().expect("the render's passes");
+        let own = local.artifacts();
+        let passes = p.passes();
+        assert_eq!(passes.len(), 2, "photon maps and an irradiance cache");
+        for pass in passes {
+            let find = |a: &[(String, Loaded)]| {
+                a.iter()
+                    .find(|(k, _)| k == pass.key())
+                    .map(|(_, l)| l.clone())
+                    .unwrap_or_else(|| panic!("{} not among the artifacts", pass.name()))
+            };
+            let (pilot, render) = (find(&r.artifacts), find(&own));
+            if let (Some(a), Some(b)) = (
+                pilot.downcast_ref::<crate::irradiance::IrradianceCache>(),
+                render.downcast_ref::<crate::irradiance::IrradianceCache>(),
+            ) {
+                assert!(!b.is_empty(), "the render's cache has records");
+                assert_eq!(a.records(), b.records(), "the pilot's records are the render's");
+            }
         }
     }
 
