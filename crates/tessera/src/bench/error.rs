@@ -182,6 +182,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
     let mut runs = Vec::new();
     let mut auto = Vec::new();
     let noop = |_: Progress| {};
+    warm_up(&base, threads)?;
     for ((name, (method, subsurface)), &seed) in
         kinds.iter().flat_map(|k| seeds.iter().map(move |s| (k, s)))
     {
@@ -356,6 +357,26 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         "wrote {0}/report.json, report.csv, report.md and report.png\n",
         args.output.display()
     ))
+}
+
+/// One untimed sample per pixel of the path tracer over the film, so that the first
+/// method timed does not pay alone for what a process does once (its thread pool, tables
+/// built on first use, the allocator's first pages of a film).
+fn warm_up(base: &tessera_scene::SceneDesc, threads: usize) -> anyhow::Result<()> {
+    let mut desc = base.clone();
+    desc.integrator.method = "path".into();
+    let settings = RenderSettings {
+        spp: Some(1),
+        ..Default::default()
+    };
+    let plan = job::plan(&mut desc, &settings, FrameRange::single(1), &Limits::default())
+        .map_err(|e| anyhow::anyhow!("warm-up: {e}"))?;
+    let scene = tessera_render::Scene::build(&desc);
+    let noop = |_: Progress| {};
+    let local = Local::new(plan.as_ref(), &scene, &desc, threads, &noop);
+    local.passes().map_err(anyhow::Error::msg)?;
+    local.frame(1).map_err(anyhow::Error::msg)?;
+    Ok(())
 }
 
 /// A render that can be continued where its method can (tiles, sample ranges, SPPM's
