@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """The table of scripts/bench-auto.sh: per scene, each method's wall seconds to relMSE 1e-2
 (from `tessera bench`'s report.json), auto's choice and its ratio to the best fixed method, and
-each method's estimated against measured relMSE at its first checkpoint at or below 3e-2.
+each method's estimated against measured relMSE at its first checkpoint at or below 3e-2
+that has an estimate.
 Usage: bench-auto-table.py bench-report/auto [AUTO_DIR]: with AUTO_DIR (a later run of
 `--integrators auto` alone, one folder per scene), auto's figures come from there."""
 import json
@@ -49,14 +50,17 @@ for scene, w, h, times, best, chosen, pilot, ratio, _ in rows:
     auto_cell = ("–" if a is None else f"{a:.2f}") + f" ({chosen}, {pilot:.2f})" if pilot is not None else "–"
     print(f"| {scene} {w}×{h} | " + " | ".join(cells) + f" | {auto_cell} | " + (f"{ratio:.2f}" if ratio else "–") + " |")
 
-print("\nEstimated (from the render's own variance) against measured relMSE, at the first checkpoint at or below 3e-2:\n")
+print("\nEstimated (from the render's own variance) against measured relMSE, at the first checkpoint at or below 3e-2 that has an estimate (one sample has none):\n")
 print("| scene | " + " | ".join(methods) + " |")
 print("|---|" + "---:|" * len(methods))
 for scene, *_ , r in rows:
     cells = []
     for m in methods:
         runs = [x for x in r["runs"] if x["integrator"] == m]
-        hit = next((x for x in runs if x["rel_mse"] <= 3e-2), runs[-1] if runs else None)
+        low = [x for x in runs if x["rel_mse"] <= 3e-2]
+        # A render of one sample has no estimate: the first checkpoint that has one.
+        hit = next((x for x in low if x["estimated_rel_mse"] is not None),
+                   low[0] if low else (runs[-1] if runs else None))
         if hit is None:
             cells.append("")
         elif hit["estimated_rel_mse"] is None:
