@@ -45,7 +45,7 @@ pub const DEFAULT_RECORD_RAYS: u32 = 256;
 const STORED_PER_EMITTED: f32 = 2.0;
 
 /// Pixels between irradiance-cache candidates when a scene does not say.
-pub const DEFAULT_SPACING: u32 = 4;
+const DEFAULT_SPACING: u32 = 4;
 
 /// Photon-mapping settings with every knob decided: what determines the maps and the image.
 #[derive(Debug, Clone, Copy, PartialEq)]
