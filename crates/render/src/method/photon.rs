@@ -15,7 +15,7 @@ use crate::camera::Camera;
 use crate::film::Image;
 use crate::integrator::PhotonIntegrator;
 use crate::photon::PhotonSettings;
-use tessera_scene::SceneDesc;
+use tessera_scene::{FilmDesc, SceneDesc};
 
 pub static PHOTON: MethodInfo = MethodInfo {
     name: "photon",
@@ -56,14 +56,18 @@ impl PhotonMethod {
     }
 
     /// An `auto` pilot's plan: `job`'s (small) film for its frames, and the irradiance cache
-    /// of `render` (the same job at the film it will be rendered at). The pilot then reads the
+    /// of the same job at `film`, the film it will be rendered at. The pilot then reads the
     /// cache the render will read, and builds it under the render's key, so that a render of
     /// the photon map takes it instead of building it again. A cache of the pilot's own film
     /// would place its records as far apart in the scene as the pilot's pixels are, and
     /// measure an interpolation error the render does not make.
-    pub(crate) fn pilot_plan(job: &Job, render: &SceneDesc) -> Result<Box<dyn Plan>, String> {
+    pub(crate) fn pilot_plan(job: &Job, film: FilmDesc) -> Result<Box<dyn Plan>, String> {
         let mut method = PhotonMethod::plan(job)?;
-        method.records = RecordsPass::plan(render, &method.photons, job.frames.clone());
+        let render = SceneDesc {
+            film,
+            ..job.desc.clone()
+        };
+        method.records = RecordsPass::plan(&render, &method.photons, job.frames.clone());
         Ok(Box::new(method))
     }
 

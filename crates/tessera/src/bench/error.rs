@@ -230,14 +230,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
             _ => 1,
         };
         let plan_for = |spp: u32| -> anyhow::Result<(tessera_scene::SceneDesc, Box<dyn Plan>)> {
-            let mut d = desc.clone();
-            let settings = RenderSettings {
-                spp: Some(spp),
-                ..Default::default()
-            };
-            let plan = job::plan(&mut d, &settings, FrameRange::single(1), &Limits::default())
-                .map_err(|e| anyhow::anyhow!("--integrators {name}: {e}"))?;
-            Ok((d, plan))
+            planned(&desc, spp).map_err(|e| anyhow::anyhow!("--integrators {name}: {e}"))
         };
         let (first_desc, plan) = plan_for(first)?;
         scene.set_settings(&first_desc);
@@ -359,18 +352,27 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
     ))
 }
 
+/// Frame 1 of `desc` planned at `spp` samples per pixel, with the settings the plan applied.
+fn planned(
+    desc: &tessera_scene::SceneDesc,
+    spp: u32,
+) -> Result<(tessera_scene::SceneDesc, Box<dyn Plan>), String> {
+    let mut d = desc.clone();
+    let settings = RenderSettings {
+        spp: Some(spp),
+        ..Default::default()
+    };
+    let plan = job::plan(&mut d, &settings, FrameRange::single(1), &Limits::default())?;
+    Ok((d, plan))
+}
+
 /// One untimed sample per pixel of the path tracer over the film, so that the first
 /// method timed does not pay alone for what a process does once (its thread pool, tables
 /// built on first use, the allocator's first pages of a film).
 fn warm_up(base: &tessera_scene::SceneDesc, threads: usize) -> anyhow::Result<()> {
-    let mut desc = base.clone();
-    desc.integrator.method = "path".into();
-    let settings = RenderSettings {
-        spp: Some(1),
-        ..Default::default()
-    };
-    let plan = job::plan(&mut desc, &settings, FrameRange::single(1), &Limits::default())
-        .map_err(|e| anyhow::anyhow!("warm-up: {e}"))?;
+    let mut path = base.clone();
+    path.integrator.method = "path".into();
+    let (desc, plan) = planned(&path, 1).map_err(|e| anyhow::anyhow!("warm-up: {e}"))?;
     let scene = tessera_render::Scene::build(&desc);
     let noop = |_: Progress| {};
     let local = Local::new(plan.as_ref(), &scene, &desc, threads, &noop);

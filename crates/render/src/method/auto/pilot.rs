@@ -56,7 +56,7 @@
 use std::time::Instant;
 
 use glam::Vec2;
-use tessera_scene::{FilterDesc, SceneDesc, SubsurfaceMethod};
+use tessera_scene::{FilmDesc, FilterDesc, SceneDesc, SubsurfaceMethod};
 
 use super::Choice;
 use crate::analysis::{Analysis, analyze, concentrated_lights};
@@ -271,7 +271,7 @@ fn measure(
         } else {
             f64::INFINITY
         };
-        match run(c, &pilot, desc, scene, frame, threads, left) {
+        match run(c, &pilot, desc.film, scene, frame, threads, left) {
             Ok(Pilot::Ran(r)) => runs.push((i, r)),
             Ok(Pilot::TooDear(why)) => ruled_out.push(format!(
                 "{}: not measured: {why}, past a tenth of the best prediction ({budget:.2} s)",
@@ -608,11 +608,12 @@ fn rgb(image: &Image) -> Vec<[f64; 3]> {
     image.pixels.iter().map(|p| p.rgb.map(f64::from)).collect()
 }
 
-/// Renders candidate `c`'s pilot of `pilot` (the scene `full` at a smaller film).
+/// Renders candidate `c`'s pilot of `pilot` (the scene at a smaller film than the render's
+/// `film`).
 fn run(
     c: &Candidate,
     pilot: &SceneDesc,
-    full: &SceneDesc,
+    film: FilmDesc,
     scene: &mut Scene,
     frame: u32,
     threads: usize,
@@ -629,9 +630,7 @@ fn run(
     let job = Job::new(desc.clone(), frame);
     let p = if c.method == PHOTON.name {
         // The photon map's irradiance cache is the render's (its film's, its key).
-        let mut render = full.clone();
-        render.integrator.method = c.method.into();
-        PhotonMethod::pilot_plan(&job, &render)?
+        PhotonMethod::pilot_plan(&job, film)?
     } else {
         plan(&job)?
     };
@@ -800,7 +799,7 @@ mod tests {
         let mut built = built(&desc);
         for method in ["pssmlt", "mlt"] {
             let c = one_sample(method, Model::Unbiased);
-            let Ok(Pilot::Ran(r)) = run(&c, &desc, &desc, &mut built, 1, 2, f64::INFINITY) else {
+            let Ok(Pilot::Ran(r)) = run(&c, &desc, desc.film, &mut built, 1, 2, f64::INFINITY) else {
                 panic!("{method}'s pilot did not run");
             };
             assert!(
@@ -810,7 +809,7 @@ mod tests {
                 r.frame_s
             );
             // With no time left it stops after one group of chains.
-            match run(&c, &desc, &desc, &mut built, 1, 2, 0.0) {
+            match run(&c, &desc, desc.film, &mut built, 1, 2, 0.0) {
                 Ok(Pilot::TooDear(why)) => assert!(why.contains("its two frames"), "{why}"),
                 Ok(Pilot::Ran(_)) => panic!("{method}'s pilot ran with no time left"),
                 Err(e) => panic!("{e}"),
@@ -828,12 +827,12 @@ mod tests {
         desc.film.height = 32;
         let mut built = built(&desc);
         let c = one_sample("photon", Model::Biased);
-        match run(&c, &desc, &desc, &mut built, 1, 2, 0.0) {
+        match run(&c, &desc, desc.film, &mut built, 1, 2, 0.0) {
             Ok(Pilot::TooDear(why)) => assert!(why.contains("its passes would take"), "{why}"),
             Ok(Pilot::Ran(_)) => panic!("the photon map's pilot ran with no time left"),
             Err(e) => panic!("{e}"),
         }
-        match run(&c, &desc, &desc, &mut built, 1, 2, f64::INFINITY) {
+        match run(&c, &desc, desc.film, &mut built, 1, 2, f64::INFINITY) {
             Ok(Pilot::Ran(r)) => assert!(!r.artifacts.is_empty(), "no photon map handed on"),
             Ok(Pilot::TooDear(why)) => panic!("{why}"),
             Err(e) => panic!("{e}"),
@@ -852,7 +851,7 @@ mod tests {
         assert!(pilot.film.width < desc.film.width, "the pilot's film is the render's");
         let mut built = built(&desc);
         let c = one_sample("photon", Model::Biased);
-        let Ok(Pilot::Ran(r)) = run(&c, &pilot, &desc, &mut built, 1, 2, f64::INFINITY) else {
+        let Ok(Pilot::Ran(r)) = run(&c, &pilot, desc.film, &mut built, 1, 2, f64::INFINITY) else {
             panic!("the photon map's pilot did not run");
         };
         let mut render = desc.clone();
