@@ -187,10 +187,11 @@ impl<'a> Local<'a> {
 
     /// [`Self::passes`], unless they would take more than `left` wall seconds: the first pass
     /// not built yet runs its first wave of tasks (one per thread) and stops there when its
-    /// remaining tasks at that wave's pace would take the seconds spent past `left`. What
-    /// follows its tasks (balancing its trees, say) and the passes after it are not counted:
-    /// the prediction is a lower bound, and once a pass is under way the rest are built, so
-    /// that no work is thrown away half done.
+    /// remaining tasks at that wave's pace and its finish as it estimates it from that wave
+    /// (balancing its trees, say: [`super::Pass::finish_estimate`]) would take the seconds
+    /// spent past `left`. The passes after it are not counted: the prediction is a lower
+    /// bound, and once a pass is under way the rest are built, so that no work is thrown
+    /// away half done.
     pub fn passes_within(&self, left: f64) -> Result<Built, String> {
         let start = Instant::now();
         let mut probe = left.is_finite();
@@ -220,20 +221,23 @@ impl<'a> Local<'a> {
                 Some(t) if self.whole_film(t) => 1,
                 _ => self.threads.min(tasks.len()),
             };
-            let mut fold = |task: &TaskSpec, p| pass.fold(state.as_mut(), task, p);
             let (first, rest) = tasks.split_at(if probe { wave } else { 0 });
             probe = false;
             if !first.is_empty() {
                 let waving = Instant::now();
-                self.run(first, None, &mut fold)?;
+                self.run(first, None, |task, p| pass.fold(state.as_mut(), task, p))?;
                 let pace = waving.elapsed().as_secs_f64();
-                let all =
-                    start.elapsed().as_secs_f64() + pace * rest.len().div_ceil(wave.max(1)) as f64;
+                let work = |t: &[TaskSpec]| t.iter().map(TaskSpec::work).sum::<u64>() as f64;
+                let share = work(first) / (work(first) + work(rest)).max(1.0);
+                let finish = pass.finish_estimate(state.as_ref(), share).unwrap_or(0.0);
+                let all = start.elapsed().as_secs_f64()
+                    + pace * rest.len().div_ceil(wave.max(1)) as f64
+                    + finish;
                 if all > left {
                     return Ok(Built::TooDear(all));
                 }
             }
-            self.run(rest, None, &mut fold)?;
+            self.run(rest, None, |task, p| pass.fold(state.as_mut(), task, p))?;
             let (artifact, line) = pass.finish(state)?;
             let loaded = pass.load(artifact)?;
             self.artifacts

@@ -357,6 +357,12 @@ pub trait Pass: Send + Sync + 'static {
         p: Self::Partial,
     ) -> Result<(), String>;
     fn finish(&self, state: Self::State) -> Result<Self::Artifact, String>;
+    /// Wall seconds [`Pass::finish`] would take once every task is folded, estimated from
+    /// `state` holding the results of `share` (0–1] of them; `None` where finishing costs
+    /// little beside the tasks.
+    fn finish_estimate(&self, _state: &Self::State, _share: f64) -> Option<f64> {
+        None
+    }
     fn load(&self, artifact: Self::Artifact) -> Result<Self::Loaded, String>;
     /// What the artifact holds, for the job status.
     fn describe(&self, artifact: &Self::Artifact) -> String;
@@ -401,6 +407,8 @@ pub trait DynPass: Send + Sync {
         &self,
         state: Box<dyn Any + Send + Sync>,
     ) -> Result<(Box<dyn Payload>, String), String>;
+    /// See [`Pass::finish_estimate`].
+    fn finish_estimate(&self, state: &(dyn Any + Send + Sync), share: f64) -> Option<f64>;
     /// The artifact, as made by [`Self::finish`], loaded for tasks to read.
     fn load(&self, artifact: Box<dyn Payload>) -> Result<Loaded, String>;
 }
@@ -445,6 +453,9 @@ impl<P: Pass> DynPass for P {
         let artifact = Pass::finish(self, *state)?;
         let line = self.describe(&artifact);
         Ok((Box::new(artifact), line))
+    }
+    fn finish_estimate(&self, state: &(dyn Any + Send + Sync), share: f64) -> Option<f64> {
+        Pass::finish_estimate(self, state.downcast_ref::<P::State>()?, share)
     }
     fn load(&self, artifact: Box<dyn Payload>) -> Result<Loaded, String> {
         Ok(Arc::new(Pass::load(self, downcast(artifact)?)?))

@@ -43,8 +43,10 @@
 //!
 //! After the first three candidates, the pilot stops measuring once it has spent a tenth of
 //! the best prediction so far (of a candidate without a caveat), or would with SPPM's photons
-//! (timed on their first chunk), a candidate's passes (timed on their first tasks: the
-//! photon map's) or a Metropolis pilot's frames (timed on one group of chains); candidates
+//! (timed on their first chunk), a candidate's passes (timed on their first tasks, with
+//! what follows the tasks estimated from them: the photon map's) or a Metropolis pilot's
+//! frames (timed on one group of chains); the photons and passes, which the render takes
+//! over where that candidate wins, count at half their cost ([`REUSED_WEIGHT`]). Candidates
 //! not measured are said to be. A Metropolis frame's bootstrap,
 //! which grows with neither pixels nor samples, counts with the passes as paid once. Candidates run in
 //! the order path, BDPT, VCM (unbiased: the consensus needs them), SPPM (two iterations'
@@ -191,6 +193,16 @@ const PILOT_SHARE: f64 = 0.1;
 /// VCM need no passes, so cost little, and make the consensus that judges the biased ones
 /// (the path tracer only where it has no caveat: see [`measured_first`]).
 const ALWAYS_MEASURED: usize = 3;
+/// Work a candidate's render takes over from its pilot (passes, SPPM's photons) counts at
+/// this weight against what is left of the pilot's share: it is lost only where the
+/// candidate loses, which, before it is measured, is taken as even odds.
+const REUSED_WEIGHT: f64 = 0.5;
+
+/// The seconds of reusable work that `left` seconds of the pilot's share allow.
+fn reusable(left: f64) -> f64 {
+    left / REUSED_WEIGHT
+}
+
 /// A biased candidate is said unable to reach an error its floor is this close to.
 const FLOOR_MARGIN: f64 = 0.8;
 
@@ -637,11 +649,12 @@ fn run(
     scene.set_settings(&desc);
     let local = Local::new(p.as_ref(), scene, &desc, threads, &noop);
     // The passes (a photon map, its irradiance cache) are the render's where it wins, and
-    // built here whatever the film: timed on their first tasks, they stop there when dearer
-    // than what is left.
-    if let Built::TooDear(all) = local.passes_within(left)? {
+    // built here whatever the film: timed on their first tasks (and their finish estimated
+    // from those tasks' results), they stop there when dearer than what is left.
+    if let Built::TooDear(all) = local.passes_within(reusable(left))? {
         return Ok(Pilot::TooDear(format!(
-            "its passes would take at least {all:.2} s at their first tasks' pace, more than the {:.2} s left",
+            "its passes would take at least {all:.2} s at their first tasks' pace, with their finish, more than {:.2} s ({:.2} s left, the render reusing them where it wins)",
+            reusable(left).max(0.0),
             left.max(0.0)
         )));
     }
@@ -661,11 +674,12 @@ fn run(
         (c.model == Model::Progressive).then(|| SppmSettings::resolve(&desc, &analyze(&desc)));
     let photons = match &sppm {
         Some((photon, settings)) => {
-            match sppm_photons(scene, photon, *settings, frame, 2 * c.k, left) {
+            match sppm_photons(scene, photon, *settings, frame, 2 * c.k, reusable(left)) {
                 Ok(photons) => photons,
                 Err(all) => {
                     return Ok(Pilot::TooDear(format!(
-                        "its photons would take {all:.2} s at its first chunk's pace, more than the {:.2} s left",
+                        "its photons would take {all:.2} s at its first chunk's pace, more than {:.2} s ({:.2} s left, the render reusing them where it wins)",
+                        reusable(left).max(0.0),
                         left.max(0.0)
                     )));
                 }
@@ -799,7 +813,8 @@ mod tests {
         let mut built = built(&desc);
         for method in ["pssmlt", "mlt"] {
             let c = one_sample(method, Model::Unbiased);
-            let Ok(Pilot::Ran(r)) = run(&c, &desc, desc.film, &mut built, 1, 2, f64::INFINITY) else {
+            let Ok(Pilot::Ran(r)) = run(&c, &desc, desc.film, &mut built, 1, 2, f64::INFINITY)
+            else {
                 panic!("{method}'s pilot did not run");
             };
             assert!(
@@ -848,7 +863,10 @@ mod tests {
         desc.film.width = 96;
         desc.film.height = 96;
         let pilot = pilot_desc(&desc);
-        assert!(pilot.film.width < desc.film.width, "the pilot's film is the render's");
+        assert!(
+            pilot.film.width < desc.film.width,
+            "the pilot's film is the render's"
+        );
         let mut built = built(&desc);
         let c = one_sample("photon", Model::Biased);
         let Ok(Pilot::Ran(r)) = run(&c, &pilot, desc.film, &mut built, 1, 2, f64::INFINITY) else {
@@ -877,7 +895,11 @@ mod tests {
                 render.downcast_ref::<crate::irradiance::IrradianceCache>(),
             ) {
                 assert!(!b.is_empty(), "the render's cache has records");
-                assert_eq!(a.records(), b.records(), "the pilot's records are the render's");
+                assert_eq!(
+                    a.records(),
+                    b.records(),
+                    "the pilot's records are the render's"
+                );
             }
         }
     }

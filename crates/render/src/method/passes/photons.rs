@@ -13,9 +13,12 @@ use crate::photon::{
     KdTree, MapKind, Photon, PhotonMap, PhotonMaps, PhotonSettings, RadiancePhoton, Shooter,
 };
 use crate::scene::Material;
+use crate::spectrum::Spectrum;
 
 /// Photons per task.
 const PHOTONS_PER_TASK: u32 = 25_000;
+/// The share of the global map whose finish [`PhotonsPass::finish_estimate`] times.
+const FINISH_SAMPLE: f64 = 1.0 / 32.0;
 const GLOBAL: &str = "global_photons";
 const CAUSTIC: &str = "caustic_photons";
 
@@ -58,6 +61,56 @@ impl PhotonsPass {
             settings,
             key: hex(h),
         }
+    }
+}
+
+/// A sample of a global map to come, for timing its finish.
+struct FinishSample {
+    /// Every m-th photon of those shot so far.
+    photons: Vec<Photon>,
+    /// The settings with the search radius widened by the inverse square root of
+    /// `fraction`, so that a search holds as many photons as in the whole map.
+    settings: PhotonSettings,
+    /// The sample's share of the whole map.
+    fraction: f64,
+    /// Photons the whole map is expected to store.
+    total: f64,
+}
+
+impl PhotonsPass {
+    /// A sample of about [`FINISH_SAMPLE`] of the global map, from `global`, the photons that
+    /// the share `share` of the pass's tasks stored (global tasks come first); `None` before
+    /// any.
+    fn finish_sample(&self, global: &[Photon], share: f64) -> Option<FinishSample> {
+        let s = &self.settings;
+        let emitted = (share * (s.photons as f64 + s.caustic_photons as f64)).min(s.photons as f64);
+        if global.is_empty() || emitted <= 0.0 {
+            return None;
+        }
+        let total = global.len() as f64 * s.photons as f64 / emitted;
+        let step = ((global.len() as f64 / (FINISH_SAMPLE * total)).round() as usize).max(1);
+        let photons: Vec<Photon> = global.iter().step_by(step).copied().collect();
+        let fraction = photons.len() as f64 / total;
+        let settings = PhotonSettings {
+            photons: ((s.photons as f64 * fraction).ceil() as u32).max(1),
+            radius: s.radius * (1.0 / fraction).sqrt() as f32,
+            ..*s
+        };
+        Some(FinishSample {
+            photons,
+            settings,
+            fraction,
+            total,
+        })
+    }
+
+    /// Each material's Lambertian reflectance, where it has one (for the radiance photons).
+    fn rho(&self) -> Vec<Option<Spectrum>> {
+        self.desc
+            .materials
+            .iter()
+            .map(|m| Material::from_desc(&m.kind).bsdf.lambertian())
+            .collect()
     }
 }
 
@@ -133,12 +186,7 @@ impl Pass for PhotonsPass {
     }
 
     fn finish(&self, (global, caustic): Self::State) -> Result<MapsArtifact, String> {
-        let rho: Vec<_> = self
-            .desc
-            .materials
-            .iter()
-            .map(|m| Material::from_desc(&m.kind).bsdf.lambertian())
-            .collect();
+        let rho = self.rho();
         let maps = PhotonMaps::build(global, caustic, &self.settings, &|m| {
             rho.get(m as usize).copied().flatten()
         });
@@ -148,6 +196,23 @@ impl Pass for PhotonsPass {
             radiance: maps.radiance.photons().to_vec(),
             radiance_axes: maps.radiance.axes().to_vec(),
         })
+    }
+
+    /// The finish (balancing the trees, the radiance photons' searches) of a sample of the
+    /// global photons shot so far ([`PhotonsPass::finish_sample`]), timed and scaled to the
+    /// whole map, whose time grows as n log n. The caustic map (balanced only) is left out:
+    /// a lower bound.
+    fn finish_estimate(&self, (global, _): &Self::State, share: f64) -> Option<f64> {
+        let sample = self.finish_sample(global, share)?;
+        let rho = self.rho();
+        let start = std::time::Instant::now();
+        let maps = PhotonMaps::build(sample.photons, Vec::new(), &sample.settings, &|m| {
+            rho.get(m as usize).copied().flatten()
+        });
+        let spent = start.elapsed().as_secs_f64();
+        drop(maps);
+        let n = (sample.fraction * sample.total).max(2.0);
+        Some(spent / sample.fraction * sample.total.max(2.0).ln() / n.ln())
     }
 
     fn load(&self, a: MapsArtifact) -> Result<PhotonMaps, String> {
@@ -166,5 +231,68 @@ impl Pass for PhotonsPass {
             a.caustic.photons.len(),
             a.caustic.emitted
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3A;
+
+    use super::*;
+    use crate::analysis::analyze;
+    use crate::photon::{KdTree, Shooter};
+    use crate::scene::Scene;
+
+    /// The finish is timed on a sample of the first tasks' photons searched in widened radii:
+    /// it predicts the whole map's size, and each of its searches holds about as many photons
+    /// as one in the whole map (so costs as much).
+    #[test]
+    fn the_finish_sample_searches_as_many_photons_as_the_whole_map() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../scenes/cornell-box/scene.json");
+        let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        desc.integrator.method = "photon".into();
+        let mut scene = Scene::build(&desc);
+        scene.set_settings(&desc);
+        let (settings, _) = PhotonSettings::resolve(&desc, &analyze(&desc));
+        let pass = PhotonsPass::new(&desc, settings);
+        let shoot = |n: u32| Shooter::new(&scene, &settings, MapKind::Global).shoot(0..n);
+        let all = shoot(settings.photons);
+        let quarter = settings.photons / 4;
+        let first = shoot(quarter);
+        let share = quarter as f64 / (settings.photons + settings.caustic_photons) as f64;
+        let sample = pass
+            .finish_sample(&first, share)
+            .expect("photons were stored");
+        let ratio = sample.total / all.len() as f64;
+        assert!(
+            (0.95..1.05).contains(&ratio),
+            "total {} of {}",
+            sample.total,
+            all.len()
+        );
+        let ratio = sample.photons.len() as f64 / (FINISH_SAMPLE * all.len() as f64);
+        assert!(
+            (0.8..1.25).contains(&ratio),
+            "{} sampled",
+            sample.photons.len()
+        );
+
+        let count = |tree: &KdTree<Photon>, q: &Photon, r: f32| {
+            let mut n = 0u64;
+            tree.within(q.p.into(), Vec3A::from(q.n), 0.0, r * r, &mut |_, _| n += 1);
+            n
+        };
+        let (whole, part) = (KdTree::build(all.clone()), KdTree::build(sample.photons));
+        let (mut in_whole, mut in_part) = (0u64, 0u64);
+        for q in all.iter().step_by(97) {
+            in_whole += count(&whole, q, settings.radius);
+            in_part += count(&part, q, sample.settings.radius);
+        }
+        let ratio = in_part as f64 / in_whole as f64;
+        assert!(
+            (0.8..1.25).contains(&ratio),
+            "photons within the widened radius {in_part}, within the radius in the whole map {in_whole}"
+        );
     }
 }
