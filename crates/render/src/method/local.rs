@@ -227,14 +227,17 @@ impl<'a> Local<'a> {
                 let waving = Instant::now();
                 self.run(first, None, |task, p| pass.fold(state.as_mut(), task, p))?;
                 let pace = waving.elapsed().as_secs_f64();
+                let tasks =
+                    start.elapsed().as_secs_f64() + pace * rest.len().div_ceil(wave.max(1)) as f64;
+                if tasks > left {
+                    return Ok(Built::TooDear(tasks));
+                }
+                // Only where the tasks alone fit is the finish worth estimating.
                 let work = |t: &[TaskSpec]| t.iter().map(TaskSpec::work).sum::<u64>() as f64;
                 let share = work(first) / (work(first) + work(rest)).max(1.0);
                 let finish = pass.finish_estimate(state.as_ref(), share).unwrap_or(0.0);
-                let all = start.elapsed().as_secs_f64()
-                    + pace * rest.len().div_ceil(wave.max(1)) as f64
-                    + finish;
-                if all > left {
-                    return Ok(Built::TooDear(all));
+                if tasks + finish > left {
+                    return Ok(Built::TooDear(tasks + finish));
                 }
             }
             self.run(rest, None, |task, p| pass.fold(state.as_mut(), task, p))?;

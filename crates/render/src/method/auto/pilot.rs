@@ -198,11 +198,6 @@ const ALWAYS_MEASURED: usize = 3;
 /// candidate loses, which, before it is measured, is taken as even odds.
 const REUSED_WEIGHT: f64 = 0.5;
 
-/// The seconds of reusable work that `left` seconds of the pilot's share allow.
-fn reusable(left: f64) -> f64 {
-    left / REUSED_WEIGHT
-}
-
 /// A biased candidate is said unable to reach an error its floor is this close to.
 const FLOOR_MARGIN: f64 = 0.8;
 
@@ -647,14 +642,16 @@ fn run(
         plan(&job)?
     };
     scene.set_settings(&desc);
+    // The seconds of work the render would take over that `left` allows.
+    let reusable = left / REUSED_WEIGHT;
     let local = Local::new(p.as_ref(), scene, &desc, threads, &noop);
     // The passes (a photon map, its irradiance cache) are the render's where it wins, and
     // built here whatever the film: timed on their first tasks (and their finish estimated
     // from those tasks' results), they stop there when dearer than what is left.
-    if let Built::TooDear(all) = local.passes_within(reusable(left))? {
+    if let Built::TooDear(all) = local.passes_within(reusable)? {
         return Ok(Pilot::TooDear(format!(
             "its passes would take at least {all:.2} s at their first tasks' pace, with their finish, more than {:.2} s ({:.2} s left, the render reusing them where it wins)",
-            reusable(left).max(0.0),
+            reusable.max(0.0),
             left.max(0.0)
         )));
     }
@@ -674,12 +671,12 @@ fn run(
         (c.model == Model::Progressive).then(|| SppmSettings::resolve(&desc, &analyze(&desc)));
     let photons = match &sppm {
         Some((photon, settings)) => {
-            match sppm_photons(scene, photon, *settings, frame, 2 * c.k, reusable(left)) {
+            match sppm_photons(scene, photon, *settings, frame, 2 * c.k, reusable) {
                 Ok(photons) => photons,
                 Err(all) => {
                     return Ok(Pilot::TooDear(format!(
                         "its photons would take {all:.2} s at its first chunk's pace, more than {:.2} s ({:.2} s left, the render reusing them where it wins)",
-                        reusable(left).max(0.0),
+                        reusable.max(0.0),
                         left.max(0.0)
                     )));
                 }
