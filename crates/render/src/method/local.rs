@@ -212,9 +212,10 @@ impl<'a> Local<'a> {
             }
             let tasks = pass.tasks(i as u32);
             let mut state = pass.start();
+            let work: u64 = tasks.iter().map(TaskSpec::work).sum();
             (self.progress)(Progress::Start {
                 pass: Some(pass.name()),
-                work: tasks.iter().map(TaskSpec::work).sum(),
+                work,
             });
             // Tasks that parallelise themselves run one at a time: their wave is one task.
             let wave = match tasks.first() {
@@ -227,17 +228,17 @@ impl<'a> Local<'a> {
                 let waving = Instant::now();
                 self.run(first, None, |task, p| pass.fold(state.as_mut(), task, p))?;
                 let pace = waving.elapsed().as_secs_f64();
-                let tasks =
+                let tasks_s =
                     start.elapsed().as_secs_f64() + pace * rest.len().div_ceil(wave.max(1)) as f64;
-                if tasks > left {
-                    return Ok(Built::TooDear(tasks));
+                if tasks_s > left {
+                    return Ok(Built::TooDear(tasks_s));
                 }
                 // Only where the tasks alone fit is the finish worth estimating.
-                let work = |t: &[TaskSpec]| t.iter().map(TaskSpec::work).sum::<u64>() as f64;
-                let share = work(first) / (work(first) + work(rest)).max(1.0);
+                let done: u64 = first.iter().map(TaskSpec::work).sum();
+                let share = done as f64 / (work as f64).max(1.0);
                 let finish = pass.finish_estimate(state.as_ref(), share).unwrap_or(0.0);
-                if tasks + finish > left {
-                    return Ok(Built::TooDear(tasks + finish));
+                if tasks_s + finish > left {
+                    return Ok(Built::TooDear(tasks_s + finish));
                 }
             }
             self.run(rest, None, |task, p| pass.fold(state.as_mut(), task, p))?;
