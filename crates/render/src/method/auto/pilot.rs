@@ -15,14 +15,17 @@
 //!    least 256, at most 4096; a Mitchell filter as a box, whose weights cannot cancel) with
 //!    `k` samples, then `k` more, as two independent halves A and B (where the method cannot
 //!    continue a frame, a second render with the next seed). The relMSE of one half is
-//!    estimated as mean((A − B)² / 2 / (R² + 0.01)) over pixels and channels, R being the
+//!    estimated as mean((A − B)² / 2 / (R̄² + 0.01)) over pixels and channels, R being the
 //!    consensus of the unbiased candidates (leaving out the path tracer where a bidirectional
-//!    one was measured), their means weighted by the inverse of their variance; for an
-//!    unbiased candidate, also as twice its mean's relMSE against the consensus of the others
-//!    less that consensus's own (paths both halves missed show there), the larger counting.
+//!    one was measured), their means weighted by the inverse of their variance, and R̄ its
+//!    3 × 3-pixel mean (dividing by a noisy R would inflate the estimate where R came out
+//!    low, which is where the noisiest candidate differs most); every relMSE below divides
+//!    by R̄ likewise. For an unbiased candidate it is also estimated as twice its mean's
+//!    relMSE against the consensus of the others less that consensus's own (paths both
+//!    halves missed show there), the larger counting.
 //!    v = relMSE × k is the relative variance of one sample per pixel. For the photon
 //!    map, what does not fall with samples (kernel bias, irradiance interpolation, the photon
-//!    map's own noise): b = mean((Ā − R)² / (R² + 0.01)) − var(Ā) − var(R), floored at 0.
+//!    map's own noise): b = mean((Ā − R)² / (R̄² + 0.01)) − var(Ā) − var(R), floored at 0.
 //!    SPPM renders k iterations with the job's seed, and as the second half the photons of
 //!    its iterations k..2k gathered from the initial radii at the next seed's camera paths
 //!    (the same estimator on independent samples): v from their difference as above, and b,
@@ -34,7 +37,8 @@
 //!    holds photons of many iterations, its bias as n^(−2/3) (the radii's rate with α = 2/3:
 //!    Knaus & Zwicker 2011).
 //! 3. **Prediction** at full size: samples to reach relMSE E are v / E (unbiased),
-//!    v / (E − b) (photon map; none if b is near E), the least n with
+//!    v / (E − b) (photon map; none if b is near E, or if the judges' own relMSE is, under
+//!    which b cannot be told from their noise), the least n with
 //!    v / n + b (k / n)^(2/3) ≤ E (SPPM); time is what the render pays once (the passes,
 //!    view-independent, and a Metropolis frame's bootstrap, both as the pilot timed them) plus
 //!    the samples at the pilot's time per sample and pixel (SPPM's photons, shot whatever the film, at the pilot's time per
@@ -46,7 +50,7 @@
 //! (timed on their first chunk), a candidate's passes (timed on their first tasks, with
 //! what follows the tasks estimated from them: the photon map's) or a Metropolis pilot's
 //! frames (timed on one group of chains); the photons and passes, which the render takes
-//! over where that candidate wins, count at half their cost ([`REUSED_WEIGHT`]). Candidates
+//! over where that candidate wins, count at the odds of that candidate losing ([`reusable_within`]). Candidates
 //! not measured are said to be. A Metropolis frame's bootstrap,
 //! which grows with neither pixels nor samples, counts with the passes as paid once. Candidates run in
 //! the order path, BDPT, VCM (unbiased: the consensus needs them), SPPM (two iterations'
@@ -193,10 +197,21 @@ const PILOT_SHARE: f64 = 0.1;
 /// VCM need no passes, so cost little, and make the consensus that judges the biased ones
 /// (the path tracer only where it has no caveat: see [`measured_first`]).
 const ALWAYS_MEASURED: usize = 3;
-/// Work a candidate's render takes over from its pilot (passes, SPPM's photons) counts at
-/// this weight against what is left of the pilot's share: it is lost only where the
-/// candidate loses, which, before it is measured, is taken as even odds.
-const REUSED_WEIGHT: f64 = 0.5;
+/// The most seconds of work a candidate's render takes over from its pilot (passes, SPPM's
+/// photons) that `left` seconds of the pilot's share allow, `budget` being the best
+/// prediction so far. That work is lost only where the candidate loses. Before it is
+/// measured, all that is known of a candidate whose reusable work takes w seconds is that it
+/// takes at least w; its time is taken as equally likely anywhere in [w, w + budget], so it
+/// loses with probability w / budget and the work's expected loss is w² / budget: at most
+/// `left` where w ≤ √(left × budget). Cheap passes beside a slow best are measured; a pass
+/// near the best prediction counts nearly in full.
+fn reusable_within(left: f64, budget: f64) -> f64 {
+    if left <= 0.0 {
+        0.0
+    } else {
+        (left * budget).sqrt()
+    }
+}
 
 /// A biased candidate is said unable to reach an error its floor is this close to.
 const FLOOR_MARGIN: f64 = 0.8;
@@ -273,12 +288,21 @@ fn measure(
             continue;
         }
         // What is left of the share, for a candidate that can tell its cost before its pilot.
-        let left = if i >= always {
-            PILOT_SHARE * budget - spent
+        let (left, reusable) = if i >= always {
+            let left = PILOT_SHARE * budget - spent;
+            (left, reusable_within(left, budget))
         } else {
-            f64::INFINITY
+            (f64::INFINITY, f64::INFINITY)
         };
-        match run(c, &pilot, desc.film, scene, frame, threads, left) {
+        match run(
+            c,
+            &pilot,
+            desc.film,
+            scene,
+            frame,
+            threads,
+            (left, reusable),
+        ) {
             Ok(Pilot::Ran(r)) => runs.push((i, r)),
             Ok(Pilot::TooDear(why)) => ruled_out.push(format!(
                 "{}: not measured: {why}, past a tenth of the best prediction ({budget:.2} s)",
@@ -564,19 +588,19 @@ struct Halves {
 }
 
 impl Halves {
-    /// relMSE of one half against the consensus `r`.
-    fn half_rel_mse(&self, r: &[[f64; 3]]) -> f64 {
-        rel(r, |p, c| {
-            let d = self.a[p][c] - self.b[p][c];
-            0.5 * d * d
+    /// relMSE of one half (its variance), divided by `d` (see [`predict::divisor`]).
+    fn half_rel_mse(&self, d: &[[f64; 3]]) -> f64 {
+        rel(d, |p, c| {
+            let x = self.a[p][c] - self.b[p][c];
+            0.5 * x * x
         })
     }
 
-    /// relMSE of the mean of both halves against `r`.
-    fn rel_mse(&self, r: &[[f64; 3]]) -> f64 {
-        rel(r, |p, c| {
-            let d = self.both[p][c] - r[p][c];
-            d * d
+    /// relMSE of the mean of both halves against `r`, divided by `d`.
+    fn rel_mse(&self, r: &[[f64; 3]], d: &[[f64; 3]]) -> f64 {
+        rel(d, |p, c| {
+            let x = self.both[p][c] - r[p][c];
+            x * x
         })
     }
 }
@@ -624,7 +648,7 @@ fn run(
     scene: &mut Scene,
     frame: u32,
     threads: usize,
-    left: f64,
+    (left, reusable): (f64, f64),
 ) -> Result<Pilot, String> {
     let start = Instant::now();
     let mut desc = pilot.clone();
@@ -642,8 +666,6 @@ fn run(
         plan(&job)?
     };
     scene.set_settings(&desc);
-    // The seconds of work the render would take over that `left` allows.
-    let reusable = left / REUSED_WEIGHT;
     let local = Local::new(p.as_ref(), scene, &desc, threads, &noop);
     // The passes (a photon map, its irradiance cache) are the render's where it wins, and
     // built here whatever the film: timed on their first tasks (and their finish estimated
@@ -810,8 +832,15 @@ mod tests {
         let mut built = built(&desc);
         for method in ["pssmlt", "mlt"] {
             let c = one_sample(method, Model::Unbiased);
-            let Ok(Pilot::Ran(r)) = run(&c, &desc, desc.film, &mut built, 1, 2, f64::INFINITY)
-            else {
+            let Ok(Pilot::Ran(r)) = run(
+                &c,
+                &desc,
+                desc.film,
+                &mut built,
+                1,
+                2,
+                (f64::INFINITY, f64::INFINITY),
+            ) else {
                 panic!("{method}'s pilot did not run");
             };
             assert!(
@@ -821,7 +850,7 @@ mod tests {
                 r.frame_s
             );
             // With no time left it stops after one group of chains.
-            match run(&c, &desc, desc.film, &mut built, 1, 2, 0.0) {
+            match run(&c, &desc, desc.film, &mut built, 1, 2, (0.0, 0.0)) {
                 Ok(Pilot::TooDear(why)) => assert!(why.contains("its two frames"), "{why}"),
                 Ok(Pilot::Ran(_)) => panic!("{method}'s pilot ran with no time left"),
                 Err(e) => panic!("{e}"),
@@ -839,12 +868,20 @@ mod tests {
         desc.film.height = 32;
         let mut built = built(&desc);
         let c = one_sample("photon", Model::Biased);
-        match run(&c, &desc, desc.film, &mut built, 1, 2, 0.0) {
+        match run(&c, &desc, desc.film, &mut built, 1, 2, (0.0, 0.0)) {
             Ok(Pilot::TooDear(why)) => assert!(why.contains("its passes would take"), "{why}"),
             Ok(Pilot::Ran(_)) => panic!("the photon map's pilot ran with no time left"),
             Err(e) => panic!("{e}"),
         }
-        match run(&c, &desc, desc.film, &mut built, 1, 2, f64::INFINITY) {
+        match run(
+            &c,
+            &desc,
+            desc.film,
+            &mut built,
+            1,
+            2,
+            (f64::INFINITY, f64::INFINITY),
+        ) {
             Ok(Pilot::Ran(r)) => assert!(!r.artifacts.is_empty(), "no photon map handed on"),
             Ok(Pilot::TooDear(why)) => panic!("{why}"),
             Err(e) => panic!("{e}"),
@@ -866,7 +903,15 @@ mod tests {
         );
         let mut built = built(&desc);
         let c = one_sample("photon", Model::Biased);
-        let Ok(Pilot::Ran(r)) = run(&c, &pilot, desc.film, &mut built, 1, 2, f64::INFINITY) else {
+        let Ok(Pilot::Ran(r)) = run(
+            &c,
+            &pilot,
+            desc.film,
+            &mut built,
+            1,
+            2,
+            (f64::INFINITY, f64::INFINITY),
+        ) else {
             panic!("the photon map's pilot did not run");
         };
         let mut render = desc.clone();

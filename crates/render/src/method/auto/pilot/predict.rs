@@ -15,9 +15,38 @@ pub(super) fn rel(r: &[[f64; 3]], f: impl Fn(usize, usize) -> f64) -> f64 {
     sum / (3 * r.len().max(1)) as f64
 }
 
+/// What relMSE divides by: each pixel of `r` (rows of `width`) averaged with its 3 × 3
+/// neighbours inside the image. A pilot's consensus has few samples a pixel, and 1 / (r² +
+/// 0.01) of a noisy r is largest (Jensen) where r came out low, which is where the noisiest
+/// candidate differs most; the neighbourhood's mean is about as high as r's expectation but
+/// several times quieter.
+fn divisor(r: &[[f64; 3]], width: usize) -> Vec<[f64; 3]> {
+    let width = width.max(1);
+    let height = r.len().div_ceil(width);
+    let mut out = vec![[0.0; 3]; r.len()];
+    for (p, o) in out.iter_mut().enumerate() {
+        let (x, y) = (p % width, p / width);
+        let mut n = 0.0;
+        for ny in y.saturating_sub(1)..(y + 2).min(height) {
+            for nx in x.saturating_sub(1)..(x + 2).min(width) {
+                if let Some(v) = r.get(ny * width + nx) {
+                    for c in 0..3 {
+                        o[c] += v[c];
+                    }
+                    n += 1.0;
+                }
+            }
+        }
+        for v in o.iter_mut() {
+            *v /= n;
+        }
+    }
+    out
+}
+
 /// The unbiased candidates' means weighted by the inverse of their variance, and the
-/// consensus's own relMSE; empty without an unbiased candidate.
-fn consensus(unbiased: &[&Halves]) -> (Vec<[f64; 3]>, f64) {
+/// consensus's own relMSE; empty without an unbiased candidate. Images are rows of `width`.
+fn consensus(unbiased: &[&Halves], width: usize) -> (Vec<[f64; 3]>, f64) {
     let Some(first) = unbiased.first() else {
         return (Vec::new(), f64::INFINITY);
     };
@@ -31,9 +60,10 @@ fn consensus(unbiased: &[&Halves]) -> (Vec<[f64; 3]>, f64) {
         }
     }
     // Once more with weights: the variance of a mean of both halves is half a half's.
+    let d = divisor(&r, width);
     let weights: Vec<f64> = unbiased
         .iter()
-        .map(|u| 2.0 / u.half_rel_mse(&r).max(1e-12))
+        .map(|u| 2.0 / u.half_rel_mse(&d).max(1e-12))
         .collect();
     let total: f64 = weights.iter().sum();
     let mut weighted: Vec<[f64; 3]> = vec![[0.0; 3]; n];
@@ -48,9 +78,9 @@ fn consensus(unbiased: &[&Halves]) -> (Vec<[f64; 3]>, f64) {
 }
 
 /// relMSE of `h` beyond its own noise and the consensus's, against the consensus `r` of
-/// relMSE `var_r`: what more samples do not remove.
-fn floor_of(h: &Halves, r: &[[f64; 3]], var_r: f64) -> f64 {
-    (h.rel_mse(r) - 0.5 * h.half_rel_mse(r) - var_r).max(0.0)
+/// relMSE `var_r` (divided by `d`, [`divisor`]): what more samples do not remove.
+fn floor_of(h: &Halves, r: &[[f64; 3]], d: &[[f64; 3]], var_r: f64) -> f64 {
+    (h.rel_mse(r, d) - 0.5 * h.half_rel_mse(d) - var_r).max(0.0)
 }
 
 /// Every measured candidate's prediction for `goal`, and the relMSE aimed at (none for a
@@ -79,10 +109,12 @@ pub(super) fn predict(
         j => j,
     };
     let unbiased: Vec<&Halves> = judged.iter().map(|&j| pixels[j]).collect();
-    let (r, var_consensus) = consensus(&unbiased);
+    let width = pilot.0 as usize;
+    let (r, var_consensus) = consensus(&unbiased, width);
     if r.is_empty() {
         return (Vec::new(), None);
     }
+    let d = divisor(&r, width);
     let pilot_film = (pilot.0 as f64) * (pilot.1 as f64);
     let ratio = film as f64 / pilot_film;
     let mut out: Vec<Measurement> = runs
@@ -91,7 +123,7 @@ pub(super) fn predict(
         .map(|(j, (i, run))| {
             let c = &candidates[*i];
             let k = c.k as f64;
-            let half = pixels[j].half_rel_mse(&r);
+            let half = pixels[j].half_rel_mse(&d);
             // What the pixels cost grows with them (SPPM's photons do not).
             let per_pixels = run.pixels_s.unwrap_or(run.frame_s).min(run.frame_s);
             let sample_s = (run.frame_s + per_pixels * (ratio - 1.0)) / (2.0 * k);
@@ -105,9 +137,9 @@ pub(super) fn predict(
                 .collect();
             let half = match c.model {
                 Model::Unbiased if !others.is_empty() => {
-                    let (r, var_r) = consensus(&others);
+                    let (r, var_r) = consensus(&others, width);
                     // Of both halves (2k samples): twice that for one half.
-                    let against = pixels[j].rel_mse(&r) - var_r;
+                    let against = pixels[j].rel_mse(&r, &divisor(&r, width)) - var_r;
                     half.max(2.0 * against)
                 }
                 _ => half,
@@ -115,7 +147,9 @@ pub(super) fn predict(
             let floor = match c.model {
                 Model::Unbiased => None,
                 // SPPM's is its bias, dropped below where the consensus is too noisy to tell it.
-                Model::Biased | Model::Progressive => Some(floor_of(pixels[j], &r, var_consensus)),
+                Model::Biased | Model::Progressive => {
+                    Some(floor_of(pixels[j], &r, &d, var_consensus))
+                }
             };
             Measurement {
                 label: c.label.clone(),
@@ -179,6 +213,14 @@ pub(super) fn predict(
             (_, Some(e)) => {
                 let n = match (c.model, m.floor) {
                     (Model::Unbiased, _) => Some(m.rel_var / e),
+                    // Its bias is measured against the judges: below their own error it
+                    // cannot be told from their noise, and a floor of zero is no evidence.
+                    (Model::Biased, Some(_)) if var_r >= FLOOR_MARGIN * e => {
+                        m.note = Some(format!(
+                            "its bias cannot be told under {e:.2e} by judges of relMSE {var_r:.2e}"
+                        ));
+                        None
+                    }
                     (Model::Biased, Some(b)) if b < FLOOR_MARGIN * e => Some(m.rel_var / (e - b)),
                     (Model::Biased, Some(b)) => {
                         m.note = Some(format!(
@@ -337,6 +379,29 @@ mod tests {
         ];
         let (m, _) = predict(&candidates, &runs, Goal::Error(1e-2), (40, 50), 4 * 2000);
         m[2].floor.expect("sppm has a floor")
+    }
+
+    /// A judge whose few samples are noisy against its mean (BDPT, σ 0.4 a sample about 0.2,
+    /// 4 a half) beside a quieter path tracer: its variance per sample is σ² / (0.2² + 0.01).
+    /// Divided by its own noisy mean pixel by pixel it would come out half as large again.
+    #[test]
+    fn a_noisy_judge_is_measured_at_its_variance_not_inflated_by_dividing_by_its_own_noise() {
+        let mut noise = Noise(0x2545_f491_4f6c_dd1d);
+        let candidates = [
+            candidate("path", Model::Unbiased, 16),
+            candidate("bdpt", Model::Unbiased, 4),
+        ];
+        let runs = vec![
+            (0, run(&mut noise, 0.2, 0.1, 16.0)),
+            (1, run(&mut noise, 0.2, 0.4, 4.0)),
+        ];
+        let (m, _) = predict(&candidates, &runs, Goal::Error(1e-2), (40, 50), 4 * 2000);
+        let truth = 0.4f64.powi(2) / (0.2f64.powi(2) + 0.01);
+        let got = m[1].rel_var;
+        assert!(
+            (got / truth - 1.0).abs() < 0.15,
+            "bdpt 1-spp relMSE {got}, truth {truth}"
+        );
     }
 
     /// relMSE of an offset d on a pixel of value 1: d² / 1.01.
