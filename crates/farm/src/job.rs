@@ -223,6 +223,7 @@ pub fn job(desc: SceneDesc, settings: &RenderSettings, frames: FrameRange) -> Jo
         target_error: settings.target_error,
         time_limit: None,
         choice: settings.choice.clone(),
+        cache_film: None,
     }
 }
 

@@ -39,7 +39,7 @@ use std::time::Duration;
 
 use serde::Serialize;
 use serde::de::DeserializeOwned;
-use tessera_scene::SceneDesc;
+use tessera_scene::{FilmDesc, SceneDesc};
 
 use crate::film::Image;
 use crate::scene::Scene;
@@ -66,6 +66,12 @@ pub struct Job {
     pub time_limit: Option<Duration>,
     /// What `auto` chose for this job by measurement (`None`: scene analysis chooses).
     pub choice: Option<auto::Choice>,
+    /// An `auto` pilot's: the film of the render it measures for. View-dependent caches (the
+    /// photon map's irradiance cache) are planned for that film and under its key, so the
+    /// pilot reads the records the render would make and the render takes them over; a
+    /// cache of the pilot's own film would place its records as far apart in the scene as the
+    /// pilot's pixels are. `None`: the job's own film.
+    pub cache_film: Option<FilmDesc>,
 }
 
 impl Job {
@@ -79,6 +85,7 @@ impl Job {
             target_error: None,
             time_limit: None,
             choice: None,
+            cache_film: None,
         }
     }
 }

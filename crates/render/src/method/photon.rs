@@ -15,7 +15,7 @@ use crate::camera::Camera;
 use crate::film::Image;
 use crate::integrator::PhotonIntegrator;
 use crate::photon::PhotonSettings;
-use tessera_scene::{FilmDesc, SceneDesc};
+use tessera_scene::SceneDesc;
 
 pub static PHOTON: MethodInfo = MethodInfo {
     name: "photon",
@@ -45,7 +45,11 @@ impl PhotonMethod {
         refuse_translucent(&job.desc, "photon")?;
         let (settings, decisions) = PhotonSettings::resolve(&job.desc, &analyze(&job.desc));
         let photons = PhotonsPass::new(&job.desc, settings);
-        let records = RecordsPass::plan(&job.desc, &photons, job.frames.clone());
+        let cache = SceneDesc {
+            film: job.cache_film.unwrap_or(job.desc.film),
+            ..job.desc.clone()
+        };
+        let records = RecordsPass::plan(&cache, &photons, job.frames.clone());
         Ok(PhotonMethod {
             desc: job.desc.clone(),
             tiles: Tiles::new(job)?,
@@ -53,22 +57,6 @@ impl PhotonMethod {
             records,
             decisions,
         })
-    }
-
-    /// An `auto` pilot's plan: `job`'s (small) film for its frames, and the irradiance cache
-    /// of the same job at `film`, the film it will be rendered at. The pilot then reads the
-    /// cache the render will read, and builds it under the render's key, so that a render of
-    /// the photon map takes it instead of building it again. A cache of the pilot's own film
-    /// would place its records as far apart in the scene as the pilot's pixels are, and
-    /// measure an interpolation error the render does not make.
-    pub(crate) fn pilot_plan(job: &Job, film: FilmDesc) -> Result<Box<dyn Plan>, String> {
-        let mut method = PhotonMethod::plan(job)?;
-        let render = SceneDesc {
-            film,
-            ..job.desc.clone()
-        };
-        method.records = RecordsPass::plan(&render, &method.photons, job.frames.clone());
-        Ok(Box::new(method))
     }
 
     fn integrator(&self, ctx: &TaskCtx) -> Result<PhotonIntegrator, String> {

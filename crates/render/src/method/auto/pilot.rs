@@ -71,7 +71,6 @@ use crate::film::{Image, MAX_SPP};
 use crate::integrator::metropolis::{GROUPS, Metropolis};
 use crate::integrator::sppm::{self, SppmSettings};
 use crate::method::local::{Built, Local, Progress};
-use crate::method::photon::{PHOTON, PhotonMethod};
 use crate::method::{Job, Loaded, plan};
 use crate::scene::Scene;
 
@@ -658,13 +657,11 @@ fn run(
         desc.integrator.subsurface = s;
     }
     let noop = |_: Progress| {};
-    let job = Job::new(desc.clone(), frame);
-    let p = if c.method == PHOTON.name {
-        // The photon map's irradiance cache is the render's (its film's, its key).
-        PhotonMethod::pilot_plan(&job, film)?
-    } else {
-        plan(&job)?
+    let job = Job {
+        cache_film: Some(film),
+        ..Job::new(desc.clone(), frame)
     };
+    let p = plan(&job)?;
     scene.set_settings(&desc);
     let local = Local::new(p.as_ref(), scene, &desc, threads, &noop);
     // The passes (a photon map, its irradiance cache) are the render's where it wins, and
