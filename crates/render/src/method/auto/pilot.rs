@@ -50,7 +50,7 @@
 //! (timed on their first chunk), a candidate's passes (timed on their first tasks, with
 //! what follows the tasks estimated from them: the photon map's) or a Metropolis pilot's
 //! frames (timed on one group of chains); the photons and passes, which the render takes
-//! over where that candidate wins, count at the odds of that candidate losing ([`reusable_within`]). Candidates
+//! over where that candidate wins, count at the odds of that candidate losing ([`Allowance::of`]). Candidates
 //! not measured are said to be. A Metropolis frame's bootstrap,
 //! which grows with neither pixels nor samples, counts with the passes as paid once. Candidates run in
 //! the order path, BDPT, VCM (unbiased: the consensus needs them), SPPM (two iterations'
@@ -196,19 +196,35 @@ const PILOT_SHARE: f64 = 0.1;
 /// VCM need no passes, so cost little, and make the consensus that judges the biased ones
 /// (the path tracer only where it has no caveat: see [`measured_first`]).
 const ALWAYS_MEASURED: usize = 3;
-/// The most seconds of work a candidate's render takes over from its pilot (passes, SPPM's
-/// photons) that `left` seconds of the pilot's share allow, `budget` being the best
-/// prediction so far. That work is lost only where the candidate loses. Before it is
-/// measured, all that is known of a candidate whose reusable work takes w seconds is that it
-/// takes at least w; its time is taken as equally likely anywhere in [w, w + budget], so it
-/// loses with probability w / budget and the work's expected loss is w² / budget: at most
-/// `left` where w ≤ √(left × budget). Cheap passes beside a slow best are measured; a pass
-/// near the best prediction counts nearly in full.
-fn reusable_within(left: f64, budget: f64) -> f64 {
-    if left <= 0.0 {
-        0.0
-    } else {
-        (left * budget).sqrt()
+/// What a candidate's pilot may spend once the first candidates are measured: `left` seconds
+/// of the pilot's share, and `reusable`, the most seconds of work the render takes over from
+/// it (passes, SPPM's photons) that `left` allows.
+#[derive(Debug, Clone, Copy)]
+struct Allowance {
+    left: f64,
+    reusable: f64,
+}
+
+impl Allowance {
+    const UNLIMITED: Allowance = Allowance {
+        left: f64::INFINITY,
+        reusable: f64::INFINITY,
+    };
+
+    /// `left` seconds, `budget` being the best prediction so far. Reusable work is lost only
+    /// where its candidate loses. Before it is measured, all that is known of a candidate
+    /// whose reusable work takes w seconds is that it takes at least w; its time is taken as
+    /// equally likely anywhere in [w, w + budget], so it loses with probability w / budget and
+    /// the work's expected loss is w² / budget: at most `left` where w ≤ √(left × budget).
+    /// Cheap passes beside a slow best are measured; a pass near the best prediction counts
+    /// nearly in full.
+    fn of(left: f64, budget: f64) -> Allowance {
+        let reusable = if left <= 0.0 {
+            0.0
+        } else {
+            (left * budget).sqrt()
+        };
+        Allowance { left, reusable }
     }
 }
 
@@ -287,21 +303,12 @@ fn measure(
             continue;
         }
         // What is left of the share, for a candidate that can tell its cost before its pilot.
-        let (left, reusable) = if i >= always {
-            let left = PILOT_SHARE * budget - spent;
-            (left, reusable_within(left, budget))
+        let allowance = if i >= always {
+            Allowance::of(PILOT_SHARE * budget - spent, budget)
         } else {
-            (f64::INFINITY, f64::INFINITY)
+            Allowance::UNLIMITED
         };
-        match run(
-            c,
-            &pilot,
-            desc.film,
-            scene,
-            frame,
-            threads,
-            (left, reusable),
-        ) {
+        match run(c, &pilot, desc.film, scene, frame, threads, allowance) {
             Ok(Pilot::Ran(r)) => runs.push((i, r)),
             Ok(Pilot::TooDear(why)) => ruled_out.push(format!(
                 "{}: not measured: {why}, past a tenth of the best prediction ({budget:.2} s)",
@@ -647,7 +654,7 @@ fn run(
     scene: &mut Scene,
     frame: u32,
     threads: usize,
-    (left, reusable): (f64, f64),
+    Allowance { left, reusable }: Allowance,
 ) -> Result<Pilot, String> {
     let start = Instant::now();
     let mut desc = pilot.clone();
@@ -821,6 +828,12 @@ mod tests {
     /// passes, not with the samples it scales to the full film. On a 16×16 film with one
     /// mutation per pixel a half, it is most of the pilot. Timed on one group of chains
     /// first, the pilot stops there when its frames cost more than is left.
+    /// No time left, nor reusable work.
+    const NOTHING_LEFT: Allowance = Allowance {
+        left: 0.0,
+        reusable: 0.0,
+    };
+
     #[test]
     fn a_metropolis_pilot_counts_its_bootstrap_once_and_apart_from_its_samples() {
         let mut desc = scene("cornell-box");
@@ -829,15 +842,9 @@ mod tests {
         let mut built = built(&desc);
         for method in ["pssmlt", "mlt"] {
             let c = one_sample(method, Model::Unbiased);
-            let Ok(Pilot::Ran(r)) = run(
-                &c,
-                &desc,
-                desc.film,
-                &mut built,
-                1,
-                2,
-                (f64::INFINITY, f64::INFINITY),
-            ) else {
+            let Ok(Pilot::Ran(r)) =
+                run(&c, &desc, desc.film, &mut built, 1, 2, Allowance::UNLIMITED)
+            else {
                 panic!("{method}'s pilot did not run");
             };
             assert!(
@@ -847,7 +854,7 @@ mod tests {
                 r.frame_s
             );
             // With no time left it stops after one group of chains.
-            match run(&c, &desc, desc.film, &mut built, 1, 2, (0.0, 0.0)) {
+            match run(&c, &desc, desc.film, &mut built, 1, 2, NOTHING_LEFT) {
                 Ok(Pilot::TooDear(why)) => assert!(why.contains("its two frames"), "{why}"),
                 Ok(Pilot::Ran(_)) => panic!("{method}'s pilot ran with no time left"),
                 Err(e) => panic!("{e}"),
@@ -865,20 +872,12 @@ mod tests {
         desc.film.height = 32;
         let mut built = built(&desc);
         let c = one_sample("photon", Model::Biased);
-        match run(&c, &desc, desc.film, &mut built, 1, 2, (0.0, 0.0)) {
+        match run(&c, &desc, desc.film, &mut built, 1, 2, NOTHING_LEFT) {
             Ok(Pilot::TooDear(why)) => assert!(why.contains("its passes would take"), "{why}"),
             Ok(Pilot::Ran(_)) => panic!("the photon map's pilot ran with no time left"),
             Err(e) => panic!("{e}"),
         }
-        match run(
-            &c,
-            &desc,
-            desc.film,
-            &mut built,
-            1,
-            2,
-            (f64::INFINITY, f64::INFINITY),
-        ) {
+        match run(&c, &desc, desc.film, &mut built, 1, 2, Allowance::UNLIMITED) {
             Ok(Pilot::Ran(r)) => assert!(!r.artifacts.is_empty(), "no photon map handed on"),
             Ok(Pilot::TooDear(why)) => panic!("{why}"),
             Err(e) => panic!("{e}"),
@@ -907,7 +906,7 @@ mod tests {
             &mut built,
             1,
             2,
-            (f64::INFINITY, f64::INFINITY),
+            Allowance::UNLIMITED,
         ) else {
             panic!("the photon map's pilot did not run");
         };
