@@ -45,8 +45,11 @@
 //!    iteration). The goal is a relMSE (`target_error`), the error path tracing reaches
 //!    at the job's spp (the same image quality, sooner), or the lowest error within a time.
 //!
-//! After the first three candidates, the pilot stops measuring once it has spent a tenth of
-//! the best prediction so far (of a candidate without a caveat), or would with SPPM's photons
+//! The first three candidates are measured whatever the pilot spends, until the judges
+//! measured so far resolve the goal (their own relMSE under it, so a floor at the goal can be
+//! told from their noise; on the Cornell box the path tracer alone does): the unbiased ones
+//! left then go after the biased ones ([`judged`]). After those, the pilot stops measuring
+//! once it has spent a tenth of the best prediction so far (of a candidate without a caveat), or would with SPPM's photons
 //! (timed on their first chunk), a candidate's passes (timed on their first tasks, with
 //! what follows the tasks estimated from them: the photon map's) or a Metropolis pilot's
 //! frames (timed on one group of chains); the photons and passes, which the render takes
@@ -192,9 +195,10 @@ pub fn subsurface_name(s: SubsurfaceMethod) -> &'static str {
 const PILOT_PIXELS: (u64, u64) = (256, 4096);
 /// The pilot stops once it has spent this share of the best prediction.
 const PILOT_SHARE: f64 = 0.1;
-/// The first candidates are measured whatever the pilot has spent: the path tracer, BDPT and
-/// VCM need no passes, so cost little, and make the consensus that judges the biased ones
-/// (the path tracer only where it has no caveat: see [`measured_first`]).
+/// The first candidates are measured whatever the pilot has spent (until their consensus
+/// resolves the goal: [`judged`]): the path tracer, BDPT and VCM need no passes, so cost
+/// little, and make the consensus that judges the biased ones (the path tracer only where it
+/// has no caveat: see [`measured_first`]).
 const ALWAYS_MEASURED: usize = 3;
 /// What a candidate's pilot may spend once the first candidates are measured: `left` seconds
 /// of the pilot's share, and `reusable`, the most seconds of work the render takes over from
@@ -277,14 +281,18 @@ fn measure(
     }
     let seen = sees_specular(desc, scene, frame);
     let (mut candidates, mut ruled_out) = candidates(desc, &analysis, seen);
-    let always = measured_first(&mut candidates, goal);
+    let mut always = measured_first(&mut candidates, goal);
     let film = (desc.film.width as u64) * (desc.film.height as u64);
     let pilot = pilot_desc(desc);
 
     let mut runs: Vec<(usize, Run)> = Vec::new();
     let mut measurements = Vec::new();
     let mut target = None;
-    for (i, c) in candidates.iter().enumerate() {
+    // Candidates by index into `candidates`, in the order they are measured.
+    let mut order: Vec<usize> = (0..candidates.len()).collect();
+    let mut n = 0;
+    while let Some(&i) = order.get(n) {
+        let c = &candidates[i];
         let spent = start.elapsed().as_secs_f64();
         let best = measurements
             .iter()
@@ -295,7 +303,8 @@ fn measure(
             Goal::Seconds(t) => t,
             _ => best,
         };
-        if i >= always && spent > PILOT_SHARE * budget {
+        n += 1;
+        if n > always && spent > PILOT_SHARE * budget {
             ruled_out.push(format!(
                 "{}: not measured: the pilot had spent {spent:.2} s, a tenth of the best prediction ({budget:.2} s)",
                 c.label
@@ -303,7 +312,7 @@ fn measure(
             continue;
         }
         // What is left of the share, for a candidate that can tell its cost before its pilot.
-        let allowance = if i >= always {
+        let allowance = if n > always {
             Allowance::of(PILOT_SHARE * budget - spent, budget)
         } else {
             Allowance::UNLIMITED
@@ -316,15 +325,19 @@ fn measure(
             )),
             Err(e) => ruled_out.push(format!("{}: cannot run: {e}", c.label)),
         }
-        let (m, t) = predict(
+        let p = predict(
             &candidates,
             &runs,
             goal,
             (pilot.film.width, pilot.film.height),
             film,
         );
-        measurements = m;
-        target = t;
+        if n < always && p.resolves() {
+            always = n;
+            judged(&candidates, &mut order[n..]);
+        }
+        measurements = p.measurements;
+        target = p.target;
     }
     let pilot_s = start.elapsed().as_secs_f64();
     let chosen = choose(&measurements, goal).ok_or_else(|| {
@@ -515,6 +528,22 @@ fn measured_first(candidates: &mut [Candidate], goal: Goal) -> usize {
     let moved = candidates[..first].iter().filter(|c| last(c)).count();
     candidates.sort_by_key(last);
     first - moved
+}
+
+/// Orders the candidates still to measure (`rest`, indices into `candidates`) once the
+/// judges measured so far resolve the goal (their own relMSE is under it), which ends the
+/// candidates measured whatever the pilot spends: more judges are not needed to tell a floor,
+/// so the unbiased candidates left are measured after the biased ones, as the share allows.
+/// The photon map goes before SPPM: a goal the judges resolve at a pilot's few samples is one
+/// the render reaches in few, where the photon map pays its photons once and hides its
+/// kernel's bias behind a gather bounce, while SPPM pays photons every iteration and its
+/// first iterations' radii are its widest.
+fn judged(candidates: &[Candidate], rest: &mut [usize]) {
+    rest.sort_by_key(|&j| match candidates[j].model {
+        Model::Biased => 0,
+        Model::Progressive => 1,
+        Model::Unbiased => 2,
+    });
 }
 
 /// For a Metropolis candidate with `left` seconds (finite) to spend: renders one group of a
@@ -978,6 +1007,25 @@ mod tests {
         let (always, order) = labels(Goal::PathSpp(16));
         assert_eq!(always, ALWAYS_MEASURED);
         assert_eq!(order[..3], ["path", "bdpt", "vcm"]);
+    }
+
+    /// On the Cornell box, once the path tracer judges the goal alone, the photon map, then
+    /// SPPM, are measured before BDPT, VCM and the Metropolis methods.
+    #[test]
+    fn once_the_judges_resolve_the_goal_the_biased_candidates_go_next() {
+        let desc = scene("cornell-box");
+        let (mut list, _) = candidates(&desc, &analyze(&desc), false);
+        assert_eq!(
+            measured_first(&mut list, Goal::Error(0.01)),
+            ALWAYS_MEASURED
+        );
+        let mut order: Vec<usize> = (0..list.len()).collect();
+        judged(&list, &mut order[1..]);
+        let labels: Vec<&str> = order.iter().map(|&i| list[i].label.as_str()).collect();
+        assert_eq!(
+            labels,
+            ["path", "photon", "sppm", "bdpt", "vcm", "pssmlt", "mlt"]
+        );
     }
 
     /// BDPT has a caveat where caustics of a concentrated light are seen in a specular

@@ -11,6 +11,7 @@ use super::{hash_scene, hex, index_ranges};
 use crate::method::{Pass, TaskCtx, TaskSpec};
 use crate::photon::{
     KdTree, MapKind, Photon, PhotonMap, PhotonMaps, PhotonSettings, RadiancePhoton, Shooter,
+    radiance_photons,
 };
 use crate::scene::Material;
 use crate::spectrum::Spectrum;
@@ -200,19 +201,38 @@ impl Pass for PhotonsPass {
 
     /// The finish (balancing the trees, the radiance photons' searches) of a sample of the
     /// global photons shot so far ([`PhotonsPass::finish_sample`]), timed and scaled to the
-    /// whole map, whose time grows as n log n. The caustic map (balanced only) is left out:
-    /// a lower bound.
+    /// whole map: balancing grows as n log n; each radiance photon is a search for the k
+    /// nearest photons within a radius that holds about k (the sample's is widened to), whose
+    /// cost grows with k, not with the map, so their time grows as n. The caustic map
+    /// (balanced only) is left out: a lower bound.
     fn finish_estimate(&self, (global, _): &Self::State, share: f64) -> Option<f64> {
         let sample = self.finish_sample(global, share)?;
         let rho = self.rho();
-        let start = std::time::Instant::now();
-        let maps = PhotonMaps::build(sample.photons, Vec::new(), &sample.settings, &|m| {
-            rho.get(m as usize).copied().flatten()
+        // Timed on one thread (a sample's few milliseconds split over a pool measure its
+        // threads waking more than its work), then shared among the pool's threads as the
+        // finish shares it.
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .ok()?;
+        let (balanced, searched) = one.install(|| {
+            let start = std::time::Instant::now();
+            let map = PhotonMap::build(sample.photons, sample.settings.photons);
+            let balanced = start.elapsed().as_secs_f64();
+            let radiance = radiance_photons(
+                &map,
+                &|m| rho.get(m as usize).copied().flatten(),
+                &sample.settings,
+            );
+            let searched = start.elapsed().as_secs_f64() - balanced;
+            drop((map, radiance));
+            (balanced, searched)
         });
-        let spent = start.elapsed().as_secs_f64();
-        drop(maps);
+        let threads = rayon::current_num_threads() as f64;
+        let (balanced, searched) = (balanced / threads, searched / threads);
         let n = (sample.fraction * sample.total).max(2.0);
-        Some(spent / sample.fraction * sample.total.max(2.0).ln() / n.ln())
+        let balance = balanced / sample.fraction * sample.total.max(2.0).ln() / n.ln();
+        Some(balance + searched / sample.fraction)
     }
 
     fn load(&self, a: MapsArtifact) -> Result<PhotonMaps, String> {

@@ -83,15 +83,33 @@ fn floor_of(h: &Halves, r: &[[f64; 3]], d: &[[f64; 3]], var_r: f64) -> f64 {
     (h.rel_mse(r, d) - 0.5 * h.half_rel_mse(d) - var_r).max(0.0)
 }
 
-/// Every measured candidate's prediction for `goal`, and the relMSE aimed at (none for a
-/// time goal).
+/// What the pilots so far predict.
+pub(super) struct Prediction {
+    /// Every measured candidate's.
+    pub measurements: Vec<Measurement>,
+    /// The relMSE aimed at (none for a time goal).
+    pub target: Option<f64>,
+    /// The judges' own relMSE (of their consensus, both halves): a floor under it cannot be
+    /// told from their noise.
+    pub judges: f64,
+}
+
+impl Prediction {
+    /// Whether the judges can tell a floor at the goal from their noise: their own relMSE
+    /// is under it.
+    pub fn resolves(&self) -> bool {
+        self.target.is_some_and(|e| self.judges < e)
+    }
+}
+
+/// Every measured candidate's prediction for `goal`.
 pub(super) fn predict(
     candidates: &[Candidate],
     runs: &[(usize, Run)],
     goal: Goal,
     pilot: (u32, u32),
     film: u64,
-) -> (Vec<Measurement>, Option<f64>) {
+) -> Prediction {
     let pixels: Vec<&Halves> = runs.iter().map(|(_, r)| &r.images).collect();
     // The consensus: the judges (`Candidate::judges`), else every unbiased candidate.
     let judges_of = |all: bool| -> Vec<usize> {
@@ -112,7 +130,11 @@ pub(super) fn predict(
     let width = pilot.0 as usize;
     let (r, var_consensus) = consensus(&unbiased, width);
     if r.is_empty() {
-        return (Vec::new(), None);
+        return Prediction {
+            measurements: Vec::new(),
+            target: None,
+            judges: f64::INFINITY,
+        };
     }
     let d = divisor(&r, width);
     let pilot_film = (pilot.0 as f64) * (pilot.1 as f64);
@@ -215,7 +237,7 @@ pub(super) fn predict(
                     (Model::Unbiased, _) => Some(m.rel_var / e),
                     // Its bias is measured against the judges: below their own error it
                     // cannot be told from their noise, and a floor of zero is no evidence.
-                    (Model::Biased, Some(_)) if var_r >= FLOOR_MARGIN * e => {
+                    (Model::Biased, Some(_)) if var_r >= e => {
                         m.note = Some(format!(
                             "its bias cannot be told under {e:.2e} by judges of relMSE {var_r:.2e}"
                         ));
@@ -259,7 +281,11 @@ pub(super) fn predict(
             _ => {}
         }
     }
-    (out, target)
+    Prediction {
+        measurements: out,
+        target,
+        judges: var_r,
+    }
 }
 
 /// The candidate with the soonest prediction (the lowest error for a time goal); one with a
@@ -377,8 +403,8 @@ mod tests {
             (1, run(&mut noise, 1.0, judges, 4.0)),
             (2, run(&mut noise, 1.0 + offset, 0.05, 1.0)),
         ];
-        let (m, _) = predict(&candidates, &runs, Goal::Error(1e-2), (40, 50), 4 * 2000);
-        m[2].floor.expect("sppm has a floor")
+        let p = predict(&candidates, &runs, Goal::Error(1e-2), (40, 50), 4 * 2000);
+        p.measurements[2].floor.expect("sppm has a floor")
     }
 
     /// A judge whose few samples are noisy against its mean (BDPT, σ 0.4 a sample about 0.2,
@@ -395,12 +421,53 @@ mod tests {
             (0, run(&mut noise, 0.2, 0.1, 16.0)),
             (1, run(&mut noise, 0.2, 0.4, 4.0)),
         ];
-        let (m, _) = predict(&candidates, &runs, Goal::Error(1e-2), (40, 50), 4 * 2000);
+        let m = predict(&candidates, &runs, Goal::Error(1e-2), (40, 50), 4 * 2000).measurements;
         let truth = 0.4f64.powi(2) / (0.2f64.powi(2) + 0.01);
         let got = m[1].rel_var;
         assert!(
             (got / truth - 1.0).abs() < 0.15,
             "bdpt 1-spp relMSE {got}, truth {truth}"
+        );
+    }
+
+    /// A path tracer judging alone (k = 16 a half, so its relMSE is σ² / 1.01 / 32 per pixel
+    /// of value 1) beside a photon map without bias: under the goal (here 0.9 of it) the
+    /// judge resolves it and the photon map is predicted; over it (1.2 of it) the photon map's
+    /// floor cannot be told from the judge's noise, and it gets no prediction.
+    #[test]
+    fn a_floor_is_told_only_by_judges_whose_own_error_is_under_the_goal() {
+        let e = 1e-2;
+        let predicted = |judge_error: f64| {
+            let mut noise = Noise(0x853c_49e6_748f_ea9b);
+            let candidates = [
+                candidate("path", Model::Unbiased, 16),
+                candidate("photon", Model::Biased, 4),
+            ];
+            let sigma = (judge_error * 1.01 * 32.0).sqrt();
+            let runs = vec![
+                (0, run(&mut noise, 1.0, sigma, 16.0)),
+                (1, run(&mut noise, 1.0, 0.05, 4.0)),
+            ];
+            let p = predict(&candidates, &runs, Goal::Error(e), (40, 50), 4 * 2000);
+            assert!(
+                (p.judges / judge_error - 1.0).abs() < 0.05,
+                "judges' relMSE {}, expected {judge_error}",
+                p.judges
+            );
+            (p.resolves(), p.measurements[1].clone())
+        };
+        let (resolves, photon) = predicted(0.9 * e);
+        assert!(resolves);
+        assert!(photon.spp.is_some(), "{photon:?}");
+        let (resolves, photon) = predicted(1.2 * e);
+        assert!(!resolves);
+        assert_eq!(photon.spp, None);
+        assert!(
+            photon
+                .note
+                .as_deref()
+                .is_some_and(|n| n.contains("cannot be told")),
+            "{photon:?}"
         );
     }
 
