@@ -305,7 +305,8 @@ fn measure(
             _ => best,
         };
         n += 1;
-        if n > always && spent > PILOT_SHARE * budget {
+        let anyway = n <= always;
+        if !anyway && spent > PILOT_SHARE * budget {
             ruled_out.push(format!(
                 "{}: not measured: the pilot had spent {spent:.2} s, a tenth of the best prediction ({budget:.2} s)",
                 c.label
@@ -313,10 +314,10 @@ fn measure(
             continue;
         }
         // What is left of the share, for a candidate that can tell its cost before its pilot.
-        let allowance = if n > always {
-            Allowance::of(PILOT_SHARE * budget - spent, budget)
-        } else {
+        let allowance = if anyway {
             Allowance::UNLIMITED
+        } else {
+            Allowance::of(PILOT_SHARE * budget - spent, budget)
         };
         match run(c, &pilot, desc.film, scene, frame, threads, allowance) {
             Ok(Pilot::Ran(r)) => runs.push((i, r)),

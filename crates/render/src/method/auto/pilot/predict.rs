@@ -95,11 +95,16 @@ pub(super) struct Prediction {
 }
 
 impl Prediction {
-    /// Whether the judges can tell a floor at the goal from their noise: their own relMSE
-    /// is under it.
+    /// Whether the judges resolve the goal ([`resolves`]).
     pub fn resolves(&self) -> bool {
-        self.target.is_some_and(|e| self.judges < e)
+        self.target.is_some_and(|e| resolves(self.judges, e))
     }
+}
+
+/// Whether judges of relMSE `judges` can tell a floor at the goal `e` from their noise: their
+/// own relMSE is under it.
+fn resolves(judges: f64, e: f64) -> bool {
+    judges < e
 }
 
 /// Every measured candidate's prediction for `goal`.
@@ -237,7 +242,7 @@ pub(super) fn predict(
                     (Model::Unbiased, _) => Some(m.rel_var / e),
                     // Its bias is measured against the judges: below their own error it
                     // cannot be told from their noise, and a floor of zero is no evidence.
-                    (Model::Biased, Some(_)) if var_r >= e => {
+                    (Model::Biased, Some(_)) if !resolves(var_r, e) => {
                         m.note = Some(format!(
                             "its bias cannot be told under {e:.2e} by judges of relMSE {var_r:.2e}"
                         ));
