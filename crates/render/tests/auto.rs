@@ -145,6 +145,7 @@ fn a_recorded_choice_is_planned_as_its_method() {
     job.choice = Some(Choice {
         method: "bdpt".into(),
         subsurface: None,
+        photons: None,
         spp: 3,
         target_error: None,
         report: vec!["chose bdpt: a test".into()],
@@ -171,4 +172,33 @@ fn a_recorded_choice_is_planned_as_its_method() {
     // Without a choice, scene analysis chooses (the path tracer for the Cornell box).
     job.choice = None;
     assert_eq!(method::plan(&job).expect("plan").method(), "path");
+}
+
+/// A photon count the pilot chose is the plan's: its photon maps are planned with it (the
+/// search radius is the one for that count), and the header says how to reproduce it.
+#[test]
+fn a_chosen_photon_count_is_planned() {
+    let mut job = Job::new(scene("cornell-box", 32, 24), 1);
+    job.choice = Some(Choice {
+        method: "photon".into(),
+        subsurface: None,
+        photons: Some(12_345),
+        spp: 2,
+        target_error: None,
+        report: vec!["chose photon with 12345 photons: a test".into()],
+    });
+    let plan = method::plan(&job).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(plan.method(), "photon");
+    let decisions = plan.decisions();
+    assert!(
+        decisions.iter().any(|d| d.contains("of 12345×2 photons")),
+        "{decisions:?}"
+    );
+    let meta = plan.metadata();
+    assert!(
+        meta.iter().any(
+            |(k, v)| k == "auto_reproduce" && v.contains("integrator.photon_map.photons 12345")
+        ),
+        "{meta:?}"
+    );
 }

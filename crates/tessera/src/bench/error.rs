@@ -202,10 +202,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
             let selection = pilot::select(&desc, &mut scene, 1, goal, threads)
                 .map_err(|e| anyhow::anyhow!("--integrators auto: {e}"))?;
             let c = &selection.choice;
-            desc.integrator.method = c.method.clone();
-            if let Some(m) = c.subsurface {
-                desc.integrator.subsurface = m;
-            }
+            c.apply(&mut desc);
             let chosen = match c.subsurface {
                 Some(m) => format!("{}:{}", c.method, pilot::subsurface_name(m)),
                 None => c.method.clone(),

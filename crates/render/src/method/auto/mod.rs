@@ -11,7 +11,7 @@ pub mod pilot;
 use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
-use tessera_scene::SubsurfaceMethod;
+use tessera_scene::{SceneDesc, SubsurfaceMethod};
 
 use super::registry::{MethodInfo, lookup};
 use super::{DynPass, Job, Next, Payload, Plan, Step, TaskCtx, TaskSpec};
@@ -39,6 +39,9 @@ pub struct Choice {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[cfg_attr(feature = "openapi", schema(value_type = Option<String>))]
     pub subsurface: Option<SubsurfaceMethod>,
+    /// Photons of the photon map, where the pilot chose their count (the scene set none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub photons: Option<u32>,
     /// Samples per pixel (iterations, mutations per pixel) the method runs: the prediction
     /// for the job's goal, or the cap of its adaptive sampling.
     pub spp: u32,
@@ -47,6 +50,20 @@ pub struct Choice {
     pub target_error: Option<f64>,
     /// The decision and each candidate's measurement and prediction, one line each.
     pub report: Vec<String>,
+}
+
+impl Choice {
+    /// Sets in `desc` what the choice renders with besides its samples: the method, how
+    /// translucent materials are rendered, the photon map's photons.
+    pub fn apply(&self, desc: &mut SceneDesc) {
+        desc.integrator.method = self.method.clone();
+        if let Some(s) = self.subsurface {
+            desc.integrator.subsurface = s;
+        }
+        if self.photons.is_some() {
+            desc.integrator.photon.photons = self.photons;
+        }
+    }
 }
 
 fn plan_auto(job: &Job) -> Result<Box<dyn Plan>, String> {
@@ -59,9 +76,7 @@ fn plan_auto(job: &Job) -> Result<Box<dyn Plan>, String> {
             if c.target_error.is_none() {
                 inner_job.time_limit = None;
             }
-            if let Some(s) = c.subsurface {
-                inner_job.desc.integrator.subsurface = s;
-            }
+            c.apply(&mut inner_job.desc);
             (lookup(&c.method)?, c.report.clone())
         }
         None => (lookup(&analyze(&job.desc).method)?, Vec::new()),
@@ -108,10 +123,14 @@ impl Plan for Auto {
                 .target_error
                 .map(|t| format!(" --target-error {t}"))
                 .unwrap_or_default();
+            let photons = c
+                .photons
+                .map(|n| format!(" and integrator.photon_map.photons {n} in the scene"))
+                .unwrap_or_default();
             out.push((
                 "auto_reproduce".into(),
                 format!(
-                    "--integrator {} --spp {}{subsurface}{target} (the choice was measured: another run may choose otherwise)",
+                    "--integrator {} --spp {}{subsurface}{target}{photons} (the choice was measured: another run may choose otherwise)",
                     c.method, c.spp
                 ),
             ));

@@ -58,7 +58,9 @@
 //! are said to be. A Metropolis frame's bootstrap, which grows with neither pixels nor
 //! samples, counts with the passes as paid once. Candidates run in the order path, BDPT,
 //! VCM (unbiased: the consensus needs them), SPPM (two iterations' photons), photon map (a
-//! whole photon map), PSSMLT, MLT — the photon map before SPPM where the film has more
+//! whole photon map: where the scene sets no photon count, first of [`FEW_PHOTONS`], then of
+//! the default count only where the few cannot reach the goal, the render taking the count
+//! of the one chosen), PSSMLT, MLT — the photon map before SPPM where the film has more
 //! pixels than an SPPM iteration has photons, and a path tracer with a caveat last unless
 //! the goal is its own error at the job's spp; the photons and the photon map are reused by
 //! the render where that method wins.
@@ -76,6 +78,7 @@ use crate::integrator::metropolis::{GROUPS, Metropolis};
 use crate::integrator::sppm::{self, SppmSettings};
 use crate::method::local::{Built, Local, Progress};
 use crate::method::{Job, Loaded, plan};
+use crate::photon::DEFAULT_PHOTONS;
 use crate::scene::Scene;
 
 mod predict;
@@ -129,6 +132,9 @@ struct Candidate {
     /// Why a pilot cannot measure this candidate's error: it is measured (the path tracer's
     /// error is the goal at a job's spp) but chosen only when nothing else can be.
     caveat: Option<String>,
+    /// Photons of the photon map it renders with, where the scene leaves the count to the
+    /// pilot ([`FEW_PHOTONS`]).
+    photons: Option<u32>,
 }
 
 impl Candidate {
@@ -233,6 +239,36 @@ impl Allowance {
     }
 }
 
+/// Photons of the photon map measured first where the scene does not set their count: a
+/// final gather reads the map one bounce away, behind which most of its noise and kernel bias
+/// is hidden, so a map of a few photons often reaches the error the default count does, at a
+/// fraction of the pass. The default count is measured only where this one cannot reach the
+/// goal ([`more_photons_needed`]).
+pub const FEW_PHOTONS: u32 = DEFAULT_PHOTONS / 8;
+
+/// The photon-map candidate with `photons` photons: `photon` with the few the pilot tries
+/// first, `photon:N` with more.
+fn photon_label(photons: u32) -> String {
+    if photons == FEW_PHOTONS {
+        "photon".into()
+    } else {
+        format!("photon:{photons}")
+    }
+}
+
+/// Whether the photon map's candidate with more photons than the first is worth measuring:
+/// not where the first reaches the goal, since more photons lower only a floor already under
+/// it, at the cost of a dearer pass (a time limit's lowest error may still want them).
+fn more_photons_needed(c: &Candidate, measurements: &[Measurement], goal: Goal) -> bool {
+    let few = photon_label(FEW_PHOTONS);
+    match c.photons {
+        Some(n) if n > FEW_PHOTONS && !matches!(goal, Goal::Seconds(_)) => !measurements
+            .iter()
+            .any(|m| m.label == few && m.predicted_s.is_some()),
+        _ => true,
+    }
+}
+
 /// A biased candidate is said unable to reach an error its floor is this close to.
 const FLOOR_MARGIN: f64 = 0.8;
 
@@ -268,6 +304,7 @@ fn measure(
             choice: Choice {
                 method: "direct".into(),
                 subsurface: None,
+                photons: None,
                 spp: desc.integrator.spp,
                 target_error: match goal {
                     Goal::Error(e) => Some(e),
@@ -305,6 +342,13 @@ fn measure(
             _ => best,
         };
         n += 1;
+        if !more_photons_needed(c, &measurements, goal) {
+            ruled_out.push(format!(
+                "{}: not measured: the photon map of {FEW_PHOTONS} photons reaches the goal; more photons lower only its floor, at the cost of their pass",
+                c.label
+            ));
+            continue;
+        }
         let anyway = n <= always;
         if !anyway && spent > PILOT_SHARE * budget {
             ruled_out.push(format!(
@@ -371,8 +415,11 @@ fn measure(
         spp
     };
     let mut report = vec![format!(
-        "chose {} at {spp} {}: predicted {:.2} s to {} (pilot {pilot_s:.2} s{})",
+        "chose {}{} at {spp} {}: predicted {:.2} s to {} (pilot {pilot_s:.2} s{})",
         m.label,
+        c.photons
+            .map(|n| format!(" with {n} photons"))
+            .unwrap_or_default(),
         if adaptive.is_some() {
             "spp at most, adaptive"
         } else {
@@ -399,6 +446,7 @@ fn measure(
         choice: Choice {
             method: c.method.into(),
             subsurface: c.subsurface,
+            photons: c.photons,
             spp,
             target_error: adaptive,
             report,
@@ -423,6 +471,7 @@ fn candidates(desc: &SceneDesc, analysis: &Analysis, seen: bool) -> (Vec<Candida
         model,
         k,
         caveat: None,
+        photons: None,
     };
     let translucent = desc.translucent_materials();
     if !translucent.is_empty() {
@@ -503,10 +552,21 @@ fn candidates(desc: &SceneDesc, analysis: &Analysis, seen: bool) -> (Vec<Candida
         },
         c("vcm", "vcm", None, Model::Unbiased, 4),
         c("sppm", "sppm", None, Model::Progressive, 1),
-        c("photon", "photon", None, Model::Biased, 4),
+    ];
+    // The photon map with a few photons, then (where those cannot reach the goal) with the
+    // default count, unless the scene sets its own.
+    if desc.integrator.photon.photons.is_some() {
+        list.push(c("photon", "photon", None, Model::Biased, 4));
+    } else {
+        list.extend([FEW_PHOTONS, DEFAULT_PHOTONS].map(|n| Candidate {
+            photons: Some(n),
+            ..c(&photon_label(n), "photon", None, Model::Biased, 4)
+        }));
+    }
+    list.extend([
         c("pssmlt", "pssmlt", None, Model::Unbiased, 4),
         c("mlt", "mlt", None, Model::Unbiased, 4),
-    ];
+    ]);
     if photon_map_first(desc) {
         let at = |label: &str| list.iter().position(|c| c.label == label);
         if let (Some(sppm), Some(photon)) = (at("sppm"), at("photon")) {
@@ -694,6 +754,9 @@ fn run(
     if let Some(s) = c.subsurface {
         desc.integrator.subsurface = s;
     }
+    if c.photons.is_some() {
+        desc.integrator.photon.photons = c.photons;
+    }
     let noop = |_: Progress| {};
     let job = Job {
         cache_film: Some(film),
@@ -851,6 +914,7 @@ mod tests {
             model,
             k: 1,
             caveat: None,
+            photons: None,
         }
     }
 
@@ -917,7 +981,9 @@ mod tests {
 
     /// The photon map's pilot renders its small film from the render's irradiance cache:
     /// built from the render's film under the render's key, so that the render takes every
-    /// pass of the pilot's as its own, and the records are those the render would make.
+    /// pass of the pilot's as its own, and the records are those the render would make. With
+    /// the few photons the pilot measures first, the render the choice plans has the same
+    /// keys.
     #[test]
     fn a_photon_map_pilot_builds_the_render_s_irradiance_cache() {
         let mut desc = scene("cornell-box");
@@ -929,7 +995,10 @@ mod tests {
             "the pilot's film is the render's"
         );
         let mut built = built(&desc);
-        let c = one_sample("photon", Model::Biased);
+        let c = Candidate {
+            photons: Some(FEW_PHOTONS),
+            ..one_sample("photon", Model::Biased)
+        };
         let Ok(Pilot::Ran(r)) = run(
             &c,
             &pilot,
@@ -942,7 +1011,15 @@ mod tests {
             panic!("the photon map's pilot did not run");
         };
         let mut render = desc.clone();
-        render.integrator.method = "photon".into();
+        Choice {
+            method: "photon".into(),
+            subsurface: None,
+            photons: c.photons,
+            spp: 1,
+            target_error: None,
+            report: Vec::new(),
+        }
+        .apply(&mut render);
         let job = Job::new(render.clone(), 1);
         let p = plan(&job).expect("the render plans");
         built.set_settings(&render);
@@ -1026,7 +1103,65 @@ mod tests {
         let labels: Vec<&str> = order.iter().map(|&i| list[i].label.as_str()).collect();
         assert_eq!(
             labels,
-            ["path", "photon", "sppm", "bdpt", "vcm", "pssmlt", "mlt"]
+            [
+                "path",
+                "photon",
+                "photon:200000",
+                "sppm",
+                "bdpt",
+                "vcm",
+                "pssmlt",
+                "mlt"
+            ]
+        );
+    }
+
+    /// The photon map with the default count is measured only where the few photons' map
+    /// cannot reach the goal (or the goal is a time's lowest error); a scene that sets its
+    /// count has one photon-map candidate, with that count.
+    #[test]
+    fn more_photons_are_measured_only_where_few_cannot_reach_the_goal() {
+        let desc = scene("cornell-box");
+        let (list, _) = candidates(&desc, &analyze(&desc), false);
+        let photon: Vec<_> = list.iter().filter(|c| c.method == "photon").collect();
+        assert_eq!(photon.len(), 2);
+        let (few, more) = (photon[0], photon[1]);
+        assert_eq!(
+            (few.photons, more.photons),
+            (Some(FEW_PHOTONS), Some(DEFAULT_PHOTONS))
+        );
+        let measured = |predicted_s: Option<f64>| Measurement {
+            label: few.label.clone(),
+            pilot_s: 0.1,
+            setup_s: 0.1,
+            sample_s: 0.1,
+            rel_var: 0.01,
+            floor: Some(0.0),
+            spp: predicted_s.map(|_| 2),
+            predicted_s,
+            predicted_error: None,
+            note: None,
+            caveat: None,
+        };
+        let e = Goal::Error(0.01);
+        assert!(!more_photons_needed(more, &[measured(Some(0.5))], e));
+        assert!(more_photons_needed(more, &[measured(None)], e));
+        assert!(more_photons_needed(more, &[], e));
+        assert!(more_photons_needed(
+            more,
+            &[measured(Some(0.5))],
+            Goal::Seconds(1.0)
+        ));
+        assert!(more_photons_needed(few, &[measured(Some(0.5))], e));
+
+        let mut own = desc.clone();
+        own.integrator.photon.photons = Some(50_000);
+        let (list, _) = candidates(&own, &analyze(&own), false);
+        let photon: Vec<_> = list.iter().filter(|c| c.method == "photon").collect();
+        assert_eq!(photon.len(), 1);
+        assert_eq!(
+            (photon[0].label.as_str(), photon[0].photons),
+            ("photon", None)
         );
     }
 

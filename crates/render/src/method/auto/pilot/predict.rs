@@ -391,6 +391,7 @@ mod tests {
             model,
             k,
             caveat: None,
+            photons: None,
         }
     }
 
