@@ -54,7 +54,7 @@ pub struct KdTree<T = Photon> {
     axes: Vec<u8>,
     /// The points' positions apart from the photons, so that a search reads only those: x,
     /// y and z in arrays of their own, so that a leaf's distances are computed four points
-    /// at a time and the way down reads a split's coordinate on its axis alone.
+    /// at a time.
     xyz: [Vec<f32>; 3],
 }
 

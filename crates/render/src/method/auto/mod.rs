@@ -56,13 +56,24 @@ impl Choice {
     /// Sets in `desc` what the choice renders with besides its samples: the method, how
     /// translucent materials are rendered, the photon map's photons.
     pub fn apply(&self, desc: &mut SceneDesc) {
-        desc.integrator.method = self.method.clone();
-        if let Some(s) = self.subsurface {
-            desc.integrator.subsurface = s;
-        }
-        if self.photons.is_some() {
-            desc.integrator.photon.photons = self.photons;
-        }
+        set_method(desc, &self.method, self.subsurface, self.photons);
+    }
+}
+
+/// Sets `method` in `desc`, with the subsurface method and photon count where given (a
+/// candidate's pilot and the choice's render set the same).
+fn set_method(
+    desc: &mut SceneDesc,
+    method: &str,
+    subsurface: Option<SubsurfaceMethod>,
+    photons: Option<u32>,
+) {
+    desc.integrator.method = method.into();
+    if let Some(s) = subsurface {
+        desc.integrator.subsurface = s;
+    }
+    if photons.is_some() {
+        desc.integrator.photon.photons = photons;
     }
 }
 

@@ -749,14 +749,8 @@ fn run(
 ) -> Result<Pilot, String> {
     let start = Instant::now();
     let mut desc = pilot.clone();
-    desc.integrator.method = c.method.into();
+    super::set_method(&mut desc, c.method, c.subsurface, c.photons);
     desc.integrator.spp = c.k;
-    if let Some(s) = c.subsurface {
-        desc.integrator.subsurface = s;
-    }
-    if c.photons.is_some() {
-        desc.integrator.photon.photons = c.photons;
-    }
     let noop = |_: Progress| {};
     let job = Job {
         cache_film: Some(film),
