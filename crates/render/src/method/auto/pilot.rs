@@ -48,9 +48,12 @@
 //! The first three candidates are measured whatever the pilot spends, until the judges
 //! measured so far resolve the goal (their own relMSE under it, so a floor at the goal can
 //! be told from their noise; on the Cornell box the path tracer alone does): the unbiased
-//! ones left then go after the biased ones ([`judged`]). After those, the pilot stops
-//! measuring once it has spent a tenth of the best prediction so far (of a candidate
-//! without a caveat), or would with SPPM's photons (timed on their first chunk), a
+//! ones left then go after the biased ones ([`judged`]). Where the judges do not resolve it,
+//! the photon map (whose floor they could not tell, so it could not be chosen) waits behind
+//! the judges still to come, and is not measured if none is ([`defer`]). After the first
+//! candidates, whose cost is sunk, the pilot stops measuring once it has spent a tenth of
+//! the best prediction so far (of a candidate without a caveat) on the others, or would
+//! with SPPM's photons (timed on their first chunk), a
 //! candidate's passes (timed on their first tasks, with what follows the tasks estimated
 //! from them: the photon map's) or a Metropolis pilot's frames (timed on one group of
 //! chains); the photons and passes, which the render takes over where that candidate wins,
@@ -200,7 +203,8 @@ pub fn subsurface_name(s: SubsurfaceMethod) -> &'static str {
 
 /// Pilot pixels: about 1/16 of the film, within these bounds.
 const PILOT_PIXELS: (u64, u64) = (256, 4096);
-/// The pilot stops once it has spent this share of the best prediction.
+/// The pilot stops once it has spent this share of the best prediction on the candidates
+/// after those it measures whatever it spends ([`ALWAYS_MEASURED`]).
 const PILOT_SHARE: f64 = 0.1;
 /// The first candidates are measured whatever the pilot has spent (until their consensus
 /// resolves the goal: [`judged`]): the path tracer, BDPT and VCM need no passes, so cost
@@ -328,10 +332,16 @@ fn measure(
     let mut target = None;
     // Candidates by index into `candidates`, in the order they are measured.
     let mut order: Vec<usize> = (0..candidates.len()).collect();
+    // When the candidates measured whatever the pilot spends were done: the share is of what
+    // the pilot spends after them (their cost is sunk; what is left to decide is whether the
+    // others are worth measuring).
+    let mut judges_done: Option<f64> = None;
+    // Whether the judges measured so far cannot tell a floor at the goal from their noise.
+    let mut unresolved = false;
     let mut n = 0;
     while let Some(&i) = order.get(n) {
         let c = &candidates[i];
-        let spent = start.elapsed().as_secs_f64();
+        let elapsed = start.elapsed().as_secs_f64();
         let best = measurements
             .iter()
             .filter(|m: &&Measurement| m.caveat.is_none())
@@ -350,9 +360,25 @@ fn measure(
             continue;
         }
         let anyway = n <= always;
+        if !anyway && unresolved && c.model == Model::Biased {
+            n -= 1;
+            if !defer(&candidates, &mut order, n) {
+                n += 1;
+                ruled_out.push(format!(
+                    "{}: not measured: the judges measured cannot tell its bias under the goal, and none is left to measure (it could not be chosen)",
+                    c.label
+                ));
+            }
+            continue;
+        }
+        let spent = if anyway {
+            0.0
+        } else {
+            elapsed - *judges_done.get_or_insert(elapsed)
+        };
         if !anyway && spent > PILOT_SHARE * budget {
             ruled_out.push(format!(
-                "{}: not measured: the pilot had spent {spent:.2} s, a tenth of the best prediction ({budget:.2} s)",
+                "{}: not measured: the pilot had spent {spent:.2} s on the candidates after the first {always}, a tenth of the best prediction ({budget:.2} s)",
                 c.label
             ));
             continue;
@@ -378,10 +404,11 @@ fn measure(
             (pilot.film.width, pilot.film.height),
             film,
         );
-        if n < always && p.resolves() {
+        if n <= always && p.resolves() {
             always = n;
             judged(&candidates, &mut order[n..]);
         }
+        unresolved = p.target.is_some() && !p.resolves();
         measurements = p.measurements;
         target = p.target;
     }
@@ -606,6 +633,20 @@ fn judged(candidates: &[Candidate], rest: &mut [usize]) {
         Model::Progressive => 1,
         Model::Unbiased => 2,
     });
+}
+
+/// Moves the candidate at `order[at]` to the end of `order` where a judge is still to be
+/// measured after it, and says whether it did. For a biased candidate whose turn comes while
+/// the judges measured so far cannot tell a floor at the goal from their noise: its prediction
+/// would say just that, and it could not be chosen, unless a judge still to come resolves the
+/// goal; where none is, it is not measured.
+fn defer(candidates: &[Candidate], order: &mut Vec<usize>, at: usize) -> bool {
+    if !order[at + 1..].iter().any(|&j| candidates[j].judges()) {
+        return false;
+    }
+    let i = order.remove(at);
+    order.push(i);
+    true
 }
 
 /// For a Metropolis candidate with `left` seconds (finite) to spend: renders one group of a
@@ -1108,6 +1149,51 @@ mod tests {
                 "mlt"
             ]
         );
+    }
+
+    /// A biased candidate whose turn comes while the judges cannot resolve the goal waits
+    /// behind the judges still to come (PSSMLT, MLT), in its order; with none left after it,
+    /// it is not measured.
+    #[test]
+    fn a_biased_candidate_waits_for_judges_that_can_tell_its_floor() {
+        let desc = scene("cornell-glass");
+        let (mut list, _) = candidates(&desc, &analyze(&desc), true);
+        measured_first(&mut list, Goal::Error(0.01));
+        let mut order: Vec<usize> = (0..list.len()).collect();
+        let labels = |order: &[usize]| -> Vec<String> {
+            order.iter().map(|&i| list[i].label.clone()).collect()
+        };
+        assert_eq!(
+            labels(&order),
+            [
+                "bdpt",
+                "vcm",
+                "sppm",
+                "photon",
+                "photon:200000",
+                "pssmlt",
+                "mlt",
+                "path"
+            ]
+        );
+        assert!(defer(&list, &mut order, 3));
+        assert!(defer(&list, &mut order, 3));
+        assert_eq!(
+            labels(&order),
+            [
+                "bdpt",
+                "vcm",
+                "sppm",
+                "pssmlt",
+                "mlt",
+                "path",
+                "photon",
+                "photon:200000"
+            ]
+        );
+        assert!(!defer(&list, &mut order, 6));
+        assert!(!defer(&list, &mut order, 7));
+        assert_eq!(labels(&order)[6..], ["photon", "photon:200000"]);
     }
 
     /// The photon map with the default count is measured only where the few photons' map
