@@ -49,7 +49,8 @@
 //! measured so far resolve the goal (their own relMSE under it, so a floor at the goal can
 //! be told from their noise; on the Cornell box the path tracer alone does): the unbiased
 //! ones left then go after the biased ones ([`judged`]). Where the judges do not resolve it,
-//! the photon map (whose floor they could not tell, so it could not be chosen) waits behind
+//! a biased candidate such as the photon map (whose floor they could not tell, so it could
+//! not be chosen) waits behind
 //! the judges still to come, and is not measured if none is ([`defer`]). After the first
 //! candidates, whose cost is sunk, the pilot stops measuring once it has spent a tenth of
 //! the best prediction so far (of a candidate without a caveat) on the others, or would
@@ -361,9 +362,10 @@ fn measure(
         }
         let anyway = n <= always;
         if !anyway && unresolved && c.model == Model::Biased {
-            n -= 1;
-            if !defer(&candidates, &mut order, n) {
-                n += 1;
+            if defer(&candidates, &mut order, n - 1) {
+                // The next candidate now sits where this one was.
+                n -= 1;
+            } else {
                 ruled_out.push(format!(
                     "{}: not measured: the judges measured cannot tell its bias under the goal, and none is left to measure (it could not be chosen)",
                     c.label
