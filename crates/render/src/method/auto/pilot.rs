@@ -11,7 +11,7 @@
 //!    caustics seen in it are specular–diffuse–specular paths, which none of its connections
 //!    join (it stays a judge: its mean is unbiased). Whether that surface shows a caustic is
 //!    not checked; where it does not, VCM, which has BDPT's strategies, stays a candidate.
-//! 2. **Pilots**: each remaining candidate renders the scene at about 1/16 of its pixels (at
+//! 2. **Pilots**: each remaining candidate renders the scene at about 1/32 of its pixels (at
 //!    least 256, at most 4096; a Mitchell filter as a box, whose weights cannot cancel) with
 //!    `k` samples, then `k` more, as two independent halves A and B (where the method cannot
 //!    continue a frame, a second render with the next seed). The relMSE of one half is
@@ -202,7 +202,16 @@ pub fn subsurface_name(s: SubsurfaceMethod) -> &'static str {
     }
 }
 
-/// Pilot pixels: about 1/16 of the film, within these bounds.
+/// The pilot's share of the film's pixels, within [`PILOT_PIXELS`]. The first candidates
+/// are measured whatever the pilot spends, at a few samples a pixel: on a film whose best
+/// method reaches the goal in a few whole-film iterations, their cost is the pilot's
+/// overhead, and it grows with this share. A smaller share leaves fewer pixels to estimate
+/// from and larger ones to alias (which a low-noise method's variance shows most: see the
+/// README's "What remains, measured"); at 1/64 the glass box's consensus could no longer tell
+/// the photon map's floor.
+const PILOT_FRACTION: f64 = 32.0;
+/// Pilot pixels: the film's over [`PILOT_FRACTION`], within these bounds (the upper one sets
+/// the pilot of every film above 131 072 pixels).
 const PILOT_PIXELS: (u64, u64) = (256, 4096);
 /// The pilot stops once it has spent this share of the best prediction on the candidates
 /// after those it measures whatever it spends ([`ALWAYS_MEASURED`]).
@@ -700,14 +709,14 @@ fn photon_map_first(desc: &SceneDesc) -> bool {
     film > u64::from(sppm::photons_per_iteration(desc))
 }
 
-/// The scene at about 1/16 of its pixels (within [`PILOT_PIXELS`]), same view. A filter with
+/// The scene at about 1/[`PILOT_FRACTION`] of its pixels (within [`PILOT_PIXELS`]), same view. A filter with
 /// negative lobes (Mitchell) becomes a box: with a pilot's few samples a pixel's Σ w can come
 /// near 0 and its ratio Σ w·L / Σ w blow up, which says nothing of how the render's error
 /// falls at the samples it will take.
 fn pilot_desc(desc: &SceneDesc) -> SceneDesc {
     let (w, h) = (desc.film.width as f64, desc.film.height as f64);
     let film = w * h;
-    let want = (film / 16.0).clamp(PILOT_PIXELS.0 as f64, PILOT_PIXELS.1 as f64);
+    let want = (film / PILOT_FRACTION).clamp(PILOT_PIXELS.0 as f64, PILOT_PIXELS.1 as f64);
     let s = (want / film).sqrt().min(1.0);
     let mut d = desc.clone();
     d.film.width = ((w * s).round() as u32).max(1);
