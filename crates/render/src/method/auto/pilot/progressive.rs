@@ -8,7 +8,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 use tessera_scene::SceneDesc;
 
-use super::rgb;
+use super::run::rgb;
 use crate::camera::Camera;
 use crate::integrator::sppm::{self, Sppm, SppmSettings, SppmState};
 use crate::method::Loaded;

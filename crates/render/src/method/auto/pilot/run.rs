@@ -1,0 +1,430 @@
+//! One candidate's pilot: the scene at a small film ([`pilot_desc`]), rendered as two
+//! independent halves with its passes timed apart ([`run`]), within what the pilot may still
+//! spend ([`Allowance`]); see the parent module, step 2.
+
+use std::time::Instant;
+
+use tessera_scene::{FilmDesc, FilterDesc, SceneDesc};
+
+use super::predict::rel;
+use super::progressive::{sppm_photons, sppm_second_half};
+use super::{Candidate, Model};
+use crate::analysis::analyze;
+use crate::camera::Camera;
+use crate::film::Image;
+use crate::integrator::metropolis::{GROUPS, Metropolis};
+use crate::integrator::sppm::SppmSettings;
+use crate::method::local::{Built, Local, Progress};
+use crate::method::{Job, Loaded, plan};
+use crate::scene::Scene;
+
+/// The pilot's share of the film's pixels, within [`PILOT_PIXELS`]. The first candidates
+/// are measured whatever the pilot spends, at a few samples a pixel: on a film whose best
+/// method reaches the goal in a few whole-film iterations, their cost is the pilot's
+/// overhead, and it grows with this share. A smaller share leaves fewer pixels to estimate
+/// from and larger ones to alias (which a low-noise method's variance shows most: see the
+/// README's "What remains, measured"); at 1/64 the glass box's consensus could no longer tell
+/// the photon map's floor.
+const PILOT_FRACTION: f64 = 32.0;
+/// Pilot pixels: the film's over [`PILOT_FRACTION`], within these bounds (the upper one sets
+/// the pilot of every film above 131 072 pixels).
+const PILOT_PIXELS: (u64, u64) = (256, 4096);
+/// What a candidate's pilot may spend once the first candidates are measured: `left` seconds
+/// of the pilot's share, and `reusable`, the most seconds of work the render takes over from
+/// it (passes, SPPM's photons) that `left` allows.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Allowance {
+    pub(super) left: f64,
+    pub(super) reusable: f64,
+}
+
+impl Allowance {
+    pub(super) const UNLIMITED: Allowance = Allowance {
+        left: f64::INFINITY,
+        reusable: f64::INFINITY,
+    };
+
+    /// `left` seconds, `budget` being the best prediction so far. Reusable work is lost only
+    /// where its candidate loses. Before it is measured, all that is known of a candidate
+    /// whose reusable work takes w seconds is that it takes at least w; its time is taken as
+    /// equally likely anywhere in [w, w + budget], so it loses with probability w / budget and
+    /// the work's expected loss is w² / budget: at most `left` where w ≤ √(left × budget).
+    /// Cheap passes beside a slow best are measured; a pass near the best prediction counts
+    /// nearly in full.
+    pub(super) fn of(left: f64, budget: f64) -> Allowance {
+        let reusable = if left <= 0.0 {
+            0.0
+        } else {
+            (left * budget).sqrt()
+        };
+        Allowance { left, reusable }
+    }
+}
+
+/// For a Metropolis candidate with `left` seconds (finite) to spend: renders one group of a
+/// pilot frame's chains (its share of the bootstrap and of the mutations; see
+/// [`crate::integrator::metropolis::GROUPS`]) and returns what the pilot's two frames would
+/// take at that pace when it is more than `left`.
+fn metropolis_pilot_s(
+    c: &Candidate,
+    desc: &SceneDesc,
+    scene: &Scene,
+    frame: u32,
+    left: f64,
+) -> Result<Option<f64>, String> {
+    let Some(m) = Metropolis::new(c.method, desc).filter(|_| left.is_finite()) else {
+        return Ok(None);
+    };
+    let camera = Camera::new(&desc.camera_at(frame), &desc.film);
+    let probe = Instant::now();
+    m.chains(scene, &camera, c.k, 0, &|_| {})?;
+    let all = probe.elapsed().as_secs_f64() * 2.0 * GROUPS as f64;
+    Ok((all > left).then_some(all))
+}
+
+/// The scene at about 1/[`PILOT_FRACTION`] of its pixels (within [`PILOT_PIXELS`]), same view. A filter with
+/// negative lobes (Mitchell) becomes a box: with a pilot's few samples a pixel's Σ w can come
+/// near 0 and its ratio Σ w·L / Σ w blow up, which says nothing of how the render's error
+/// falls at the samples it will take.
+pub(super) fn pilot_desc(desc: &SceneDesc) -> SceneDesc {
+    let (w, h) = (desc.film.width as f64, desc.film.height as f64);
+    let film = w * h;
+    let want = (film / PILOT_FRACTION).clamp(PILOT_PIXELS.0 as f64, PILOT_PIXELS.1 as f64);
+    let s = (want / film).sqrt().min(1.0);
+    let mut d = desc.clone();
+    d.film.width = ((w * s).round() as u32).max(1);
+    d.film.height = ((h * s).round() as u32).max(1);
+    if let FilterDesc::Mitchell { .. } = d.film.filter {
+        d.film.filter = FilterDesc::Box { radius: 0.5 };
+    }
+    d
+}
+
+/// A candidate's pilot images: two independent halves and their mean.
+pub(super) struct Halves {
+    /// k samples, and k more (independent of the first).
+    pub(super) a: Vec<[f64; 3]>,
+    pub(super) b: Vec<[f64; 3]>,
+    /// All 2k samples.
+    pub(super) both: Vec<[f64; 3]>,
+}
+
+impl Halves {
+    /// relMSE of one half (its variance), divided by `d` (see [`predict::divisor`]).
+    pub(super) fn half_rel_mse(&self, d: &[[f64; 3]]) -> f64 {
+        rel(d, |p, c| {
+            let x = self.a[p][c] - self.b[p][c];
+            0.5 * x * x
+        })
+    }
+
+    /// relMSE of the mean of both halves against `r`, divided by `d`.
+    pub(super) fn rel_mse(&self, r: &[[f64; 3]], d: &[[f64; 3]]) -> f64 {
+        rel(d, |p, c| {
+            let x = self.both[p][c] - r[p][c];
+            x * x
+        })
+    }
+}
+
+/// A candidate's pilot.
+pub(super) struct Run {
+    pub(super) images: Halves,
+    /// The passes of the first half (the job's seed).
+    pub(super) artifacts: Vec<(String, Loaded)>,
+    /// Wall seconds the render pays once: the passes, and a frame's work that grows with
+    /// neither pixels nor samples ([`crate::method::Finished::fixed_s`]).
+    pub(super) setup_s: f64,
+    /// Wall seconds of the 2k samples (less their frames' fixed work), and of the part of them that grows with the pixels
+    /// (see [`crate::method::Finished::pixels_s`]).
+    pub(super) frame_s: f64,
+    pub(super) pixels_s: Option<f64>,
+    pub(super) pilot_s: f64,
+}
+
+/// What a candidate's pilot came to.
+pub(super) enum Pilot {
+    Ran(Run),
+    /// Not measured: what it would cost, and why that is too much.
+    TooDear(String),
+}
+
+/// The pixel-wise mean of two images.
+fn mean(a: &[[f64; 3]], b: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| [0, 1, 2].map(|i| 0.5 * (x[i] + y[i])))
+        .collect()
+}
+
+pub(super) fn rgb(image: &Image) -> Vec<[f64; 3]> {
+    image.pixels.iter().map(|p| p.rgb.map(f64::from)).collect()
+}
+
+/// Renders candidate `c`'s pilot of `pilot` (the scene at a smaller film than the render's
+/// `film`).
+pub(super) fn run(
+    c: &Candidate,
+    pilot: &SceneDesc,
+    film: FilmDesc,
+    scene: &mut Scene,
+    frame: u32,
+    threads: usize,
+    Allowance { left, reusable }: Allowance,
+) -> Result<Pilot, String> {
+    let start = Instant::now();
+    let mut desc = pilot.clone();
+    super::super::set_method(&mut desc, c.method, c.subsurface, c.photons);
+    desc.integrator.spp = c.k;
+    let noop = |_: Progress| {};
+    let job = Job {
+        cache_film: Some(film),
+        ..Job::new(desc.clone(), frame)
+    };
+    let p = plan(&job)?;
+    scene.set_settings(&desc);
+    let local = Local::new(p.as_ref(), scene, &desc, threads, &noop);
+    // The passes (a photon map, its irradiance cache) are the render's where it wins, and
+    // built here whatever the film: timed on their first tasks (and their finish estimated
+    // from those tasks' results), they stop there when dearer than what is left.
+    if let Built::TooDear(all) = local.passes_within(reusable)? {
+        return Ok(Pilot::TooDear(format!(
+            "its passes would take at least {all:.2} s at their first tasks' pace, with their finish, more than {:.2} s ({:.2} s left, the render reusing them where it wins)",
+            reusable.max(0.0),
+            left.max(0.0)
+        )));
+    }
+    let setup_s = start.elapsed().as_secs_f64();
+    // A Metropolis frame's bootstrap costs the same whatever the film: timed on one of its
+    // groups, it stops here when its two frames would cost more than is left.
+    if let Some(all) = metropolis_pilot_s(c, &desc, scene, frame, left)? {
+        return Ok(Pilot::TooDear(format!(
+            "its two frames would take {all:.2} s at its first group's pace, more than the {:.2} s left",
+            left.max(0.0)
+        )));
+    }
+    let rendering = Instant::now();
+    // SPPM's photons do not depend on the film: the pilot's are the render's first 2k
+    // iterations', shot here and handed on with the passes, unless they cost more than is left.
+    let sppm =
+        (c.model == Model::Progressive).then(|| SppmSettings::resolve(&desc, &analyze(&desc)));
+    let photons = match &sppm {
+        Some((photon, settings)) => {
+            match sppm_photons(scene, photon, *settings, frame, 2 * c.k, reusable) {
+                Ok(photons) => photons,
+                Err(all) => {
+                    return Ok(Pilot::TooDear(format!(
+                        "its photons would take {all:.2} s at its first chunk's pace, more than {:.2} s ({:.2} s left, the render reusing them where it wins)",
+                        reusable.max(0.0),
+                        left.max(0.0)
+                    )));
+                }
+            }
+        }
+        None => Vec::new(),
+    };
+    let local = local.with_artifacts(photons.iter().cloned());
+    let (mut state, first) = local.frame_with_state(frame)?;
+    let a = rgb(&first.image);
+    let mut pixels_s = first.pixels_s;
+    // Work that grows with neither pixels nor samples: its seconds over the frames rendered,
+    // and how many frames.
+    let mut fixed = (first.fixed_s, 1.0);
+    let continued = match c.model {
+        // SPPM's later iterations gather in smaller radii: not a second sample of its first.
+        Model::Progressive => None,
+        _ => local.more(frame, state.as_mut(), 2 * c.k),
+    };
+    let mut frame_s = rendering.elapsed().as_secs_f64();
+    let artifacts = local.artifacts();
+    drop(local);
+    let (b, both) = match continued {
+        Some(done) => {
+            let done = done?;
+            // The continued frame's are the whole frame's.
+            pixels_s = done.pixels_s;
+            fixed = (done.fixed_s, 1.0);
+            let both = rgb(&done.image);
+            // The second half: the 2k mean less the first half's share.
+            let b = both
+                .iter()
+                .zip(&a)
+                .map(|(m, x)| [0, 1, 2].map(|i| 2.0 * m[i] - x[i]))
+                .collect();
+            (b, both)
+        }
+        None => {
+            let b = if let Some((photon, settings)) = &sppm {
+                let second = Instant::now();
+                let (b, b_pixels_s) =
+                    sppm_second_half(&desc, scene, photon, *settings, frame, c.k, &photons)?;
+                frame_s += second.elapsed().as_secs_f64();
+                pixels_s = pixels_s.map(|a| a + b_pixels_s);
+                b
+            } else {
+                let mut other = desc.clone();
+                other.integrator.seed = other.integrator.seed.wrapping_add(1);
+                let job = Job::new(other.clone(), frame);
+                let p = plan(&job)?;
+                scene.set_settings(&other);
+                let local = Local::new(p.as_ref(), scene, &other, threads, &noop);
+                local.passes()?;
+                let second = Instant::now();
+                let other = local.frame(frame)?;
+                frame_s += second.elapsed().as_secs_f64();
+                pixels_s = pixels_s.zip(other.pixels_s).map(|(a, b)| a + b);
+                fixed = (fixed.0 + other.fixed_s, 2.0);
+                rgb(&other.image)
+            };
+            let both = mean(&a, &b);
+            (b, both)
+        }
+    };
+    Ok(Pilot::Ran(Run {
+        images: Halves { a, b, both },
+        artifacts,
+        // A frame's fixed work is paid once by the render, as its passes are.
+        setup_s: setup_s + fixed.0 / fixed.1,
+        frame_s: frame_s - fixed.0,
+        pixels_s,
+        pilot_s: start.elapsed().as_secs_f64(),
+    }))
+}
+#[cfg(test)]
+mod tests {
+    use super::super::tests::{built, one_sample, scene};
+    use super::super::{Choice, FEW_PHOTONS};
+    use super::*;
+
+    /// No time left, nor reusable work.
+    const NOTHING_LEFT: Allowance = Allowance {
+        left: 0.0,
+        reusable: 0.0,
+    };
+
+    /// A Metropolis frame's bootstrap (100 000 brightness samples and as many bootstrap
+    /// paths, whatever the film) is paid once by the render: the pilot counts it with the
+    /// passes, not with the samples it scales to the full film. On a 16×16 film with one
+    /// mutation per pixel a half, it is most of the pilot. Timed on one group of chains
+    /// first, the pilot stops there when its frames cost more than is left.
+    #[test]
+    fn a_metropolis_pilot_counts_its_bootstrap_once_and_apart_from_its_samples() {
+        let mut desc = scene("cornell-box");
+        desc.film.width = 16;
+        desc.film.height = 16;
+        let mut built = built(&desc);
+        for method in ["pssmlt", "mlt"] {
+            let c = one_sample(method, Model::Unbiased);
+            let Ok(Pilot::Ran(r)) =
+                run(&c, &desc, desc.film, &mut built, 1, 2, Allowance::UNLIMITED)
+            else {
+                panic!("{method}'s pilot did not run");
+            };
+            assert!(
+                r.setup_s > r.frame_s && r.frame_s > 0.0,
+                "{method}: setup {} s, samples {} s",
+                r.setup_s,
+                r.frame_s
+            );
+            // With no time left it stops after one group of chains.
+            match run(&c, &desc, desc.film, &mut built, 1, 2, NOTHING_LEFT) {
+                Ok(Pilot::TooDear(why)) => assert!(why.contains("its two frames"), "{why}"),
+                Ok(Pilot::Ran(_)) => panic!("{method}'s pilot ran with no time left"),
+                Err(e) => panic!("{e}"),
+            }
+        }
+    }
+
+    /// The photon map's pilot times its passes' first tasks and stops there when they would
+    /// cost more than is left, as SPPM's photons do; with time enough it builds them and
+    /// hands them on.
+    #[test]
+    fn a_photon_map_pilot_stops_at_its_first_tasks_when_its_passes_cost_more_than_is_left() {
+        let mut desc = scene("cornell-box");
+        desc.film.width = 32;
+        desc.film.height = 32;
+        let mut built = built(&desc);
+        let c = one_sample("photon", Model::Biased);
+        match run(&c, &desc, desc.film, &mut built, 1, 2, NOTHING_LEFT) {
+            Ok(Pilot::TooDear(why)) => assert!(why.contains("its passes would take"), "{why}"),
+            Ok(Pilot::Ran(_)) => panic!("the photon map's pilot ran with no time left"),
+            Err(e) => panic!("{e}"),
+        }
+        match run(&c, &desc, desc.film, &mut built, 1, 2, Allowance::UNLIMITED) {
+            Ok(Pilot::Ran(r)) => assert!(!r.artifacts.is_empty(), "no photon map handed on"),
+            Ok(Pilot::TooDear(why)) => panic!("{why}"),
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    /// The photon map's pilot renders its small film from the render's irradiance cache:
+    /// built from the render's film under the render's key, so that the render takes every
+    /// pass of the pilot's as its own, and the records are those the render would make. With
+    /// the few photons the pilot measures first, the render the choice plans has the same
+    /// keys.
+    #[test]
+    fn a_photon_map_pilot_builds_the_render_s_irradiance_cache() {
+        let mut desc = scene("cornell-box");
+        desc.film.width = 96;
+        desc.film.height = 96;
+        let pilot = pilot_desc(&desc);
+        assert!(
+            pilot.film.width < desc.film.width,
+            "the pilot's film is the render's"
+        );
+        let mut built = built(&desc);
+        let c = Candidate {
+            photons: Some(FEW_PHOTONS),
+            ..one_sample("photon", Model::Biased)
+        };
+        let Ok(Pilot::Ran(r)) = run(
+            &c,
+            &pilot,
+            desc.film,
+            &mut built,
+            1,
+            2,
+            Allowance::UNLIMITED,
+        ) else {
+            panic!("the photon map's pilot did not run");
+        };
+        let mut render = desc.clone();
+        Choice {
+            method: "photon".into(),
+            subsurface: None,
+            photons: c.photons,
+            spp: 1,
+            target_error: None,
+            report: Vec::new(),
+        }
+        .apply(&mut render);
+        let job = Job::new(render.clone(), 1);
+        let p = plan(&job).expect("the render plans");
+        built.set_settings(&render);
+        let local = Local::new(p.as_ref(), &built, &render, 2, &|_| {});
+        local.passes().expect("the render's passes");
+        let own = local.artifacts();
+        let passes = p.passes();
+        assert_eq!(passes.len(), 2, "photon maps and an irradiance cache");
+        for pass in passes {
+            let find = |a: &[(String, Loaded)]| {
+                a.iter()
+                    .find(|(k, _)| k == pass.key())
+                    .map(|(_, l)| l.clone())
+                    .unwrap_or_else(|| panic!("{} not among the artifacts", pass.name()))
+            };
+            let (pilot, render) = (find(&r.artifacts), find(&own));
+            if let (Some(a), Some(b)) = (
+                pilot.downcast_ref::<crate::irradiance::IrradianceCache>(),
+                render.downcast_ref::<crate::irradiance::IrradianceCache>(),
+            ) {
+                assert!(!b.is_empty(), "the render's cache has records");
+                assert_eq!(
+                    a.records(),
+                    b.records(),
+                    "the pilot's records are the render's"
+                );
+            }
+        }
+    }
+}
