@@ -1,6 +1,6 @@
 //! Which candidates a scene leaves, and the order the pilot measures them in: the scene's
 //! features first ([`candidates`]), then what the measurements so far say ([`measured_first`],
-//! [`judged`], [`defer`], [`more_photons_needed`]); see the parent module, steps 1 and the
+//! [`judged`], [`defer`], [`more_photons_needed`]); see the parent module, step 1 and its
 //! closing paragraph.
 
 use glam::Vec2;

@@ -22,9 +22,9 @@ use crate::scene::Scene;
 /// are measured whatever the pilot spends, at a few samples a pixel: on a film whose best
 /// method reaches the goal in a few whole-film iterations, their cost is the pilot's
 /// overhead, and it grows with this share. A smaller share leaves fewer pixels to estimate
-/// from and larger ones to alias (which a low-noise method's variance shows most: see the
-/// README's "What remains, measured"); at 1/64 the glass box's consensus could no longer tell
-/// the photon map's floor.
+/// from, and larger ones, which alias more: a low-noise method's variance shows that most,
+/// and the consensus tells a floor less well (the README's benchmark section measures the
+/// trade-off).
 const PILOT_FRACTION: f64 = 32.0;
 /// Pilot pixels: the film's over [`PILOT_FRACTION`], within these bounds (the upper one sets
 /// the pilot of every film above 131 072 pixels).
