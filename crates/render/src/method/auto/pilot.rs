@@ -45,29 +45,27 @@
 //!    iteration). The goal is a relMSE (`target_error`), the error path tracing reaches
 //!    at the job's spp (the same image quality, sooner), or the lowest error within a time.
 //!
-//! The first three candidates are measured whatever the pilot spends, until the judges
-//! measured so far resolve the goal (their own relMSE under it, so a floor at the goal can
-//! be told from their noise; on the Cornell box the path tracer alone does): the unbiased
-//! ones left then go after the biased ones ([`judged`]). Where the judges do not resolve it,
-//! a biased candidate such as the photon map (whose floor they could not tell, so it could
-//! not be chosen) waits behind
-//! the judges still to come, and is not measured if none is ([`defer`]). After the first
-//! candidates, whose cost is sunk, the pilot stops measuring once it has spent a tenth of
-//! the best prediction so far (of a candidate without a caveat) on the others, or would
-//! with SPPM's photons (timed on their first chunk), a
-//! candidate's passes (timed on their first tasks, with what follows the tasks estimated
-//! from them: the photon map's) or a Metropolis pilot's frames (timed on one group of
-//! chains); the photons and passes, which the render takes over where that candidate wins,
-//! count at the odds of that candidate losing ([`Allowance::of`]). Candidates not measured
-//! are said to be. A Metropolis frame's bootstrap, which grows with neither pixels nor
-//! samples, counts with the passes as paid once. Candidates run in the order path, BDPT,
-//! VCM (unbiased: the consensus needs them), SPPM (two iterations' photons), photon map (a
-//! whole photon map: where the scene sets no photon count, first of [`FEW_PHOTONS`], then of
-//! the default count only where the few cannot reach the goal, the render taking the count
-//! of the one chosen), PSSMLT, MLT — the photon map before SPPM where the film has more
-//! pixels than an SPPM iteration has photons, and a path tracer with a caveat last unless
-//! the goal is its own error at the job's spp; the photons and the photon map are reused by
-//! the render where that method wins.
+//! The first three candidates are measured whatever the pilot spends, until the judges measured
+//! so far resolve the goal (their own relMSE under it, so a floor at the goal can be told from
+//! their noise; on the Cornell box the path tracer alone does): the unbiased ones left then go
+//! after the biased ones ([`judged`]). Where the judges do not resolve it, a biased candidate
+//! such as the photon map (whose floor they could not tell, so it could not be chosen) waits
+//! behind the judges still to come, and is not measured if none is ([`defer`]). After the first
+//! candidates, whose cost is sunk, the pilot stops measuring once it has spent a tenth of the
+//! best prediction so far (of a candidate without a caveat) on the others, or would with SPPM's
+//! photons (timed on their first chunk), a candidate's passes (timed on their first tasks, with
+//! what follows the tasks estimated from them: the photon map's) or a Metropolis pilot's frames
+//! (timed on one group of chains); the photons and passes, which the render takes over where
+//! that candidate wins, count at the odds of that candidate losing ([`Allowance::of`]).
+//! Candidates not measured are said to be. A Metropolis frame's bootstrap, which grows with
+//! neither pixels nor samples, counts with the passes as paid once. Candidates run in the order
+//! path, BDPT, VCM (unbiased: the consensus needs them), SPPM (two iterations' photons), photon
+//! map (a whole photon map: where the scene sets no photon count, first of [`FEW_PHOTONS`],
+//! then of the default count only where the few cannot reach the goal, the render taking the
+//! count of the one chosen), PSSMLT, MLT — the photon map before SPPM where the film has more
+//! pixels than an SPPM iteration has photons, and a path tracer with a caveat last unless the
+//! goal is its own error at the job's spp; the photons and the photon map are reused by the
+//! render where that method wins.
 
 use std::time::Instant;
 

@@ -296,6 +296,15 @@ mod tests {
     use super::super::{Choice, FEW_PHOTONS};
     use super::*;
 
+    /// Why a pilot given no time was not run; it must not have run.
+    fn refused(pilot: Result<Pilot, String>) -> String {
+        match pilot {
+            Ok(Pilot::TooDear(why)) => why,
+            Ok(Pilot::Ran(_)) => panic!("the pilot ran with no time left"),
+            Err(e) => panic!("{e}"),
+        }
+    }
+
     /// No time left, nor reusable work.
     const NOTHING_LEFT: Allowance = Allowance {
         left: 0.0,
@@ -327,11 +336,8 @@ mod tests {
                 r.frame_s
             );
             // With no time left it stops after one group of chains.
-            match run(&c, &desc, desc.film, &mut built, 1, 2, NOTHING_LEFT) {
-                Ok(Pilot::TooDear(why)) => assert!(why.contains("its two frames"), "{why}"),
-                Ok(Pilot::Ran(_)) => panic!("{method}'s pilot ran with no time left"),
-                Err(e) => panic!("{e}"),
-            }
+            let why = refused(run(&c, &desc, desc.film, &mut built, 1, 2, NOTHING_LEFT));
+            assert!(why.contains("its two frames"), "{why}");
         }
     }
 
@@ -345,11 +351,8 @@ mod tests {
         desc.film.height = 32;
         let mut built = built(&desc);
         let c = one_sample("photon", Model::Biased);
-        match run(&c, &desc, desc.film, &mut built, 1, 2, NOTHING_LEFT) {
-            Ok(Pilot::TooDear(why)) => assert!(why.contains("its passes would take"), "{why}"),
-            Ok(Pilot::Ran(_)) => panic!("the photon map's pilot ran with no time left"),
-            Err(e) => panic!("{e}"),
-        }
+        let why = refused(run(&c, &desc, desc.film, &mut built, 1, 2, NOTHING_LEFT));
+        assert!(why.contains("its passes would take"), "{why}");
         match run(&c, &desc, desc.film, &mut built, 1, 2, Allowance::UNLIMITED) {
             Ok(Pilot::Ran(r)) => assert!(!r.artifacts.is_empty(), "no photon map handed on"),
             Ok(Pilot::TooDear(why)) => panic!("{why}"),
