@@ -29,8 +29,10 @@ for report in sorted(root.glob("*/report.json")):
     auto = times.get("auto")
     chosen = r["auto"][0]["chosen"] if r.get("auto") else "–"
     pilot = r["auto"][0]["pilot_s"] if r.get("auto") else None
+    # Reports before the pilot said what the render took over from it have no handed_s.
+    handed = r["auto"][0].get("handed_s") if r.get("auto") else None
     ratio = auto / fixed[best] if auto and best else None
-    rows.append((scene, r["width"], r["height"], times, best, chosen, pilot, ratio, r))
+    rows.append((scene, r["width"], r["height"], times, best, chosen, (pilot, handed), ratio, r))
 
 methods = []
 for row in rows:
@@ -38,7 +40,7 @@ for row in rows:
         if k != "auto" and k not in methods:
             methods.append(k)
 print(f"Wall seconds to relMSE {LEVEL:g} (– not reached within the budgets):\n")
-print("| scene | " + " | ".join(methods) + " | auto (choice, pilot s) | auto / best |")
+print("| scene | " + " | ".join(methods) + " | auto (choice, pilot s, of it handed on) | auto / best |")
 print("|---|" + "---:|" * len(methods) + "---|---:|")
 for scene, w, h, times, best, chosen, pilot, ratio, _ in rows:
     cells = []
@@ -47,7 +49,9 @@ for scene, w, h, times, best, chosen, pilot, ratio, _ in rows:
         cell = "" if m not in times else ("–" if t is None else f"{t:.2f}")
         cells.append(f"**{cell}**" if m == best else cell)
     a = times.get("auto")
-    auto_cell = ("–" if a is None else f"{a:.2f}") + f" ({chosen}, {pilot:.2f})" if pilot is not None else "–"
+    pilot, handed = pilot
+    given = f", {handed:.2f}" if handed is not None else ""
+    auto_cell = ("–" if a is None else f"{a:.2f}") + f" ({chosen}, {pilot:.2f}{given})" if pilot is not None else "–"
     print(f"| {scene} {w}×{h} | " + " | ".join(cells) + f" | {auto_cell} | " + (f"{ratio:.2f}" if ratio else "–") + " |")
 
 print("\nEstimated (from the render's own variance) against measured relMSE, at the first checkpoint at or below 3e-2 that has an estimate (one sample has none):\n")

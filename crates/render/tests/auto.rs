@@ -116,6 +116,7 @@ fn a_scene_direct_lighting_renders_exactly_is_not_measured() {
     assert_eq!(s.choice.method, "direct", "{}", report(&s));
     assert!(s.measurements.is_empty());
     assert_eq!(s.pilot_s, 0.0);
+    assert_eq!(s.handed_s, 0.0);
 }
 
 /// Translucent materials: only the path tracer renders them, with each subsurface method as a

@@ -213,7 +213,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         let s = choose(&job, &mut scene, threads)?;
         job.choice = Some(s.choice);
         built = s.artifacts;
-        Some(s.pilot_s)
+        Some((s.pilot_s, s.handed_s))
     } else {
         None
     };
@@ -312,14 +312,18 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         stats.samples as f64 / render_s / 1e6,
         stats.rays as f64 / render_s / 1e6,
     );
-    let pilot = pilot_s.unwrap_or(0.0);
+    let pilot = pilot_s.map_or(0.0, |(p, _)| p);
     report += &format!(
         "setup {:.2} s (load {:.2} s, BVH, lights and passes {:.2} s{})\n",
         load_time.as_secs_f64() + build_time,
         load_time.as_secs_f64(),
         build_time - pilot,
         pilot_s
-            .map(|p| format!(", auto's pilot {p:.2} s"))
+            .map(|(p, handed)| if handed >= 0.005 {
+                format!(", auto's pilot {p:.2} s, {handed:.2} s of it the render's own passes or photons")
+            } else {
+                format!(", auto's pilot {p:.2} s")
+            })
             .unwrap_or_default()
     );
     if stats.nonfinite > 0 {

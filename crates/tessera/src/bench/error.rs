@@ -144,6 +144,8 @@ struct AutoChoice {
     seed: u64,
     chosen: String,
     pilot_s: f64,
+    /// Of which the render's own work (passes, photons), handed on to it.
+    handed_s: f64,
     report: Vec<String>,
 }
 
@@ -216,6 +218,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                 seed,
                 chosen,
                 pilot_s: selection.pilot_s,
+                handed_s: selection.handed_s,
                 report: c.report.clone(),
             });
             built = selection.artifacts;
@@ -595,8 +598,8 @@ fn write_report(dir: &Path, report: &Report) -> anyhow::Result<()> {
     for a in &report.auto {
         let _ = write!(
             md,
-            "\n`auto` with seed {} chose {} after a {:.2} s pilot (in its times above):\n\n",
-            a.seed, a.chosen, a.pilot_s
+            "\n`auto` with seed {} chose {} after a {:.2} s pilot ({:.2} s of it the render's own passes or photons, handed on; in its times above):\n\n",
+            a.seed, a.chosen, a.pilot_s, a.handed_s
         );
         for line in &a.report {
             let _ = writeln!(md, "- {line}");

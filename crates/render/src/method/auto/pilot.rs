@@ -52,7 +52,9 @@
 //! such as the photon map (whose floor they could not tell, so it could not be chosen) waits
 //! behind the judges still to come, and is not measured if none is ([`defer`]). After the first
 //! candidates, whose cost is sunk, the pilot stops measuring once it has spent a tenth of the
-//! best prediction so far (of a candidate without a caveat) on the others, or would with SPPM's
+//! best prediction so far (of a candidate without a caveat) on the others, or once the whole
+//! pilot has cost a fifteenth of it beyond the work that candidate's render would take over
+//! from it ([`PILOT_OVERHEAD`]: on a long render the first candidates count too), or would with SPPM's
 //! photons (timed on their first chunk), a candidate's passes (timed on their first tasks, with
 //! what follows the tasks estimated from them: the photon map's) or a Metropolis pilot's frames
 //! (timed on one group of chains); the photons and passes, which the render takes over where
@@ -154,6 +156,9 @@ pub struct Measurement {
     pub label: String,
     /// Wall seconds of the pilot (both halves and the passes).
     pub pilot_s: f64,
+    /// Wall seconds of the pilot's work the render takes over where this candidate wins (its
+    /// passes, SPPM's photons): not a cost of the pilot then.
+    pub handed_s: f64,
     /// Wall seconds the render pays once, whatever its pixels and samples: the
     /// view-independent passes (photon maps, point clouds) and a Metropolis frame's bootstrap.
     pub setup_s: f64,
@@ -183,6 +188,9 @@ pub struct Selection {
     pub measurements: Vec<Measurement>,
     /// Wall seconds of all pilots.
     pub pilot_s: f64,
+    /// Wall seconds of them that the render takes over: the chosen candidate's passes and
+    /// photons ([`Measurement::handed_s`]).
+    pub handed_s: f64,
     /// The passes the chosen method's pilot built with the job's seed, by key: a render of
     /// the chosen method takes those whose key it shares (view-independent ones such as
     /// photon maps) instead of building them again.
@@ -201,6 +209,12 @@ pub fn subsurface_name(s: SubsurfaceMethod) -> &'static str {
 /// The pilot stops once it has spent this share of the best prediction on the candidates
 /// after those it measures whatever it spends ([`order::ALWAYS_MEASURED`]).
 const PILOT_SHARE: f64 = 0.1;
+/// It also stops once the whole pilot, those first candidates included, has cost this share
+/// of the best prediction, less the work the render would take over from it (the best
+/// candidate's passes or photons, [`Measurement::handed_s`]): a long render's pilot stays
+/// under a tenth of it, with room for the prediction to err and for the last candidate
+/// measured to overshoot.
+const PILOT_OVERHEAD: f64 = 1.0 / 15.0;
 /// A biased candidate is said unable to reach an error its floor is this close to.
 const FLOOR_MARGIN: f64 = 0.8;
 
@@ -246,6 +260,7 @@ fn measure(
             },
             measurements: Vec::new(),
             pilot_s: 0.0,
+            handed_s: 0.0,
             artifacts: Vec::new(),
         });
     }
@@ -270,11 +285,11 @@ fn measure(
     while let Some(&i) = order.get(n) {
         let c = &candidates[i];
         let elapsed = start.elapsed().as_secs_f64();
-        let best = measurements
+        let (best, handed) = measurements
             .iter()
             .filter(|m: &&Measurement| m.caveat.is_none())
-            .filter_map(|m| m.predicted_s)
-            .fold(f64::INFINITY, f64::min);
+            .filter_map(|m| Some((m.predicted_s?, m.handed_s)))
+            .fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { b } else { a });
         let budget = match goal {
             Goal::Seconds(t) => t,
             _ => best,
@@ -312,16 +327,30 @@ fn measure(
             ));
             continue;
         }
-        // What is left of the share, for a candidate that can tell its cost before its pilot.
+        // The whole pilot less what the best candidate's render would take over from it.
+        let overhead = elapsed - handed;
+        if !anyway && overhead > PILOT_OVERHEAD * budget {
+            ruled_out.push(format!(
+                "{}: not measured: the pilot had cost {overhead:.2} s beyond the work the render would take over from it, a fifteenth of the best prediction ({budget:.2} s)",
+                c.label
+            ));
+            continue;
+        }
+        // What is left of both shares, for a candidate that can tell its cost before its
+        // pilot: its reusable work counts against the first only, as it did.
         let allowance = if anyway {
             Allowance::UNLIMITED
         } else {
-            Allowance::of(PILOT_SHARE * budget - spent, budget)
+            let a = Allowance::of(PILOT_SHARE * budget - spent, budget);
+            Allowance {
+                left: a.left.min(PILOT_OVERHEAD * budget - overhead),
+                ..a
+            }
         };
         match run(c, &pilot, desc.film, scene, frame, threads, allowance) {
             Ok(Pilot::Ran(r)) => runs.push((i, r)),
             Ok(Pilot::TooDear(why)) => ruled_out.push(format!(
-                "{}: not measured: {why}, past a tenth of the best prediction ({budget:.2} s)",
+                "{}: not measured: {why}, past the pilot's shares of the best prediction ({budget:.2} s)",
                 c.label
             )),
             Err(e) => ruled_out.push(format!("{}: cannot run: {e}", c.label)),
@@ -371,7 +400,7 @@ fn measure(
         spp
     };
     let mut report = vec![format!(
-        "chose {}{} at {spp} {}: predicted {:.2} s to {} (pilot {pilot_s:.2} s{})",
+        "chose {}{} at {spp} {}: predicted {:.2} s to {} (pilot {pilot_s:.2} s{}{})",
         m.label,
         c.photons
             .map(|n| format!(" with {n} photons"))
@@ -390,8 +419,19 @@ fn measure(
             (_, Some(e)) => format!("relMSE {e:.2e}"),
             _ => "the goal".into(),
         },
+        if m.handed_s >= 0.005 {
+            format!(
+                ", {:.2} s of it the render's own work, handed on",
+                m.handed_s
+            )
+        } else {
+            String::new()
+        },
         m.predicted_s
-            .map(|t| format!(", {:.0} % of that", 100.0 * pilot_s / t))
+            .map(|t| format!(
+                "; the rest {:.0} % of that",
+                100.0 * (pilot_s - m.handed_s) / t
+            ))
             .unwrap_or_default(),
     )];
     for o in &measurements {
@@ -412,6 +452,7 @@ fn measure(
             .find(|(i, _)| candidates[*i].label == m.label)
             .map(|(_, r)| r.artifacts)
             .unwrap_or_default(),
+        handed_s: m.handed_s,
         measurements,
         pilot_s,
     })

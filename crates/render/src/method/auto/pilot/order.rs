@@ -391,6 +391,7 @@ mod tests {
         let measured = |predicted_s: Option<f64>| Measurement {
             label: few.label.clone(),
             pilot_s: 0.1,
+            handed_s: 0.1,
             setup_s: 0.1,
             sample_s: 0.1,
             rel_var: 0.01,

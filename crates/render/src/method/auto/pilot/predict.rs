@@ -181,6 +181,7 @@ pub(super) fn predict(
             Measurement {
                 label: c.label.clone(),
                 pilot_s: run.pilot_s,
+                handed_s: run.handed_s,
                 setup_s: run.setup_s,
                 sample_s,
                 rel_var: half * k,
@@ -380,6 +381,7 @@ mod tests {
             frame_s: 1.0,
             pixels_s: None,
             pilot_s: 1.0,
+            handed_s: 0.0,
         }
     }
 

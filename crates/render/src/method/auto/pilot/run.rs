@@ -140,6 +140,9 @@ pub(super) struct Run {
     pub(super) frame_s: f64,
     pub(super) pixels_s: Option<f64>,
     pub(super) pilot_s: f64,
+    /// Wall seconds of the pilot's work that the render takes over where this candidate
+    /// wins: its passes and SPPM's photons.
+    pub(super) handed_s: f64,
 }
 
 /// What a candidate's pilot came to.
@@ -208,6 +211,7 @@ pub(super) fn run(
     // iterations', shot here and handed on with the passes, unless they cost more than is left.
     let sppm =
         (c.model == Model::Progressive).then(|| SppmSettings::resolve(&desc, &analyze(&desc)));
+    let shooting = Instant::now();
     let photons = match &sppm {
         Some((photon, settings)) => {
             match sppm_photons(scene, photon, *settings, frame, 2 * c.k, reusable) {
@@ -222,6 +226,11 @@ pub(super) fn run(
             }
         }
         None => Vec::new(),
+    };
+    let photons_s = if photons.is_empty() {
+        0.0
+    } else {
+        shooting.elapsed().as_secs_f64()
     };
     let local = local.with_artifacts(photons.iter().cloned());
     let (mut state, first) = local.frame_with_state(frame)?;
@@ -288,6 +297,8 @@ pub(super) fn run(
         frame_s: frame_s - fixed.0,
         pixels_s,
         pilot_s: start.elapsed().as_secs_f64(),
+        // The passes are what it spent before its frames (none, where it has none).
+        handed_s: setup_s + photons_s,
     }))
 }
 #[cfg(test)]
@@ -343,7 +354,7 @@ mod tests {
 
     /// The photon map's pilot times its passes' first tasks and stops there when they would
     /// cost more than is left, as SPPM's photons do; with time enough it builds them and
-    /// hands them on.
+    /// hands them on, and counts their time as the render's.
     #[test]
     fn a_photon_map_pilot_stops_at_its_first_tasks_when_its_passes_cost_more_than_is_left() {
         let mut desc = scene("cornell-box");
@@ -354,7 +365,16 @@ mod tests {
         let why = refused(run(&c, &desc, desc.film, &mut built, 1, 2, NOTHING_LEFT));
         assert!(why.contains("its passes would take"), "{why}");
         match run(&c, &desc, desc.film, &mut built, 1, 2, Allowance::UNLIMITED) {
-            Ok(Pilot::Ran(r)) => assert!(!r.artifacts.is_empty(), "no photon map handed on"),
+            Ok(Pilot::Ran(r)) => {
+                assert!(!r.artifacts.is_empty(), "no photon map handed on");
+                // Its passes are the render's work, timed as such and within the pilot.
+                assert!(
+                    r.handed_s > 0.0 && r.handed_s <= r.pilot_s,
+                    "handed on {} s of a {} s pilot",
+                    r.handed_s,
+                    r.pilot_s
+                );
+            }
             Ok(Pilot::TooDear(why)) => panic!("{why}"),
             Err(e) => panic!("{e}"),
         }
