@@ -319,11 +319,10 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         load_time.as_secs_f64(),
         build_time - pilot,
         pilot_s
-            .map(|(p, handed)| if handed >= 0.005 {
-                format!(", auto's pilot {p:.2} s, {handed:.2} s of it the render's own passes or photons")
-            } else {
-                format!(", auto's pilot {p:.2} s")
-            })
+            .map(|(p, handed)| format!(
+                ", auto's pilot {p:.2} s{}",
+                tessera_render::method::auto::pilot::handed_on(handed)
+            ))
             .unwrap_or_default()
     );
     if stats.nonfinite > 0 {

@@ -197,6 +197,16 @@ pub struct Selection {
     pub artifacts: Vec<(String, Loaded)>,
 }
 
+/// How much of a pilot the render took over ([`Selection::handed_s`]), as the summaries say
+/// it after the pilot's seconds: nothing where it took over none.
+pub fn handed_on(handed_s: f64) -> String {
+    if handed_s >= 0.005 {
+        format!(", {handed_s:.2} s of it the render's own passes or photons")
+    } else {
+        String::new()
+    }
+}
+
 /// `dipole`, `hierarchical`, `random-walk`.
 pub fn subsurface_name(s: SubsurfaceMethod) -> &'static str {
     match s {
@@ -419,14 +429,7 @@ fn measure(
             (_, Some(e)) => format!("relMSE {e:.2e}"),
             _ => "the goal".into(),
         },
-        if m.handed_s >= 0.005 {
-            format!(
-                ", {:.2} s of it the render's own work, handed on",
-                m.handed_s
-            )
-        } else {
-            String::new()
-        },
+        handed_on(m.handed_s),
         m.predicted_s
             .map(|t| format!(
                 "; the rest {:.0} % of that",

@@ -227,11 +227,7 @@ pub(super) fn run(
         }
         None => Vec::new(),
     };
-    let photons_s = if photons.is_empty() {
-        0.0
-    } else {
-        shooting.elapsed().as_secs_f64()
-    };
+    let photons_s = shooting.elapsed().as_secs_f64();
     let local = local.with_artifacts(photons.iter().cloned());
     let (mut state, first) = local.frame_with_state(frame)?;
     let a = rgb(&first.image);
@@ -297,7 +293,7 @@ pub(super) fn run(
         frame_s: frame_s - fixed.0,
         pixels_s,
         pilot_s: start.elapsed().as_secs_f64(),
-        // The passes are what it spent before its frames (none, where it has none).
+        // The passes are what it spent before its frames (its plan alone where it has none).
         handed_s: setup_s + photons_s,
     }))
 }
