@@ -23,50 +23,14 @@
 
 mod common;
 
-use std::path::Path;
-
-use common::render_by_method;
+use common::{BATCHES, Reference, mitsuba_reference, render_by_method};
 use statrs::distribution::{ContinuousCDF, StudentsT};
-use tessera_scene::{FilterDesc, SceneDesc, SubsurfaceMethod};
+use tessera_scene::{SceneDesc, SubsurfaceMethod};
 
 /// Independent renders per method.
 const K: usize = 8;
 /// Significance level of each pixel's test.
 const ALPHA: f64 = 0.01;
-
-/// Batches per reference (scripts/references/make.py), the degrees of freedom of its variance.
-const BATCHES: f64 = 16.0;
-
-/// A reference image: per pixel, the mean of [`BATCHES`] Mitsuba renders and its variance.
-struct Reference {
-    mean: Vec<[f64; 3]>,
-    var: Vec<[f64; 3]>,
-}
-
-/// Scene `name` at the size of its reference, box-filtered, with the reference.
-fn scene(name: &str) -> (SceneDesc, Reference) {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let file = root
-        .join("tests/data/references")
-        .join(format!("{name}.exr"));
-    let bytes = std::fs::read(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
-    let names = ["R", "G", "B", "variance.R", "variance.G", "variance.B"];
-    let (w, h, ch) = tessera_scene::image::read_exr_channels(&bytes, &names)
-        .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
-    let pixels = (w * h) as usize;
-    let at = |c: usize, i: usize| [ch[c][i] as f64, ch[c + 1][i] as f64, ch[c + 2][i] as f64];
-    let reference = Reference {
-        mean: (0..pixels).map(|i| at(0, i)).collect(),
-        var: (0..pixels).map(|i| at(3, i)).collect(),
-    };
-    let path = root.join("scenes").join(name).join("scene.json");
-    let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-    desc.film.width = w;
-    desc.film.height = h;
-    desc.film.filter = FilterDesc::Box { radius: 0.5 };
-    desc.integrator.max_depth = 64;
-    (desc, reference)
-}
 
 /// What Welch's test found for one method.
 struct Outcome {
@@ -226,7 +190,7 @@ fn welch(desc: &SceneDesc, test: Test, reference: &Reference) -> Outcome {
 
 /// Each `(method, spp)` tested on scene `name`; every failure is reported at once.
 fn check(name: &str, tests: &[Test], edit: impl Fn(&mut SceneDesc)) {
-    let (mut desc, reference) = scene(name);
+    let (mut desc, reference) = mitsuba_reference(name);
     edit(&mut desc);
     let mut report = Vec::new();
     let mut failures = Vec::new();
@@ -336,7 +300,7 @@ fn translucent_random_walk() {
 /// which a 16 mm tube is not: per block they differ by more than the noise (printed), so only
 /// their image mean is held to the reference, within 2 %.
 fn dipole_mean(method: SubsurfaceMethod) {
-    let (mut desc, reference) = scene("translucent");
+    let (mut desc, reference) = mitsuba_reference("translucent");
     desc.integrator.subsurface = method;
     let o = welch(&desc, biased("path", 64, 0.2), &reference);
     println!(
@@ -369,7 +333,7 @@ fn translucent_hierarchical() {
 /// noise is that large.)
 #[test]
 fn a_floor_a_quarter_too_bright_fails() {
-    let (mut desc, reference) = scene("veach-mis");
+    let (mut desc, reference) = mitsuba_reference("veach-mis");
     let floor = desc
         .materials
         .iter_mut()

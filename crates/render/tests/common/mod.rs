@@ -477,3 +477,43 @@ pub fn assert_bootstrap_agrees_with_bdpt(
     );
     m_se / m
 }
+
+/// Batches per independent reference (scripts/references/make.py), the degrees of freedom of
+/// its variance.
+#[allow(dead_code, reason = "used by the tests against independent references")]
+pub const BATCHES: f64 = 16.0;
+
+/// An independent reference (tests/data/references: Mitsuba 3's): per pixel, the mean of
+/// [`BATCHES`] renders and the variance of that mean.
+#[allow(dead_code, reason = "used by the tests against independent references")]
+pub struct Reference {
+    pub mean: Vec<[f64; 3]>,
+    pub var: Vec<[f64; 3]>,
+}
+
+/// Scene `name` at the size of its independent reference, box-filtered, paths ending after
+/// 64 bounces (as the reference was made), with the reference.
+#[allow(dead_code, reason = "used by the tests against independent references")]
+pub fn mitsuba_reference(name: &str) -> (tessera_scene::SceneDesc, Reference) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let file = root
+        .join("tests/data/references")
+        .join(format!("{name}.exr"));
+    let bytes = std::fs::read(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+    let names = ["R", "G", "B", "variance.R", "variance.G", "variance.B"];
+    let (w, h, ch) = tessera_scene::image::read_exr_channels(&bytes, &names)
+        .unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+    let pixels = (w * h) as usize;
+    let at = |c: usize, i: usize| [ch[c][i] as f64, ch[c + 1][i] as f64, ch[c + 2][i] as f64];
+    let reference = Reference {
+        mean: (0..pixels).map(|i| at(0, i)).collect(),
+        var: (0..pixels).map(|i| at(3, i)).collect(),
+    };
+    let path = root.join("scenes").join(name).join("scene.json");
+    let mut desc = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    desc.film.width = w;
+    desc.film.height = h;
+    desc.film.filter = tessera_scene::FilterDesc::Box { radius: 0.5 };
+    desc.integrator.max_depth = 64;
+    (desc, reference)
+}
