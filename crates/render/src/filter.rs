@@ -67,6 +67,17 @@ impl Filter {
         f
     }
 
+    /// E[f/pdf] of [`Self::sample`]'s weights: ∫∫ f = (∫ f along one axis)², and 1 for the
+    /// box, whose samples all weigh 1. Σ w·L / (n E[w]) over n samples is the pixel's filtered
+    /// value without the ratio Σ w·L / Σ w, whose denominator a filter's negative lobes can
+    /// bring near 0 when a pixel has few samples.
+    pub fn mean_weight(&self) -> f64 {
+        match self.table {
+            None => 1.0,
+            Some(_) => (self.integral as f64).powi(2),
+        }
+    }
+
     /// Half-width of the filter's support, pixels.
     pub fn radius(&self) -> f32 {
         self.radius

@@ -52,8 +52,6 @@ pub const PHOTONS_PER_CHUNK: u32 = 25_000;
 pub struct CameraPass {
     /// Emitted and direct light, times the filter weight.
     pub ld: Vec<Spectrum>,
-    /// The film filter's weight f/pdf of the pixel's sample.
-    pub w: Vec<f32>,
     /// The camera paths' rays; one sample per pixel.
     pub stats: RayStats,
 }
@@ -85,34 +83,35 @@ pub struct SppmState {
     pub iterations: u32,
     /// Emitted and direct light summed over iterations (filter-weighted).
     pub ld: Vec<DVec3>,
-    /// Filter weights summed over iterations (the iteration count for a box filter).
-    pub w: Vec<f64>,
+    /// The film filter's mean weight E[w] ([`crate::filter::Filter::mean_weight`]): T
+    /// iterations' filter-weighted sums divide by T·E[w].
+    pub mean_w: f64,
     pub tau: Vec<DVec3>,
     pub n: Vec<f64>,
     pub r: Vec<f64>,
     /// Σ and Σ² over iterations of each pixel's estimate from that iteration alone,
-    /// (L_d,t + Φ_t/(π r_t²))/w_t, and how many iterations gave one: the variance AOV, with
-    /// iterations taken as independent samples (the kernel's bias is not in it).
+    /// (L_d,t + Φ_t/(π r_t²))/E[w]: the variance AOV, with iterations taken as independent
+    /// samples (the kernel's bias is not in it).
     pub l1: Vec<DVec3>,
     pub l2: Vec<DVec3>,
-    pub k: Vec<u32>,
 }
 
 impl SppmState {
-    pub fn new(width: u32, height: u32, initial_radius: f32) -> Self {
+    /// A frame of `width` × `height` pixels whose gathering starts at `initial_radius`, its
+    /// film filter's samples weighing `mean_w` on average.
+    pub fn new(width: u32, height: u32, initial_radius: f32, mean_w: f64) -> Self {
         let len = width as usize * height as usize;
         SppmState {
             width,
             height,
             iterations: 0,
             ld: vec![DVec3::ZERO; len],
-            w: vec![0.0; len],
+            mean_w,
             tau: vec![DVec3::ZERO; len],
             n: vec![0.0; len],
             r: vec![initial_radius as f64; len],
             l1: vec![DVec3::ZERO; len],
             l2: vec![DVec3::ZERO; len],
-            k: vec![0; len],
         }
     }
 
@@ -121,7 +120,7 @@ impl SppmState {
         self.r.iter().map(|&r| radius2(r)).collect()
     }
 
-    /// Folds one iteration in: each pixel's direct light and filter weight from `camera`,
+    /// Folds one iteration in: each pixel's direct light from `camera`,
     /// then the sums of the iteration's chunks, added in the order given (chunk order), then
     /// Hachisuka & Jensen's update N' = N + αM, r' = r √(N'/(N + M)), τ' = (τ + Φ) r'²/r².
     pub fn add_iteration<'a>(
@@ -144,20 +143,13 @@ impl SppmState {
             }
         }
         let ld: Vec<[f32; 3]> = camera.ld.iter().map(|l| l.to_array()).collect();
-        self.add_sums(&ld, &camera.w, &phi, &m, alpha);
+        self.add_sums(&ld, &phi, &m, alpha);
     }
 
-    /// Folds one iteration in from its per-pixel totals: emitted and direct light `ld` and
-    /// filter weight `w` of the camera paths, and Φ and M summed over the iteration's chunks;
+    /// Folds one iteration in from its per-pixel totals: emitted and direct light `ld` of the
+    /// camera paths, and Φ and M summed over the iteration's chunks;
     /// then Hachisuka & Jensen's update (see [`Self::add_iteration`]).
-    pub fn add_sums(
-        &mut self,
-        ld: &[[f32; 3]],
-        w: &[f32],
-        phi: &[[f64; 3]],
-        m: &[u64],
-        alpha: f32,
-    ) {
+    pub fn add_sums(&mut self, ld: &[[f32; 3]], phi: &[[f64; 3]], m: &[u64], alpha: f32) {
         let alpha = alpha as f64;
         for i in 0..self.r.len() {
             let l = ld
@@ -167,17 +159,12 @@ impl SppmState {
                     DVec3::new(l[0] as f64, l[1] as f64, l[2] as f64)
                 });
             self.ld[i] += l;
-            let wi = w.get(i).copied().filter(|w| w.is_finite()).unwrap_or(0.0) as f64;
-            self.w[i] += wi;
             // This iteration's own estimate, at the radius its photons were gathered with.
-            if wi != 0.0 {
-                let p = phi.get(i).map_or(DVec3::ZERO, |p| DVec3::from_array(*p));
-                let r = self.r[i];
-                let estimate = (l + p / (std::f64::consts::PI * r * r)) / wi;
-                self.l1[i] += estimate;
-                self.l2[i] += estimate * estimate;
-                self.k[i] += 1;
-            }
+            let p = phi.get(i).map_or(DVec3::ZERO, |p| DVec3::from_array(*p));
+            let r = self.r[i];
+            let estimate = (l + p / (std::f64::consts::PI * r * r)) / self.mean_w;
+            self.l1[i] += estimate;
+            self.l2[i] += estimate * estimate;
             let mi = m.get(i).copied().unwrap_or(0);
             if mi > 0 {
                 let (n, r, mf) = (self.n[i], self.r[i], mi as f64);
@@ -192,21 +179,23 @@ impl SppmState {
         self.iterations += 1;
     }
 
-    /// The estimate after the iterations so far: (L_d + τ/(π r²)) / W, times `exposure`,
-    /// where W sums the filter weights (T for a box filter), so the pixel is the film
-    /// filter's weighted mean as in the path tracer.
+    /// The estimate after the iterations so far: (L_d + τ/(π r²)) / (T E[w]), times
+    /// `exposure`: the film filter's weighted mean, as the path tracer's Σ w·L / Σ w is in
+    /// expectation, without its ratio (T for a box filter either way), which a filter's
+    /// negative lobes bring near 0 while a pixel has few iterations.
     pub fn image(&self, exposure: f32) -> Image {
         let exposure = exposure as f64;
         let mut image = Image::new(self.width, self.height);
+        let k = self.iterations as f64;
+        let w = k * self.mean_w;
         for (i, px) in image.pixels.iter_mut().enumerate() {
-            let (r, w) = (self.r[i], self.w[i]);
+            let r = self.r[i];
             let l = if w != 0.0 {
                 (self.ld[i] + self.tau[i] / (std::f64::consts::PI * r * r)) * (exposure / w)
             } else {
                 DVec3::ZERO
             };
-            // The variance of the mean of k iteration estimates, none below two.
-            let k = self.k[i] as f64;
+            // The variance of the mean of the k iterations' estimates, none below two.
             let variance = if k >= 2.0 {
                 (self.l2[i] - self.l1[i] * self.l1[i] / k).max(DVec3::ZERO)
                     * (exposure * exposure / (k * (k - 1.0)))
@@ -310,7 +299,7 @@ fn visible_point(
     max_depth: u32,
     sampler: &mut PixelSampler,
     stats: &mut RayStats,
-) -> (Spectrum, f32, Option<VisiblePoint>) {
+) -> (Spectrum, Option<VisiblePoint>) {
     sampler.start_pixel_sample(pixel, iteration);
     // The film filter as the path tracer samples it: the weight rides on β.
     let (mut ray, w) = crate::camera::camera_ray(scene, camera, pixel, sampler);
@@ -336,7 +325,7 @@ fn visible_point(
         if material.flags.smooth {
             let frame = material.frame(&si, wo);
             l += beta * direct_light(scene, &si, material, &frame, wo, sampler, stats);
-            return (l, w, Some(VisiblePoint { si, wo, beta }));
+            return (l, Some(VisiblePoint { si, wo, beta }));
         }
         let Some((weight, next)) = scatter(&si, material, wo, sampler) else {
             break;
@@ -347,7 +336,7 @@ fn visible_point(
         }
         ray = next;
     }
-    (l, w, None)
+    (l, None)
 }
 
 /// One frame's SPPM: its settings and photon shooter. Iteration t's camera paths are pixel
@@ -384,9 +373,9 @@ impl<'a> Sppm<'a> {
         let w = self.scene.film.width;
         let mut sampler = self.sampler.clone();
         let mut stats = RayStats::default();
-        let (mut ld, mut ws, mut points) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut ld, mut points) = (Vec::new(), Vec::new());
         for i in pixels {
-            let (l, w, vp) = visible_point(
+            let (l, vp) = visible_point(
                 self.scene,
                 camera,
                 UVec2::new(i % w, i / w),
@@ -397,11 +386,10 @@ impl<'a> Sppm<'a> {
             );
             stats.samples += 1;
             ld.push(l);
-            ws.push(w);
             points.push(vp);
         }
         VisiblePoints {
-            camera: CameraPass { ld, w: ws, stats },
+            camera: CameraPass { ld, stats },
             points,
         }
     }
@@ -417,14 +405,12 @@ impl<'a> Sppm<'a> {
         let mut all = VisiblePoints {
             camera: CameraPass {
                 ld: Vec::with_capacity(n),
-                w: Vec::with_capacity(n),
                 stats: RayStats::default(),
             },
             points: Vec::with_capacity(n),
         };
         for r in rows {
             all.camera.ld.extend(r.camera.ld);
-            all.camera.w.extend(r.camera.w);
             all.camera.stats.add(&r.camera.stats);
             all.points.extend(r.points);
         }
@@ -533,7 +519,12 @@ pub fn render(
     progress: &(dyn Fn(u32) + Sync),
 ) -> (Image, RayStats) {
     let sppm = Sppm::new(scene, photon, *s);
-    let mut state = SppmState::new(scene.film.width, scene.film.height, s.initial_radius);
+    let mut state = SppmState::new(
+        scene.film.width,
+        scene.film.height,
+        s.initial_radius,
+        scene.filter.mean_weight(),
+    );
     let mut stats = RayStats::default();
     for t in 0..s.iterations {
         stats.add(&sppm.iterate(camera, &mut state));
@@ -551,7 +542,7 @@ mod tests {
     /// unit filter weights.
     #[test]
     fn an_iteration_updates_n_r_and_tau_as_the_paper_does() {
-        let mut s = SppmState::new(2, 1, 1.0);
+        let mut s = SppmState::new(2, 1, 1.0, 1.0);
         let sum = |pixel, m, phi| PixelSum {
             pixel,
             m,
@@ -561,7 +552,6 @@ mod tests {
         let chunk_b = [sum(0, 3, 2.0)];
         let camera = CameraPass {
             ld: vec![Spectrum::splat(0.5), Spectrum::splat(f32::NAN)],
-            w: vec![1.0, 1.0],
             stats: RayStats::default(),
         };
         s.add_iteration(&camera, [&chunk_a[..], &chunk_b[..]], 0.5);
@@ -581,15 +571,31 @@ mod tests {
         assert_eq!(s.iterations, 2);
     }
 
+    /// The pixel divides by T·E[w], not by its weights' sum: a filter's negative lobe gives
+    /// one sample w = −0.999 beside another of w = 1, whose sum 0.001 would make the ratio
+    /// (1·1 − 0.999·0) / 0.001 = 1000 of a pixel whose samples saw 1 and 0.
+    #[test]
+    fn weights_that_nearly_cancel_do_not_blow_a_pixel_up() {
+        let mut s = SppmState::new(1, 1, 1.0, 1.0);
+        for ld in [1.0, 0.0] {
+            let camera = CameraPass {
+                ld: vec![Spectrum::splat(ld)],
+                stats: RayStats::default(),
+            };
+            s.add_iteration(&camera, std::iter::empty::<&[PixelSum]>(), 0.7);
+        }
+        let p = s.image(1.0).pixels[0];
+        assert!((p.rgb[0] - 0.5).abs() < 1e-6, "{}", p.rgb[0]);
+    }
+
     /// The variance AOV is that of the mean of the iterations' own estimates: 1, 3, 1, 3
     /// (direct light alone) have sample variance 4/3, so their mean's is 1/3.
     #[test]
     fn the_variance_is_that_of_the_mean_of_the_iterations_estimates() {
-        let mut s = SppmState::new(1, 1, 1.0);
+        let mut s = SppmState::new(1, 1, 1.0, 1.0);
         for t in 0..4 {
             let camera = CameraPass {
                 ld: vec![Spectrum::splat(if t % 2 == 0 { 1.0 } else { 3.0 })],
-                w: vec![1.0],
                 stats: RayStats::default(),
             };
             s.add_iteration(&camera, std::iter::empty::<&[PixelSum]>(), 0.7);
@@ -602,10 +608,9 @@ mod tests {
             p.variance[0]
         );
         // One iteration says nothing of the variance.
-        let mut one = SppmState::new(1, 1, 1.0);
+        let mut one = SppmState::new(1, 1, 1.0, 1.0);
         let camera = CameraPass {
             ld: vec![Spectrum::splat(1.0)],
-            w: vec![1.0],
             stats: RayStats::default(),
         };
         one.add_iteration(&camera, std::iter::empty::<&[PixelSum]>(), 0.7);

@@ -46,12 +46,11 @@ pub struct SppmMethod {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum SppmPartial {
     Aov(super::film::AovSums),
-    /// Every pixel's emitted and direct light (times the filter weight) and filter weight,
-    /// the camera paths' counters, and the wall seconds the task spent on them (not the
+    /// Every pixel's emitted and direct light (times the filter weight), the camera paths'
+    /// counters, and the wall seconds the task spent on them (not the
     /// image: what `auto` times).
     Camera {
         ld: Vec<[f32; 3]>,
-        w: Vec<f32>,
         stats: RayStats,
         #[serde(default)]
         pixels_s: f64,
@@ -73,7 +72,6 @@ pub enum SppmPartial {
 pub struct SppmFrame {
     state: SppmState,
     ld: Vec<[f32; 3]>,
-    w: Vec<f32>,
     phi: Vec<[f64; 3]>,
     m: Vec<u64>,
     aov: AovAcc,
@@ -211,9 +209,13 @@ impl Method for SppmMethod {
     fn new_frame(&self, frame: u32) -> SppmFrame {
         let f = &self.desc.film;
         SppmFrame {
-            state: SppmState::new(f.width, f.height, self.settings.initial_radius),
+            state: SppmState::new(
+                f.width,
+                f.height,
+                self.settings.initial_radius,
+                crate::filter::Filter::new(f.filter).mean_weight(),
+            ),
             ld: Vec::new(),
-            w: Vec::new(),
             phi: Vec::new(),
             m: Vec::new(),
             aov: AovAcc::new(f.width, f.height),
@@ -238,7 +240,6 @@ impl Method for SppmMethod {
                 ctx.progress(self.pixels() as u64);
                 Ok(SppmPartial::Camera {
                     ld: vps.camera.ld.iter().map(|l| l.to_array()).collect(),
-                    w: vps.camera.w.clone(),
                     stats: vps.camera.stats,
                     pixels_s: tracing.elapsed().as_secs_f64(),
                 })
@@ -293,19 +294,17 @@ impl Method for SppmMethod {
             SppmPartial::Aov(a) => f.aov.fold(&a),
             SppmPartial::Camera {
                 ld,
-                w,
                 stats,
                 pixels_s,
             } => {
                 f.pixels_s += pixels_s;
-                if ld.len() != n || w.len() != n {
+                if ld.len() != n {
                     return Err(format!(
                         "sppm camera paths for {} pixels, the film has {n}",
                         ld.len()
                     ));
                 }
                 f.ld = ld;
-                f.w = w;
                 f.stats.add(&stats);
                 Ok(())
             }
@@ -353,10 +352,8 @@ impl Method for SppmMethod {
             f.phi = vec![[0.0; 3]; self.pixels()];
             f.m = vec![0; self.pixels()];
         }
-        f.state
-            .add_sums(&f.ld, &f.w, &f.phi, &f.m, self.settings.alpha);
+        f.state.add_sums(&f.ld, &f.phi, &f.m, self.settings.alpha);
         f.ld = Vec::new();
-        f.w = Vec::new();
         f.phi = Vec::new();
         f.m = Vec::new();
         if f.state.iterations < f.target {

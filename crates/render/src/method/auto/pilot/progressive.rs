@@ -81,7 +81,12 @@ pub(super) fn sppm_second_half(
     };
     let sppm = Sppm::new(scene, &other, settings);
     let camera = Camera::new(&desc.camera_at(frame), &desc.film);
-    let mut state = SppmState::new(desc.film.width, desc.film.height, settings.initial_radius);
+    let mut state = SppmState::new(
+        desc.film.width,
+        desc.film.height,
+        settings.initial_radius,
+        scene.filter.mean_weight(),
+    );
     for t in k..2 * k {
         let vps = sppm.visible_points_parallel(&camera, t - k);
         let r2 = state.radii2();
