@@ -8,7 +8,7 @@
 
 mod common;
 
-use common::{assert_falls, error_against, pool, scene_and_reference};
+use common::{assert_falls, error_against, pool, render_by_method, scene_and_reference};
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::render::render_frame;
@@ -103,6 +103,34 @@ fn assert_sppm_converges(name: &str) {
 fn sppm_converges_to_the_path_traced_reference() {
     assert_sppm_converges("cornell-box");
     assert_sppm_converges("cornell-glass");
+}
+
+/// Under a Mitchell filter, whose negative lobes now and then give a pixel's samples weights
+/// that nearly cancel, SPPM's error falls from its first iterations on: the material spheres
+/// against their 128×64 reference. Dividing by the weights' sum made four iterations 10³
+/// times worse than one.
+#[test]
+fn sppm_under_a_mitchell_filter_improves_from_its_first_iterations() {
+    let root =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/material-spheres");
+    let reference = tessera_render::read_exr(&root.join("reference-128.exr")).expect("reference");
+    let mut desc = tessera_scene::load(&root.join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(matches!(
+        desc.film.filter,
+        tessera_scene::FilterDesc::Mitchell { .. }
+    ));
+    desc.film.width = reference.width;
+    desc.film.height = reference.height;
+    let iterations = [1, 4, 16];
+    let errors: Vec<(f64, f64)> = iterations
+        .iter()
+        .map(|&t| error_against(&render_by_method(&desc, "sppm", t, 1), &reference))
+        .collect();
+    let labels: Vec<String> = iterations
+        .iter()
+        .map(|t| format!("{t} iterations"))
+        .collect();
+    assert_falls("material spheres: sppm", &labels, &errors, 0.05);
 }
 
 /// Ward's irradiance cache replaces final gathering at most pixels by interpolated records
