@@ -8,7 +8,9 @@
 
 mod common;
 
-use common::{assert_falls, error_against, pool, render_by_method, scene_and_reference};
+use common::{
+    assert_falls, error_against, pool, render_by_method, scene_and_reference, scene_at_reference,
+};
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::render::render_frame;
@@ -111,16 +113,11 @@ fn sppm_converges_to_the_path_traced_reference() {
 /// times worse than one.
 #[test]
 fn sppm_under_a_mitchell_filter_improves_from_its_first_iterations() {
-    let root =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/material-spheres");
-    let reference = tessera_render::read_exr(&root.join("reference-128.exr")).expect("reference");
-    let mut desc = tessera_scene::load(&root.join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
+    let (desc, reference) = scene_at_reference("material-spheres", "reference-128.exr");
     assert!(matches!(
         desc.film.filter,
         tessera_scene::FilterDesc::Mitchell { .. }
     ));
-    desc.film.width = reference.width;
-    desc.film.height = reference.height;
     let iterations = [1, 4, 16];
     let errors: Vec<(f64, f64)> = iterations
         .iter()

@@ -18,10 +18,19 @@ pub fn pool() -> rayon::ThreadPool {
 pub fn scene_and_reference(
     name: &str,
 ) -> (tessera_scene::SceneDesc, tessera_scene::image::RgbImage) {
+    scene_at_reference(name, "reference-32.exr")
+}
+
+/// Scene `name` at the size of its reference `file` (in the scene's folder), and the
+/// reference.
+pub fn scene_at_reference(
+    name: &str,
+    file: &str,
+) -> (tessera_scene::SceneDesc, tessera_scene::image::RgbImage) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../scenes")
         .join(name);
-    let reference = read_exr(&root.join("reference-32.exr")).expect("reference");
+    let reference = read_exr(&root.join(file)).expect("reference");
     let mut desc = tessera_scene::load(&root.join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
     desc.film.width = reference.width;
     desc.film.height = reference.height;
