@@ -301,6 +301,10 @@ pub struct WorkerInfo {
     /// Scenes it has loaded and built (its cache misses).
     pub scene_builds: u64,
     pub version: String,
+    /// The wire format it writes task results in (`tessera_render::wire::VERSION`): a
+    /// coordinator leases tasks only to workers of its own (0 from a worker that does not say).
+    #[serde(default)]
+    pub wire: u16,
     /// What it offers (`tessera worker --tags`); jobs may require some.
     #[serde(default)]
     pub tags: Vec<String>,
@@ -321,6 +325,7 @@ impl WorkerInfo {
             slots: 1,
             scene_builds: 0,
             version: env!("CARGO_PKG_VERSION").into(),
+            wire: tessera_render::wire::VERSION,
             tags: Vec::new(),
             cpu: None,
         }

@@ -228,7 +228,7 @@ pub async fn run(config: WorkerConfig) -> anyhow::Result<()> {
         slots.push(tokio::spawn(async move { w.slot(slot).await }));
     }
     for s in slots {
-        s.await?;
+        s.await??;
     }
     Ok(())
 }
@@ -292,12 +292,15 @@ impl Worker {
             slots: self.config.slots,
             scene_builds: self.scene_builds.load(Relaxed),
             version: env!("CARGO_PKG_VERSION").into(),
+            wire: tessera_render::wire::VERSION,
             tags: self.config.tags.clone(),
             cpu: self.cpu.sample(),
         }
     }
 
-    async fn slot(self: Arc<Self>, slot: u32) {
+    /// Leases and runs tasks until the coordinator refuses this worker's build (409: another
+    /// wire format), which waiting cannot mend: the worker then exits with that error.
+    async fn slot(self: Arc<Self>, slot: u32) -> anyhow::Result<()> {
         loop {
             let req = LeaseRequest {
                 worker: self.info(),
@@ -306,6 +309,7 @@ impl Worker {
             let grant = match retrying("lease", Duration::MAX, || self.client.lease(&req)).await {
                 Ok(Some(g)) => g,
                 Ok(None) => continue,
+                Err(e) if status_of(&e) == Some(reqwest::StatusCode::CONFLICT) => return Err(e),
                 Err(e) => {
                     // A 4xx: our token or protocol is wrong; waiting will not fix it quickly.
                     tracing::error!(slot, error = %e, "cannot lease tasks");

@@ -7,7 +7,7 @@ use reqwest::StatusCode;
 use tessera_farm::bundle::Bundle;
 use tessera_farm::coordinator::{self, Config, Running};
 use tessera_farm::job::RenderSettings;
-use tessera_farm::protocol::{ErrorBody, JobRequest};
+use tessera_farm::protocol::{ErrorBody, JobRequest, LeaseRequest, WorkerInfo};
 
 const CLIENT: &str = "client-token";
 const WORKER: &str = "worker-token";
@@ -116,6 +116,114 @@ impl Api {
                 require_tags: vec![],
             })
     }
+}
+
+/// A worker of another build (another wire format, or one that does not say) is refused a
+/// lease with a JSON 409 naming both formats, before any task is leased to it; `/healthz`
+/// says which format the coordinator reads.
+#[tokio::test]
+async fn workers_of_another_wire_format_are_refused_leases() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let running = start(dir.path()).await;
+    let api = Api {
+        http: reqwest::Client::new(),
+        base: format!("http://{}", running.addr),
+    };
+    let c = &api.http;
+    let ours = tessera_render::wire::VERSION;
+    let old = LeaseRequest {
+        worker: WorkerInfo {
+            wire: ours - 1,
+            ..WorkerInfo::simulated("old-build")
+        },
+        wait_ms: 0,
+    };
+    api.expect(
+        c.post(api.url("/v1/tasks/lease"))
+            .bearer_auth(WORKER)
+            .json(&old),
+        StatusCode::CONFLICT,
+        &[
+            "worker.wire",
+            "old-build",
+            &format!("wire format {}", ours - 1),
+            &format!("reads {ours}"),
+        ],
+    )
+    .await;
+    // A worker from before workers said their format.
+    let mut silent = serde_json::to_value(&old).expect("serialises");
+    silent["worker"]
+        .as_object_mut()
+        .expect("an object")
+        .remove("wire");
+    api.expect(
+        c.post(api.url("/v1/tasks/lease"))
+            .bearer_auth(WORKER)
+            .json(&silent),
+        StatusCode::CONFLICT,
+        &["wire format 0"],
+    )
+    .await;
+    // This build's worker is served (nothing queued: 204).
+    let current = LeaseRequest {
+        worker: WorkerInfo::simulated("this-build"),
+        wait_ms: 0,
+    };
+    let r = c
+        .post(api.url("/v1/tasks/lease"))
+        .bearer_auth(WORKER)
+        .json(&current)
+        .send()
+        .await
+        .expect("lease");
+    assert_eq!(r.status(), StatusCode::NO_CONTENT);
+    let health: serde_json::Value = c
+        .get(api.url("/healthz"))
+        .send()
+        .await
+        .expect("healthz")
+        .json()
+        .await
+        .expect("json");
+    assert_eq!(health["wire"], serde_json::json!(ours));
+}
+
+/// A worker whose lease a coordinator refuses for its build (409) exits with the
+/// coordinator's reason instead of asking again forever: waiting cannot mend it, and an
+/// orchestrator restarts it with the coordinator's build.
+#[tokio::test]
+async fn a_worker_refused_for_its_build_exits_with_the_reason() {
+    let reason = "worker.wire: worker w writes wire format 9 and this coordinator reads 10";
+    let app = axum::Router::new().route(
+        "/v1/tasks/lease",
+        axum::routing::post(move || async move {
+            (
+                StatusCode::CONFLICT,
+                axum::Json(serde_json::json!({ "error": reason })),
+            )
+        }),
+    );
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("binds");
+    let addr = listener.local_addr().expect("address");
+    tokio::spawn(async move { axum::serve(listener, app).await });
+    let run = tessera_farm::worker::run(tessera_farm::worker::WorkerConfig {
+        coordinator: format!("http://{addr}"),
+        token: WORKER.into(),
+        name: "w".into(),
+        slots: 2,
+        parent_pid: None,
+        tags: vec![],
+        fail_tasks_with: None,
+        ca: None,
+    });
+    let ended = tokio::time::timeout(std::time::Duration::from_secs(30), run)
+        .await
+        .expect("the worker exits");
+    let error = format!("{:#}", ended.expect_err("with an error"));
+    assert!(error.contains(reason), "{error}");
 }
 
 #[tokio::test]

@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 use crate::film::{SampleRange, Tile};
 
 /// The format's version: a reader refuses any other.
-pub const VERSION: u16 = 1;
+pub const VERSION: u16 = 2;
 const MAGIC: &[u8; 4] = b"TSWF";
 /// Most uncompressed payload bytes per chunk.
 pub const CHUNK: usize = 1 << 20;

@@ -537,13 +537,18 @@ pub(super) fn alive_ms(app: &App) -> i64 {
     2 * app.config.lease_ms as i64
 }
 
-/// Liveness: the process serves and its job store answers.
+/// Liveness: the process serves and its job store answers; with its version and the wire
+/// format it reads (a worker must write the same).
 #[utoipa::path(get, path = "/healthz", tag = "service", responses((status = 200, description = "ok")))]
 async fn healthz(State(app): State<Arc<App>>) -> AppResult<Json<serde_json::Value>> {
     let g = app.store.gauges()?;
-    Ok(Json(
-        serde_json::json!({ "status": "ok", "queued": g.queued, "leased": g.leased }),
-    ))
+    Ok(Json(serde_json::json!({
+        "status": "ok",
+        "queued": g.queued,
+        "leased": g.leased,
+        "version": env!("CARGO_PKG_VERSION"),
+        "wire": tessera_render::wire::VERSION,
+    })))
 }
 
 /// Prometheus metrics: queue depth, tasks leased/done/failed, task seconds, result bytes per

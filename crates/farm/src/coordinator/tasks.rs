@@ -24,7 +24,8 @@ use crate::store::{Completion, Retry};
 
 /// Lease the next task (priority, then age). Waits up to `wait_ms` for one; 204 if none.
 #[utoipa::path(post, path = "/v1/tasks/lease", tag = "workers", request_body = LeaseRequest,
-    responses((status = 200, body = LeaseGrant), (status = 204, description = "no task queued")),
+    responses((status = 200, body = LeaseGrant), (status = 204, description = "no task queued"),
+        (status = 409, description = "the worker writes another wire format than the coordinator reads (another Tessera build)")),
     security(("token" = [])))]
 pub(super) async fn lease_task(
     State(app): State<Arc<App>>,
@@ -32,6 +33,14 @@ pub(super) async fn lease_task(
 ) -> AppResult<Response> {
     let Json(req) = body?;
     super::ops::check_tags(&req.worker.tags, "worker.tags").map_err(AppError::bad_request)?;
+    // Its results would not decode here (or, with a layout of the same shape, decode wrong).
+    let wire = tessera_render::wire::VERSION;
+    if req.worker.wire != wire {
+        return Err(AppError::conflict(format!(
+            "worker.wire: worker {} writes wire format {} and this coordinator reads {wire}; run workers of the coordinator's Tessera build",
+            req.worker.name, req.worker.wire
+        )));
+    }
     let deadline = Instant::now() + Duration::from_millis(req.wait_ms.min(20_000));
     loop {
         // Listen before looking, so a job queued in between is not missed.

@@ -20,6 +20,8 @@ pub mod aov;
 pub mod auto;
 mod bdpt;
 pub mod film;
+#[cfg(test)]
+mod layouts;
 pub mod local;
 mod metropolis;
 pub mod passes;

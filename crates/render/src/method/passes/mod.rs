@@ -3,7 +3,7 @@
 //! camera-only fly-through, and every later job of the same scene, reads it instead of
 //! building it again.
 
-mod photons;
+pub(super) mod photons;
 mod records;
 mod subsurface;
 
