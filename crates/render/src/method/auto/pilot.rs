@@ -167,8 +167,11 @@ pub struct Measurement {
     /// relMSE of a one-sample image: variance only.
     pub rel_var: f64,
     /// relMSE that more samples do not remove (photon map), or SPPM's bias at the pilot's
-    /// iterations (0 where the consensus is too noisy to tell it).
+    /// iterations (0 where the consensus is too noisy to tell it: see `untold`).
     pub floor: Option<f64>,
+    /// The judges' relMSE, where SPPM's bias came out under it and was taken as 0: it may be
+    /// anything up to about that, which the prediction does not count.
+    pub untold: Option<f64>,
     /// Samples (iterations) predicted for the goal, and the wall seconds they take with the
     /// passes; `None` where the candidate cannot reach it.
     pub spp: Option<u32>,
@@ -437,6 +440,14 @@ fn measure(
             ))
             .unwrap_or_default(),
     )];
+    // A bias the judges could not tell from their noise, at the goal or over it.
+    if let (Some(j), Some(e)) = (m.untold, target)
+        && j >= e
+    {
+        report[0] += &format!(
+            "; its bias could not be told from the judges' noise (relMSE {j:.2e}) and was taken as 0, so the error it reaches may be higher"
+        );
+    }
     for o in &measurements {
         report.push(describe(o));
     }

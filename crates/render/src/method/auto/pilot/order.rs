@@ -396,6 +396,7 @@ mod tests {
             sample_s: 0.1,
             rel_var: 0.01,
             floor: Some(0.0),
+            untold: None,
             spp: predicted_s.map(|_| 2),
             predicted_s,
             predicted_error: None,

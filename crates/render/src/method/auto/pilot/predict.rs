@@ -186,6 +186,7 @@ pub(super) fn predict(
                 sample_s,
                 rel_var: half * k,
                 floor,
+                untold: None,
                 spp: None,
                 predicted_s: None,
                 predicted_error: None,
@@ -205,7 +206,10 @@ pub(super) fn predict(
             .sum::<f64>();
     for (m, (i, _)) in out.iter_mut().zip(runs) {
         if candidates[*i].model == Model::Progressive {
-            m.floor = m.floor.map(|b| if b > var_r { b } else { 0.0 });
+            if m.floor.is_some_and(|b| b <= var_r) {
+                m.floor = Some(0.0);
+                m.untold = Some(var_r);
+            }
         }
     }
     // The path tracer with the scene's own settings is the first candidate.
@@ -315,10 +319,11 @@ pub(super) fn choose(measurements: &[Measurement], goal: Goal) -> Option<usize> 
 
 /// One line for a candidate.
 pub(super) fn describe(m: &Measurement) -> String {
-    let floor = m
-        .floor
-        .map(|b| format!(", floor {b:.2e}"))
-        .unwrap_or_default();
+    let floor = match (m.floor, m.untold) {
+        (_, Some(j)) => format!(", floor under the judges' relMSE {j:.2e}, taken as 0"),
+        (Some(b), None) => format!(", floor {b:.2e}"),
+        (None, None) => String::new(),
+    };
     let measured = format!(
         "1-spp relMSE {:.2e}{floor}, {:.3} s per spp, setup {:.2} s; pilot {:.2} s",
         m.rel_var, m.sample_s, m.setup_s, m.pilot_s
@@ -341,8 +346,8 @@ pub(super) fn describe(m: &Measurement) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Candidate, Goal, Halves, Model, Run};
-    use super::predict;
+    use super::super::{Candidate, Goal, Halves, Measurement, Model, Run};
+    use super::{describe, predict};
 
     /// Gaussian noise from a fixed seed (xorshift, Box–Muller).
     struct Noise(u64);
@@ -397,9 +402,9 @@ mod tests {
         }
     }
 
-    /// SPPM's bias, `offset` on every pixel of value 1, as the pilot sees it beside two
+    /// SPPM's measurement, `offset` on every pixel of value 1, as the pilot sees it beside two
     /// unbiased judges of per-sample deviation `judges`.
-    fn sppm_floor(offset: f64, judges: f64) -> f64 {
+    fn sppm_measured(offset: f64, judges: f64) -> Measurement {
         let mut noise = Noise(0x9e37_79b9_7f4a_7c15);
         let candidates = [
             candidate("bdpt", Model::Unbiased, 4),
@@ -412,7 +417,14 @@ mod tests {
             (2, run(&mut noise, 1.0 + offset, 0.05, 1.0)),
         ];
         let p = predict(&candidates, &runs, Goal::Error(1e-2), (40, 50), 4 * 2000);
-        p.measurements[2].floor.expect("sppm has a floor")
+        p.measurements[2].clone()
+    }
+
+    /// SPPM's floor as [`sppm_measured`] measures it.
+    fn sppm_floor(offset: f64, judges: f64) -> f64 {
+        sppm_measured(offset, judges)
+            .floor
+            .expect("sppm has a floor")
     }
 
     /// A judge whose few samples are noisy against its mean (BDPT, σ 0.4 a sample about 0.2,
@@ -491,8 +503,14 @@ mod tests {
             "floor {seen}, bias {bias}"
         );
         // Noisy judges (consensus variance about 0.7 / 16 per pixel, above the bias): the
-        // difference cannot be told from the consensus's noise, and counts for nothing.
-        assert_eq!(sppm_floor(0.1, 0.85), 0.0);
+        // difference cannot be told from the consensus's noise, and counts for nothing; the
+        // report says so, with the judges' relMSE under which it may lie.
+        let noisy = sppm_measured(0.1, 0.85);
+        assert_eq!(noisy.floor, Some(0.0));
+        let judges = noisy.untold.expect("an untold floor");
+        assert!(judges > bias, "judges' relMSE {judges}, bias {bias}");
+        assert!(describe(&noisy).contains("floor under the judges' relMSE"));
+        assert_eq!(sppm_measured(0.1, 0.02).untold, None);
         // Without an offset, the floor is small whatever the judges.
         assert!(sppm_floor(0.0, 0.02) < 0.05 * bias);
     }
