@@ -59,6 +59,14 @@ struct Api {
 }
 
 impl Api {
+    /// The API of the coordinator `running`.
+    fn of(running: &Running) -> Api {
+        Api {
+            http: reqwest::Client::new(),
+            base: format!("http://{}", running.addr),
+        }
+    }
+
     fn url(&self, path: &str) -> String {
         format!("{}{path}", self.base)
     }
@@ -125,10 +133,7 @@ impl Api {
 async fn workers_of_another_wire_format_are_refused_leases() {
     let dir = tempfile::tempdir().expect("temp dir");
     let running = start(dir.path()).await;
-    let api = Api {
-        http: reqwest::Client::new(),
-        base: format!("http://{}", running.addr),
-    };
+    let api = Api::of(&running);
     let c = &api.http;
     let ours = tessera_render::wire::VERSION;
     let old = LeaseRequest {
@@ -230,10 +235,7 @@ async fn a_worker_refused_for_its_build_exits_with_the_reason() {
 async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
     let dir = tempfile::tempdir().expect("temp dir");
     let running = start(dir.path()).await;
-    let api = Api {
-        http: reqwest::Client::new(),
-        base: format!("http://{}", running.addr),
-    };
+    let api = Api::of(&running);
     let c = &api.http;
     let unauthorized = StatusCode::UNAUTHORIZED;
     let bad = StatusCode::BAD_REQUEST;
