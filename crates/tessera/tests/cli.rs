@@ -214,6 +214,47 @@ fn compare_reports_errors_and_refuses_mismatched_sizes() {
         "{}",
         stderr(&o)
     );
+    // Mitsuba's 512² box, averaged over 2 × 2 pixels, against its 256² box (both box-filtered
+    // renders of the same view, each to relMSE of order 1e-5): refused without --downsample,
+    // with a hint; with it, the two agree to their own noise.
+    let big = repo().join("scenes/cornell-box/reference-512.exr");
+    let args = |more: &[&'static str]| {
+        let mut a = vec![
+            "compare",
+            big.to_str().unwrap(),
+            reference.to_str().unwrap(),
+        ];
+        a.extend(more);
+        a
+    };
+    let o = tessera(&args(&[]));
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--downsample"), "{}", stderr(&o));
+    let o = tessera(&args(&["--downsample"]));
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(
+        out.starts_with("averaged over 2×2 pixels to 256×256"),
+        "{out}"
+    );
+    let number = |key: &str| -> f64 {
+        out.split(key)
+            .nth(1)
+            .and_then(|r| r.split_whitespace().next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no {key} in {out}"))
+    };
+    assert!(number("relMSE ") < 2e-4, "{out}");
+    assert!((number("mean/reference ") - 1.0).abs() < 1e-3, "{out}");
+    // Not a whole multiple of the reference.
+    let o = tessera(&[
+        "compare",
+        sky.to_str().unwrap(),
+        reference.to_str().unwrap(),
+        "--downsample",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("not the reference's"), "{}", stderr(&o));
 }
 
 /// `tessera bench` of the Cornell box against `reference` (in its scene folder) with `args`:

@@ -205,11 +205,9 @@ pub(super) fn predict(
             .map(|&j| 2.0 * candidates[runs[j].0].k as f64 / out[j].rel_var.max(1e-12))
             .sum::<f64>();
     for (m, (i, _)) in out.iter_mut().zip(runs) {
-        if candidates[*i].model == Model::Progressive {
-            if m.floor.is_some_and(|b| b <= var_r) {
-                m.floor = Some(0.0);
-                m.untold = Some(var_r);
-            }
+        if candidates[*i].model == Model::Progressive && m.floor.is_some_and(|b| b <= var_r) {
+            m.floor = Some(0.0);
+            m.untold = Some(var_r);
         }
     }
     // The path tracer with the scene's own settings is the first candidate.
