@@ -412,8 +412,15 @@ fn measure(
     } else {
         spp
     };
+    // A bias the judges could not tell from their noise, at the goal or over it.
+    let untold = match (m.untold, target) {
+        (Some(j), Some(e)) if j >= e => format!(
+            "; its bias could not be told from the judges' noise (relMSE {j:.2e}) and was taken as 0, so the error it reaches may be higher"
+        ),
+        _ => String::new(),
+    };
     let mut report = vec![format!(
-        "chose {}{} at {spp} {}: predicted {:.2} s to {} (pilot {pilot_s:.2} s{}{})",
+        "chose {}{} at {spp} {}: predicted {:.2} s to {} (pilot {pilot_s:.2} s{}{}){untold}",
         m.label,
         c.photons
             .map(|n| format!(" with {n} photons"))
@@ -440,14 +447,6 @@ fn measure(
             ))
             .unwrap_or_default(),
     )];
-    // A bias the judges could not tell from their noise, at the goal or over it.
-    if let (Some(j), Some(e)) = (m.untold, target)
-        && j >= e
-    {
-        report[0] += &format!(
-            "; its bias could not be told from the judges' noise (relMSE {j:.2e}) and was taken as 0, so the error it reaches may be higher"
-        );
-    }
     for o in &measurements {
         report.push(describe(o));
     }
