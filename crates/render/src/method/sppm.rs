@@ -85,6 +85,13 @@ pub struct SppmFrame {
     exposure: f32,
 }
 
+impl SppmFrame {
+    /// Every pixel's statistics across the iterations so far.
+    pub fn state(&self) -> &SppmState {
+        &self.state
+    }
+}
+
 impl SppmMethod {
     fn plan(job: &Job) -> Result<Self, String> {
         let d = &job.desc;

@@ -12,7 +12,8 @@
 //!    join (it stays a judge: its mean is unbiased). Whether that surface shows a caustic is
 //!    not checked; where it does not, VCM, which has BDPT's strategies, stays a candidate.
 //! 2. **Pilots**: each remaining candidate renders the scene at about 1/32 of its pixels (at
-//!    least 256, at most 4096; a Mitchell filter as a box, whose weights cannot cancel) with
+//!    least 256, at most 4096; a Mitchell filter as a box, whose weights cannot cancel, but for
+//!    SPPM, whose pixels divide by T·E[w] and whose weights' noise is part of its error) with
 //!    `k` samples, then `k` more, as two independent halves A and B (where the method cannot
 //!    continue a frame, a second render with the next seed). The relMSE of one half is
 //!    estimated as mean((A − B)² / 2 / (R̄² + 0.01)) over pixels and channels, R being the
@@ -34,16 +35,24 @@
 //!    iterations, and its halves' agreement where both miss rare paths would pass for bias).
 //!    The photons of those 2k iterations (shot whatever the film) are the render's first 2k
 //!    iterations' and are handed on to it. Its noise falls as 1/n while each pixel's radius
-//!    holds photons of many iterations, its bias as n^(−2/3) (the radii's rate with α = 2/3:
-//!    Knaus & Zwicker 2011).
+//!    holds photons of many iterations, its bias with the mean squared radius s(n) (a share of
+//!    the initial one), which the radii module follows from the photons each pixel of the
+//!    first half found: dense pixels shrink as Knaus & Zwicker's n^(α − 1), sparse ones slower.
+//!    Kernel bias falls as r⁴ where the radiance is smooth and as r across its edges; r², what
+//!    is taken, fitted the material spheres' errors at two iteration counts (the README's "Why
+//!    SPPM misses the goal on the material spheres"), though their bias, split from their
+//!    variance with a second seed, falls slower still ("SPPM's pilot under the film's filter").
 //! 3. **Prediction** at full size: samples to reach relMSE E are v / E (unbiased),
 //!    v / (E − b) (photon map; none if b is near E, or if the judges' own relMSE is, under
 //!    which b cannot be told from their noise), the least n with
-//!    v / n + b (k / n)^(2/3) ≤ E (SPPM); time is what the render pays once (the passes,
-//!    view-independent, and a Metropolis frame's bootstrap, both as the pilot timed them) plus
-//!    the samples at the pilot's time per sample and pixel (SPPM's photons, shot whatever the film, at the pilot's time per
-//!    iteration). The goal is a relMSE (`target_error`), the error path tracing reaches
-//!    at the job's spp (the same image quality, sooner), or the lowest error within a time.
+//!    v / n + b s(n) / s̄ ≤ E (SPPM; s̄ the mean of s over the pilot's k iterations); time is
+//!    what the render pays once (the passes, view-independent, and a Metropolis frame's
+//!    bootstrap, both as the pilot timed them) plus the samples at the pilot's time per sample
+//!    and pixel (SPPM's photons, shot whatever the film, at the pilot's time per iteration).
+//!    The goal is a relMSE (`target_error`), the error path tracing reaches at the job's spp
+//!    (the same image quality, sooner), or the lowest error within a time. The candidate
+//!    chosen ends soonest from the pilot's end: its time less the pilot's work its render
+//!    takes over ([`Measurement::handed_s`]), which is done.
 //!
 //! The first three candidates are measured whatever the pilot spends, until the judges measured
 //! so far resolve the goal (their own relMSE under it, so a floor at the goal can be told from
@@ -82,6 +91,7 @@ use crate::scene::Scene;
 mod order;
 mod predict;
 mod progressive;
+mod radii;
 mod run;
 pub use order::FEW_PHOTONS;
 use order::{candidates, defer, judged, measured_first, more_photons_needed, sees_specular};
@@ -118,9 +128,9 @@ enum Model {
     Unbiased,
     /// v / n + b: b is kernel bias and the noise of a view-independent pass.
     Biased,
-    /// v / n + b (k / n)^(2/3): progressive photon mapping, whose noise falls as a mean's
-    /// while its radii still hold photons from many iterations, and whose kernel bias falls
-    /// with the radii.
+    /// v / n + b s(n) / s̄: progressive photon mapping, whose noise falls as a mean's while
+    /// its radii still hold photons from many iterations, and whose kernel bias falls with the
+    /// mean squared radius s(n) (step 2 of the module's comment).
     Progressive,
 }
 
