@@ -215,7 +215,7 @@ fn compare_reports_errors_and_refuses_mismatched_sizes() {
         stderr(&o)
     );
     // Mitsuba's 512² box, averaged over 2 × 2 pixels, against its 256² box (both box-filtered
-    // renders of the same view, each to relMSE of order 1e-5): refused without --downsample,
+    // renders of the same view, each converged): refused without --downsample,
     // with a hint; with it, the two agree to their own noise.
     let big = repo().join("scenes/cornell-box/reference-512.exr");
     let args = |more: &[&'static str]| {

@@ -20,7 +20,7 @@ pub(super) fn rel(r: &[[f64; 3]], f: impl Fn(usize, usize) -> f64) -> f64 {
 /// 0.01) of a noisy r is largest (Jensen) where r came out low, which is where the noisiest
 /// candidate differs most; the neighbourhood's mean is about as high as r's expectation but
 /// several times quieter.
-fn divisor(r: &[[f64; 3]], width: usize) -> Vec<[f64; 3]> {
+pub(super) fn divisor(r: &[[f64; 3]], width: usize) -> Vec<[f64; 3]> {
     let width = width.max(1);
     let height = r.len().div_ceil(width);
     let mut out = vec![[0.0; 3]; r.len()];
@@ -505,8 +505,8 @@ mod tests {
     }
 
     /// Of two renders predicted alike, the one whose passes the pilot has built ends sooner:
-    /// they are not built again (the Cornell glass: the photon map, 0.10 s of its 0.58 s,
-    /// against VCM's 0.58 s without passes). Without them, the sooner prediction.
+    /// they are not built again (the Cornell glass's photon map against VCM, README's twentieth
+    /// run). Without them, the sooner prediction.
     #[test]
     fn the_pilot_s_work_the_render_takes_over_is_not_counted_twice() {
         let goal = Goal::Error(1e-2);

@@ -9,6 +9,7 @@
 //! iteration's mean is well under a photon, as under a sun and sky most of whose photons never
 //! bounce towards the camera, waits iterations for each, and shrinks slower.
 
+use super::predict::divisor;
 use crate::integrator::sppm::SppmState;
 
 /// Iterations followed one by one; beyond them the squared radius falls at the dense rate.
@@ -80,23 +81,17 @@ impl Shrinkage {
 /// The pixels [`Shrinkage::measure`] follows (an even sample of at most [`PIXELS`] of those
 /// whose neighbourhood found photons) and their photons per iteration at the initial radius.
 fn followed(state: &SppmState, k: u32, alpha: f64) -> impl Iterator<Item = (usize, f64)> {
-    let (w, h) = (state.width as usize, state.height as usize);
-    let found = |x: usize, y: usize| state.n[y * w + x] / alpha / k.max(1) as f64;
-    let mut rates = Vec::new();
-    for y in 0..h {
-        for x in 0..w {
-            let (mut sum, mut n) = (0.0, 0.0);
-            for ny in y.saturating_sub(1)..(y + 2).min(h) {
-                for nx in x.saturating_sub(1)..(x + 2).min(w) {
-                    sum += found(nx, ny);
-                    n += 1.0;
-                }
-            }
-            if sum > 0.0 {
-                rates.push((y * w + x, sum / n));
-            }
-        }
-    }
+    let found: Vec<[f64; 3]> = state
+        .n
+        .iter()
+        .map(|&n| [n / alpha / k.max(1) as f64; 3])
+        .collect();
+    let rates: Vec<(usize, f64)> = divisor(&found, state.width as usize)
+        .into_iter()
+        .enumerate()
+        .filter(|(_, r)| r[0] > 0.0)
+        .map(|(p, r)| (p, r[0]))
+        .collect();
     let step = rates.len().div_ceil(PIXELS).max(1);
     rates.into_iter().step_by(step)
 }

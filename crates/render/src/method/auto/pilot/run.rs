@@ -185,8 +185,8 @@ pub(super) fn run(
     super::super::set_method(&mut desc, c.method, c.subsurface, c.photons);
     desc.integrator.spp = c.k;
     // SPPM's pixel is its filter-weighted sum over T·E[w], not a ratio that a negative lobe
-    // can blow up: the weights' own noise is part of its variance (under a Mitchell filter
-    // about twice a box's), which a box would hide. Its floor is then measured against
+    // can blow up: the weights' own noise is part of its variance (larger under a Mitchell
+    // filter than a box), which a box would hide. Its floor is then measured against
     // judges under a box, and also counts the two filters' difference, against SPPM.
     if c.model == Model::Progressive {
         desc.film.filter = film.filter;
@@ -369,11 +369,10 @@ mod tests {
     }
 
     /// SPPM's pilot renders with the film's filter where the others' take a box for a
-    /// Mitchell one: under Mitchell's negative lobes its weights' noise about doubles its
-    /// variance (the material spheres at 480×270, 35 iterations, two seeds: relMSE 1.5e-2 a
-    /// render against 7.9e-3 under a box), and a box pilot would hide it. From the same pilot
-    /// film (a box), its halves differ about twice as much for a Mitchell render as for a box
-    /// one.
+    /// Mitchell one: under Mitchell's negative lobes its weights' noise raises its variance
+    /// (measured in the README's "SPPM's pilot under the film's filter"), and a box pilot
+    /// would hide it. From the same pilot film (a box), its halves differ clearly more for a
+    /// Mitchell render than for a box one.
     #[test]
     fn sppm_s_pilot_counts_the_noise_of_the_film_s_filter() {
         let desc = scene("material-spheres");
