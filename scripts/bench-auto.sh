@@ -13,12 +13,16 @@ T=${1:-target/release/tessera}
 OUT=bench-report/auto
 ALL=auto,path,bdpt,vcm,photon,sppm,pssmlt,mlt
 SPP=1,2,3,4,6,8,12,16,24,32,48,64,96,128,192,256
-run() { # scene reference integrators budgets [report suffix]
+# Rows whose renders take about a second or less get three seeds: a time is then the bench's lower
+# median over them, where one wall-clock reading of a render that short varies by a tenth
+# from run to run (and its error by which checkpoint one seed's noise reaches the goal at).
+SEEDS=3
+run() { # scene reference integrators budgets [report suffix] [seeds]
     echo "== $1 $2"
     "$T" bench "scenes/$1/scene.json" --reference "$2" --integrators "$3" --budgets "$4" \
-        --until 0.01 -o "$OUT/$1${5:+-$5}"
+        --seeds "${6:-1}" --until 0.01 -o "$OUT/$1${5:+-$5}"
 }
-run cornell-box scenes/cornell-box/reference.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,48
+run cornell-box scenes/cornell-box/reference.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,48 "" $SEEDS
 # The same box at 512×512 (Mitsuba's reference, scripts/references/make.py reference-512):
 # renders of seconds, where the pilot's fixed cost weighs less.
 run cornell-box scenes/cornell-box/reference-512.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,48 512
@@ -30,10 +34,10 @@ else
     echo "== cornell-box 1920x1080: not run (scripts/bench-auto.sh --hd)"
     rm -rf "$OUT/cornell-box-1920x1080" # an earlier run's row is not this run's
 fi
-run cornell-glass scenes/cornell-glass/reference-128.exr "$ALL" "$SPP"
-run indirect-room scenes/indirect-room/reference-128.exr "$ALL" "$SPP"
-run pool scenes/pool/reference-96.exr "$ALL" "$SPP"
-run material-spheres scenes/material-spheres/reference-128.exr "$ALL" "$SPP"
+run cornell-glass scenes/cornell-glass/reference-128.exr "$ALL" "$SPP" "" $SEEDS
+run indirect-room scenes/indirect-room/reference-128.exr "$ALL" "$SPP" "" $SEEDS
+run pool scenes/pool/reference-96.exr "$ALL" "$SPP" "" $SEEDS
+run material-spheres scenes/material-spheres/reference-128.exr "$ALL" "$SPP" "" $SEEDS
 run translucent scenes/translucent/reference-96.exr \
     auto,path:dipole,path:hierarchical,path:random-walk "$SPP,384,512,768,1024,1536,2048,3072,4096"
 python3 scripts/bench-auto-table.py "$OUT"

@@ -103,6 +103,23 @@ pub(super) fn pilot_desc(desc: &SceneDesc) -> SceneDesc {
     d
 }
 
+/// Tiles of a pilot's film get this many per thread at least (where its pixels allow), so
+/// every thread has work and the last tiles do not leave threads idle.
+const PILOT_TILES_PER_THREAD: u32 = 4;
+
+/// The tile side for a pilot film of `width`×`height` on `threads` threads: the largest
+/// power of two up to the render's default with [`PILOT_TILES_PER_THREAD`] tiles per thread
+/// (at least 4 pixels). The render's default tile would cut a pilot's few hundred pixels into
+/// one tile, one thread's work; the tile does not change the image.
+fn pilot_tile(width: u32, height: u32, threads: usize) -> u32 {
+    let want = PILOT_TILES_PER_THREAD as u64 * threads.max(1) as u64;
+    let mut tile = crate::method::default_tile(width, height);
+    while tile > 4 && (width.div_ceil(tile) as u64) * (height.div_ceil(tile) as u64) < want {
+        tile /= 2;
+    }
+    tile
+}
+
 /// A candidate's pilot images: two independent halves and their mean.
 pub(super) struct Halves {
     /// k samples, and k more (independent of the first).
@@ -194,6 +211,7 @@ pub(super) fn run(
     let noop = |_: Progress| {};
     let job = Job {
         cache_film: Some(film),
+        tile: pilot_tile(desc.film.width, desc.film.height, threads),
         ..Job::new(desc.clone(), frame)
     };
     let p = plan(&job)?;
@@ -288,7 +306,10 @@ pub(super) fn run(
             } else {
                 let mut other = desc.clone();
                 other.integrator.seed = other.integrator.seed.wrapping_add(1);
-                let job = Job::new(other.clone(), frame);
+                let job = Job {
+                    tile: pilot_tile(other.film.width, other.film.height, threads),
+                    ..Job::new(other.clone(), frame)
+                };
                 let p = plan(&job)?;
                 scene.set_settings(&other);
                 let local = Local::new(p.as_ref(), scene, &other, threads, &noop);
@@ -330,6 +351,30 @@ mod tests {
             Ok(Pilot::Ran(_)) => panic!("the pilot ran with no time left"),
             Err(e) => panic!("{e}"),
         }
+    }
+
+    /// A pilot's film is cut so that every thread has tiles to render: the indirect room's
+    /// pilot (a few hundred pixels) fits one default tile, which one thread would render
+    /// while the others wait. Large pilot films keep tiles no larger than the render's.
+    #[test]
+    fn every_thread_has_tiles_of_a_pilot_s_film() {
+        let count = |w: u32, h: u32, t: u32| (w.div_ceil(t) * h.div_ceil(t)) as usize;
+        let p = pilot_desc(&scene("indirect-room")).film;
+        assert_eq!(crate::method::default_tile(p.width, p.height), 32);
+        assert_eq!(count(p.width, p.height, 32), 1);
+        for threads in [1, 2, 4] {
+            let t = pilot_tile(p.width, p.height, threads);
+            assert!(
+                count(p.width, p.height, t) >= PILOT_TILES_PER_THREAD as usize * threads,
+                "{}×{} pixels, tile {t}, {threads} threads",
+                p.width,
+                p.height
+            );
+        }
+        let big = pilot_desc(&scene("cornell-box")).film;
+        assert!(pilot_tile(big.width, big.height, 2) <= 32);
+        // A film too small for that gets the smallest tile, not nothing.
+        assert_eq!(pilot_tile(3, 2, 64), 4);
     }
 
     /// No time left, nor reusable work.
