@@ -37,7 +37,7 @@ fi
 run cornell-glass scenes/cornell-glass/reference-128.exr "$ALL" "$SPP" "" $SEEDS
 run indirect-room scenes/indirect-room/reference-128.exr "$ALL" "$SPP" "" $SEEDS
 run pool scenes/pool/reference-96.exr "$ALL" "$SPP" "" $SEEDS
-run material-spheres scenes/material-spheres/reference-128.exr "$ALL" "$SPP" "" $SEEDS
+run material-spheres scenes/material-spheres/reference-128.exr "$ALL" "$SPP,384,512,768,1024" "" $SEEDS
 run translucent scenes/translucent/reference-96.exr \
     auto,path:dipole,path:hierarchical,path:random-walk "$SPP,384,512,768,1024,1536,2048,3072,4096"
 python3 scripts/bench-auto-table.py "$OUT"

@@ -13,7 +13,8 @@
 //!    not checked; where it does not, VCM, which has BDPT's strategies, stays a candidate.
 //! 2. **Pilots**: each remaining candidate renders the scene at about 1/32 of its pixels (at
 //!    least 256, at most 4096; a Mitchell filter as a box, whose weights cannot cancel, but for
-//!    SPPM, whose pixels divide by T·E[w] and whose weights' noise is part of its error) with
+//!    SPPM, whose pixels divide by T·E[w] and whose weights' noise is part of its error; in
+//!    tiles small enough for every thread to have some) with
 //!    `k` samples, then `k` more, as two independent halves A and B (where the method cannot
 //!    continue a frame, a second render with the next seed). The relMSE of one half is
 //!    estimated as mean((A − B)² / 2 / (R̄² + 0.01)) over pixels and channels, R being the
