@@ -67,9 +67,9 @@ print("| scene | " + " | ".join(methods) + " |")
 print("|---|" + "---:|" * len(methods))
 for label, *_ , r in rows:
     cells = []
+    first = r["seeds"][0]
     for m in methods:
-        first = r["seeds"][0] if r.get("seeds") else None
-        runs = [x for x in r["runs"] if x["integrator"] == m and x.get("seed", first) == first]
+        runs = [x for x in r["runs"] if x["integrator"] == m and x["seed"] == first]
         low = [x for x in runs if x["rel_mse"] <= 3e-2]
         # A render of one sample has no estimate: the first checkpoint that has one.
         hit = next((x for x in low if x["estimated_rel_mse"] is not None),

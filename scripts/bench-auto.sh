@@ -13,7 +13,8 @@ T=${1:-target/release/tessera}
 OUT=bench-report/auto
 ALL=auto,path,bdpt,vcm,photon,sppm,pssmlt,mlt
 SPP=1,2,3,4,6,8,12,16,24,32,48,64,96,128,192,256
-# Rows whose renders take about a second or less get three seeds: a time is then the bench's lower
+# Rows whose renders take about a second or less, and the material spheres (whose sun's
+# caustics make each seed's error jump), get three seeds: a time is then the bench's lower
 # median over them, where one wall-clock reading of a render that short varies by a tenth
 # from run to run (and its error by which checkpoint one seed's noise reaches the goal at).
 SEEDS=3

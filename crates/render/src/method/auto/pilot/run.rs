@@ -209,9 +209,11 @@ pub(super) fn run(
         desc.film.filter = film.filter;
     }
     let noop = |_: Progress| {};
+    // Both halves render the same film: one tile size for both.
+    let tile = pilot_tile(desc.film.width, desc.film.height, threads);
     let job = Job {
         cache_film: Some(film),
-        tile: pilot_tile(desc.film.width, desc.film.height, threads),
+        tile,
         ..Job::new(desc.clone(), frame)
     };
     let p = plan(&job)?;
@@ -307,7 +309,7 @@ pub(super) fn run(
                 let mut other = desc.clone();
                 other.integrator.seed = other.integrator.seed.wrapping_add(1);
                 let job = Job {
-                    tile: pilot_tile(other.film.width, other.film.height, threads),
+                    tile,
                     ..Job::new(other.clone(), frame)
                 };
                 let p = plan(&job)?;
