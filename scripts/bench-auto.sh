@@ -24,12 +24,12 @@ run() { # scene reference integrators budgets [report suffix] [seeds]
         --seeds "${6:-1}" --until 0.01 -o "$OUT/$1${5:+-$5}"
 }
 run cornell-box scenes/cornell-box/reference.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,48 "" $SEEDS
-# The same box at 512×512 (Mitsuba's reference, scripts/references/make.py reference-512):
+# The same box at 512×512 (Mitsuba's reference, scripts/references/make.py cornell-box/reference-512):
 # renders of seconds, where the pilot's fixed cost weighs less.
 run cornell-box scenes/cornell-box/reference-512.exr "$ALL" 1,2,3,4,6,8,12,16,24,32,48 512
 if [ "$HD" = 1 ]; then
     HD_REF=scenes/cornell-box/reference-1920x1080.exr
-    [ -f "$HD_REF" ] || scripts/references/run.sh reference-1920x1080 --out scenes/cornell-box --tessera "$T"
+    [ -f "$HD_REF" ] || scripts/references/run.sh cornell-box/reference-1920x1080 --out scenes --tessera "$T"
     run cornell-box "$HD_REF" "$ALL" 1,2,3,4,6,8,12,16,24,32,48 1920x1080
 else
     echo "== cornell-box 1920x1080: not run (scripts/bench-auto.sh --hd)"
@@ -37,8 +37,16 @@ else
 fi
 run cornell-glass scenes/cornell-glass/reference-128.exr "$ALL" "$SPP" "" $SEEDS
 run indirect-room scenes/indirect-room/reference-128.exr "$ALL" "$SPP" "" $SEEDS
+# The glass, the indirect room and the material spheres again at sizes where a render takes
+# seconds and the pilot's film has thousands of pixels (at most 4096): the glass against
+# Mitsuba's reference under the scene's filter (scripts/references/make.py
+# cornell-glass/reference-512), the room against BDPT's and the spheres (the scene's own film)
+# against VCM's (the README's bench section says how they were made).
+run cornell-glass scenes/cornell-glass/reference-512.exr "$ALL" "$SPP" 512
+run indirect-room scenes/indirect-room/reference-512x384.exr "$ALL" "$SPP" 512x384
 run pool scenes/pool/reference-96.exr "$ALL" "$SPP" "" $SEEDS
 run material-spheres scenes/material-spheres/reference-128.exr "$ALL" "$SPP,384,512,768,1024" "" $SEEDS
+run material-spheres scenes/material-spheres/reference-480x240.exr "$ALL" "$SPP,384,512,768,1024" 480x240
 run translucent scenes/translucent/reference-96.exr \
     auto,path:dipole,path:hierarchical,path:random-walk "$SPP,384,512,768,1024,1536,2048,3072,4096"
 python3 scripts/bench-auto-table.py "$OUT"

@@ -17,7 +17,9 @@
 //!    tiles small enough for every thread to have some) with
 //!    `k` samples, then `k` more, as two independent halves A and B (where the method cannot
 //!    continue a frame, a second render with the next seed). The relMSE of one half is
-//!    estimated as mean((A − B)² / 2 / (R̄² + 0.01)) over pixels and channels, R being the
+//!    estimated as mean((A − B)² / 2 / (R̄² + 0.01)) over pixels and channels (this mean, and
+//!    every relMSE below, counts its largest pixel as the next largest: one rare bright path
+//!    caught by a pilot does not rate a method alone; [`predict::rel`]), R being the
 //!    consensus of the unbiased candidates (leaving out the path tracer where a bidirectional
 //!    one was measured), their means weighted by the inverse of their variance, and R̄ its
 //!    3 × 3-pixel mean (dividing by a noisy R would inflate the estimate where R came out
