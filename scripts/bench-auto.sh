@@ -41,7 +41,7 @@ run indirect-room scenes/indirect-room/reference-128.exr "$ALL" "$SPP" "" $SEEDS
 # seconds and the pilot's film has thousands of pixels (at most 4096): the glass against
 # Mitsuba's reference under the scene's filter (scripts/references/make.py
 # cornell-glass/reference-512), the room against BDPT's and the spheres (the scene's own film)
-# against VCM's (the README's bench section says how they were made).
+# against VCM's (README, "At the sizes where a render takes seconds", says how each was made).
 run cornell-glass scenes/cornell-glass/reference-512.exr "$ALL" "$SPP" 512
 run indirect-room scenes/indirect-room/reference-512x384.exr "$ALL" "$SPP" 512x384
 run pool scenes/pool/reference-96.exr "$ALL" "$SPP" "" $SEEDS
