@@ -30,8 +30,23 @@ import numpy as np
 
 ROOT = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
 
-# Mitsuba's film filter where a reference is not box-filtered (an optional sixth entry).
-GAUSSIAN = '<rfilter type="gaussian"><float name="stddev" value="0.5"/></rfilter>'
+# An optional sixth entry: render under the scene's own film filter, not a box.
+SCENE_FILTER = "scene filter"
+
+
+def scene_rfilter(scene_file):
+    """Mitsuba's rfilter for the film filter of `scene_file` (Tessera's defaults where unset)."""
+    import json
+
+    with open(os.path.join(ROOT, scene_file)) as f:
+        desc = json.load(f).get("film", {}).get("filter", {"type": "box"})
+    kind = desc.get("type", "box")
+    if kind == "box":
+        return '<rfilter type="box"/>'
+    if kind == "gaussian":
+        return f'<rfilter type="gaussian"><float name="stddev" value="{desc.get("sigma", 0.5)}"/></rfilter>'
+    sys.exit(f"{scene_file}: no Mitsuba rfilter for its {kind} filter")
+
 
 # name: (scene file, size, integrator, spp per batch, batches). Tessera's bounces are capped
 # at 64 in the tests (Mitsuba's max_depth counts segments: 65). A random walk inside marble
@@ -52,7 +67,7 @@ SCENES = {
     # many), under the scene's own filter, which the bench renders: a Gaussian of σ 0.5 px,
     # which Mitsuba cuts at 4σ and Tessera at 3σ less its value there (weights that differ by
     # about 1 % of the peak).
-    "cornell-glass/reference-512": ("scenes/cornell-glass/scene.json", (512, 512), {"type": "path", "max_depth": 65}, 256, 16, GAUSSIAN),
+    "cornell-glass/reference-512": ("scenes/cornell-glass/scene.json", (512, 512), {"type": "path", "max_depth": 65}, 256, 16, SCENE_FILTER),
     "cornell-glass": ("scenes/cornell-glass/scene.json", (64, 64), {"type": "path", "max_depth": 65}, 16384, 16),
     "indirect-room": ("scenes/indirect-room/scene.json", (64, 48), {"type": "path", "max_depth": 65}, 16384, 16),
     "veach-mis": ("scenes/veach-mis/scene.json", (96, 64), {"type": "path", "max_depth": 65}, 8192, 16),
@@ -75,7 +90,8 @@ def write_exr(path, mean, var, header):
 def render(name, tessera, out_dir, variant):
     import mitsuba as mi
 
-    scene_file, (w, h), integrator, spp, batches, *rfilter = SCENES[name]
+    scene_file, (w, h), integrator, spp, batches, *own = SCENES[name]
+    rfilter = [scene_rfilter(scene_file)] if own else []
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run(
             [tessera, "export", os.path.join(ROOT, scene_file), "--size", f"{w}x{h}", "-o", tmp],
