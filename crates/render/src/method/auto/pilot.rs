@@ -60,9 +60,15 @@
 //! The first three candidates are measured whatever the pilot spends, until the judges measured
 //! so far resolve the goal (their own relMSE under it, so a floor at the goal can be told from
 //! their noise; on the Cornell box the path tracer alone does): the unbiased ones left then go
-//! after the biased ones ([`judged`]). Where the judges do not resolve it, a biased candidate
-//! such as the photon map (whose floor they could not tell, so it could not be chosen) waits
-//! behind the judges still to come, and is not measured if none is ([`defer`]). After the first
+//! after the biased ones ([`judged`]). Where they do not, and a biased candidate is still to
+//! come, every judge renders more samples at seeds of its own until their relMSE is predicted
+//! at [`deepen::DEEPEN_TO`] of the goal, if that takes at most [`deepen::MAX_DEEPEN`] times
+//! their samples and fits in the pilot's shares below ([`deepen()`]; the report says so: a
+//! near miss of a cheap measure, such as the glass's judges at a few samples, where the
+//! photon map would otherwise go unmeasured). Where the judges still
+//! do not resolve the goal, a biased candidate such as the photon map (whose floor they could
+//! not tell, so it could not be chosen) waits behind the judges still to come, and is not
+//! measured if none is ([`defer`]). After the first
 //! candidates, whose cost is sunk, the pilot stops measuring once it has spent a tenth of the
 //! best prediction so far (of a candidate without a caveat) on the others, or once the whole
 //! pilot has cost a fifteenth of it beyond the work that candidate's render would take over
@@ -91,11 +97,13 @@ use crate::film::MAX_SPP;
 use crate::method::{Job, Loaded, plan};
 use crate::scene::Scene;
 
+mod deepen;
 mod order;
 mod predict;
 mod progressive;
 mod radii;
 mod run;
+use deepen::deepen;
 pub use order::FEW_PHOTONS;
 use order::{candidates, defer, judged, measured_first, more_photons_needed, sees_specular};
 use predict::{choose, describe, predict};
@@ -258,6 +266,16 @@ pub fn select(
     selection
 }
 
+/// The soonest prediction of a candidate without a caveat, and the pilot's work its render
+/// would take over ([`Measurement::handed_s`]); infinite where there is none.
+fn best_prediction(measurements: &[Measurement]) -> (f64, f64) {
+    measurements
+        .iter()
+        .filter(|m| m.caveat.is_none())
+        .filter_map(|m| Some((m.predicted_s?, m.handed_s)))
+        .fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { b } else { a })
+}
+
 fn measure(
     desc: &SceneDesc,
     scene: &mut Scene,
@@ -298,6 +316,8 @@ fn measure(
 
     let mut runs: Vec<(usize, Run)> = Vec::new();
     let mut measurements = Vec::new();
+    // What the pilot did beyond measuring each candidate once, for the report.
+    let mut notes: Vec<String> = Vec::new();
     let mut target = None;
     // Candidates by index into `candidates`, in the order they are measured.
     let mut order: Vec<usize> = (0..candidates.len()).collect();
@@ -311,11 +331,7 @@ fn measure(
     while let Some(&i) = order.get(n) {
         let c = &candidates[i];
         let elapsed = start.elapsed().as_secs_f64();
-        let (best, handed) = measurements
-            .iter()
-            .filter(|m: &&Measurement| m.caveat.is_none())
-            .filter_map(|m| Some((m.predicted_s?, m.handed_s)))
-            .fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { b } else { a });
+        let (best, handed) = best_prediction(&measurements);
         let budget = match goal {
             Goal::Seconds(t) => t,
             _ => best,
@@ -381,13 +397,60 @@ fn measure(
             )),
             Err(e) => ruled_out.push(format!("{}: cannot run: {e}", c.label)),
         }
-        let p = predict(
+        let mut p = predict(
             &candidates,
             &runs,
             goal,
             (pilot.film.width, pilot.film.height),
             film,
         );
+        // The first candidates measured, their consensus cannot tell a floor at the goal,
+        // and a biased candidate is still to come: a few more samples of the cheapest judge
+        // may let it, at the pilot's share (they count as spent on the candidates after).
+        if let Some(e) = p.target.filter(|_| {
+            n == always
+                && !p.resolves()
+                && order[n..]
+                    .iter()
+                    .any(|&j| candidates[j].model == Model::Biased)
+        }) {
+            let elapsed = start.elapsed().as_secs_f64();
+            judges_done = Some(elapsed);
+            let (best, handed) = best_prediction(&p.measurements);
+            let budget = match goal {
+                Goal::Seconds(t) => t,
+                _ => best,
+            };
+            let left = (PILOT_SHARE * budget).min(PILOT_OVERHEAD * budget - (elapsed - handed));
+            let deepened = deepen(
+                &mut candidates,
+                &mut runs,
+                p.judges,
+                e,
+                left,
+                &pilot,
+                desc.film,
+                scene,
+                frame,
+                threads,
+            );
+            match deepened {
+                Ok(what) => {
+                    notes.push(what);
+                    p = predict(
+                        &candidates,
+                        &runs,
+                        goal,
+                        (pilot.film.width, pilot.film.height),
+                        film,
+                    );
+                    if p.resolves() {
+                        judged(&candidates, &mut order[n..]);
+                    }
+                }
+                Err(why) => notes.push(format!("judges not deepened: {why}")),
+            }
+        }
         if n <= always && p.resolves() {
             always = n;
             judged(&candidates, &mut order[n..]);
@@ -463,6 +526,7 @@ fn measure(
     for o in &measurements {
         report.push(describe(o));
     }
+    report.extend(notes);
     report.extend(ruled_out);
     Ok(Selection {
         choice: Choice {

@@ -369,12 +369,12 @@ pub(super) fn describe(m: &Measurement) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::super::{Candidate, Goal, Halves, Measurement, Model, Run};
     use super::{choose, describe, predict};
 
     /// Gaussian noise from a fixed seed (xorshift, Box–Muller).
-    struct Noise(u64);
+    pub(in super::super) struct Noise(pub(in super::super) u64);
     impl Noise {
         fn uniform(&mut self) -> f64 {
             self.0 ^= self.0 << 13;
@@ -388,10 +388,10 @@ mod tests {
         }
     }
 
-    const PIXELS: usize = 2000;
+    pub(in super::super) const PIXELS: usize = 2000;
 
     /// Two halves of k samples each about `mean`, each sample of standard deviation `sigma`.
-    fn run(noise: &mut Noise, mean: f64, sigma: f64, k: f64) -> Run {
+    pub(in super::super) fn run(noise: &mut Noise, mean: f64, sigma: f64, k: f64) -> Run {
         let mut half = || -> Vec<[f64; 3]> {
             (0..PIXELS)
                 .map(|_| [0; 3].map(|_| mean + sigma / k.sqrt() * noise.normal()))
@@ -415,7 +415,7 @@ mod tests {
         }
     }
 
-    fn candidate(label: &str, model: Model, k: u32) -> Candidate {
+    pub(in super::super) fn candidate(label: &str, model: Model, k: u32) -> Candidate {
         Candidate {
             label: label.into(),
             method: "path",
