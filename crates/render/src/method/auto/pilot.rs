@@ -63,17 +63,16 @@
 //! after the biased ones ([`judged`]). Where they do not, and a biased candidate is still to
 //! come, every judge renders more samples at seeds of its own until their relMSE is predicted
 //! at [`deepen::DEEPEN_TO`] of the goal, if that takes at most [`deepen::MAX_DEEPEN`] times
-//! their samples and fits in the pilot's shares below ([`deepen()`]; the report says so: a
-//! near miss of a cheap measure, such as the glass's judges at a few samples, where the
-//! photon map would otherwise go unmeasured). Where the judges still
-//! do not resolve the goal, a biased candidate such as the photon map (whose floor they could
-//! not tell, so it could not be chosen) waits behind the judges still to come, and is not
-//! measured if none is ([`defer`]). After the first
-//! candidates, whose cost is sunk, the pilot stops measuring once it has spent a tenth of the
-//! best prediction so far (of a candidate without a caveat) on the others, or once the whole
-//! pilot has cost a fifteenth of it beyond the work that candidate's render would take over
-//! from it ([`PILOT_OVERHEAD`]: on a long render the first candidates count too), or would with SPPM's
-//! photons (timed on their first chunk), a candidate's passes (timed on their first tasks, with
+//! their samples and fits in the pilot's shares below ([`deepen()`], which the report names):
+//! a near miss of a cheap measure, such as the glass's judges at a few samples, would
+//! otherwise leave the photon map unmeasured. Where the judges still do not resolve the goal,
+//! a biased candidate such as the photon map (whose floor they could not tell, so it could not
+//! be chosen) waits behind the judges still to come, and is not measured if none is
+//! ([`defer`]). After the first candidates, whose cost is sunk, the pilot stops measuring once
+//! it has spent a tenth of the best prediction so far (of a candidate without a caveat) on the
+//! others, or once the whole pilot has cost a fifteenth of it beyond the work that candidate's
+//! render would take over from it ([`PILOT_OVERHEAD`]: on a long render the first candidates
+//! count too), or would with SPPM's photons (timed on their first chunk), a candidate's passes (timed on their first tasks, with
 //! what follows the tasks estimated from them: the photon map's) or a Metropolis pilot's frames
 //! (timed on one group of chains); the photons and passes, which the render takes over where
 //! that candidate wins, count at the odds of that candidate losing ([`Allowance::of`]).
@@ -145,6 +144,7 @@ enum Model {
     Progressive,
 }
 
+#[derive(Clone)]
 struct Candidate {
     label: String,
     method: &'static str,
@@ -266,14 +266,19 @@ pub fn select(
     selection
 }
 
-/// The soonest prediction of a candidate without a caveat, and the pilot's work its render
-/// would take over ([`Measurement::handed_s`]); infinite where there is none.
-fn best_prediction(measurements: &[Measurement]) -> (f64, f64) {
-    measurements
+/// What the pilot's shares are of: the goal's time, else the soonest prediction of a
+/// candidate without a caveat (infinite where there is none); and the pilot's work that
+/// candidate's render would take over ([`Measurement::handed_s`]).
+fn pilot_budget(measurements: &[Measurement], goal: Goal) -> (f64, f64) {
+    let (best, handed) = measurements
         .iter()
         .filter(|m| m.caveat.is_none())
         .filter_map(|m| Some((m.predicted_s?, m.handed_s)))
-        .fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { b } else { a })
+        .fold((f64::INFINITY, 0.0), |a, b| if b.0 < a.0 { b } else { a });
+    match goal {
+        Goal::Seconds(t) => (t, handed),
+        _ => (best, handed),
+    }
 }
 
 fn measure(
@@ -331,11 +336,7 @@ fn measure(
     while let Some(&i) = order.get(n) {
         let c = &candidates[i];
         let elapsed = start.elapsed().as_secs_f64();
-        let (best, handed) = best_prediction(&measurements);
-        let budget = match goal {
-            Goal::Seconds(t) => t,
-            _ => best,
-        };
+        let (budget, handed) = pilot_budget(&measurements, goal);
         n += 1;
         if !more_photons_needed(c, &measurements, goal) {
             ruled_out.push(format!(
@@ -405,8 +406,8 @@ fn measure(
             film,
         );
         // The first candidates measured, their consensus cannot tell a floor at the goal,
-        // and a biased candidate is still to come: a few more samples of the cheapest judge
-        // may let it, at the pilot's share (they count as spent on the candidates after).
+        // and a biased candidate is still to come: more samples of every judge may let it,
+        // within the pilot's shares (they count as spent on the candidates after them).
         if let Some(e) = p.target.filter(|_| {
             n == always
                 && !p.resolves()
@@ -416,11 +417,7 @@ fn measure(
         }) {
             let elapsed = start.elapsed().as_secs_f64();
             judges_done = Some(elapsed);
-            let (best, handed) = best_prediction(&p.measurements);
-            let budget = match goal {
-                Goal::Seconds(t) => t,
-                _ => best,
-            };
+            let (budget, handed) = pilot_budget(&p.measurements, goal);
             let left = (PILOT_SHARE * budget).min(PILOT_OVERHEAD * budget - (elapsed - handed));
             let deepened = deepen(
                 &mut candidates,

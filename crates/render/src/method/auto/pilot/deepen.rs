@@ -5,8 +5,9 @@
 
 use tessera_scene::{FilmDesc, SceneDesc};
 
+use super::Candidate;
+use super::predict::judges;
 use super::run::{Allowance, Halves, Pilot, Run, run};
-use super::{Candidate, Model};
 use crate::scene::Scene;
 
 /// The judges are deepened until their predicted relMSE is this share of the goal: under the
@@ -17,25 +18,6 @@ pub(super) const DEEPEN_TO: f64 = 0.7;
 /// would cost more to resolve than the candidates it judges (a render reaching it in a few
 /// samples where the judges need hundreds) take to render.
 pub(super) const MAX_DEEPEN: f64 = 3.0;
-
-/// The runs (indices into `runs`) whose consensus judges the others: the judges, else every
-/// unbiased candidate, as [`super::predict::predict`] takes them.
-fn judges(candidates: &[Candidate], runs: &[(usize, Run)]) -> Vec<usize> {
-    let of = |all: bool| -> Vec<usize> {
-        runs.iter()
-            .enumerate()
-            .filter(|(_, (i, _))| {
-                let c = &candidates[*i];
-                c.judges() || (all && c.model == Model::Unbiased)
-            })
-            .map(|(j, _)| j)
-            .collect()
-    };
-    match of(false) {
-        j if j.is_empty() => of(true),
-        j => j,
-    }
-}
 
 /// More samples a half for each judge (index into `runs`, samples), for judges of relMSE
 /// `judges_rel` to reach [`DEEPEN_TO`] of the goal `e`, and the seconds they are predicted to
@@ -128,16 +110,10 @@ pub(super) fn deepen(
     let mut done = Vec::new();
     for (j, more) in more {
         let i = runs[j].0;
-        let c = &candidates[i];
-        let label = c.label.clone();
+        let label = candidates[i].label.clone();
         let extra = Candidate {
-            label: c.label.clone(),
-            method: c.method,
-            subsurface: c.subsurface,
-            model: c.model,
             k: more,
-            caveat: None,
-            photons: c.photons,
+            ..candidates[i].clone()
         };
         let Pilot::Ran(second) = run(
             &extra,
@@ -168,9 +144,9 @@ pub(super) fn deepen(
 
 #[cfg(test)]
 mod tests {
-    use super::super::Goal;
     use super::super::predict::predict;
     use super::super::predict::tests::{Noise, PIXELS, candidate, run};
+    use super::super::{Goal, Model};
     use super::*;
 
     /// Two judges whose consensus (relMSE 1.2e-2) cannot tell a floor under the goal 1e-2,

@@ -128,17 +128,10 @@ fn resolves(judges: f64, e: f64) -> bool {
     judges < e
 }
 
-/// Every measured candidate's prediction for `goal`.
-pub(super) fn predict(
-    candidates: &[Candidate],
-    runs: &[(usize, Run)],
-    goal: Goal,
-    pilot: (u32, u32),
-    film: u64,
-) -> Prediction {
-    let pixels: Vec<&Halves> = runs.iter().map(|(_, r)| &r.images).collect();
-    // The consensus: the judges (`Candidate::judges`), else every unbiased candidate.
-    let judges_of = |all: bool| -> Vec<usize> {
+/// The runs (indices into `runs`) whose consensus judges the others: the judges
+/// ([`Candidate::judges`]), else every unbiased candidate.
+pub(super) fn judges(candidates: &[Candidate], runs: &[(usize, Run)]) -> Vec<usize> {
+    let of = |all: bool| -> Vec<usize> {
         runs.iter()
             .enumerate()
             .filter(|(_, (i, _))| {
@@ -148,10 +141,22 @@ pub(super) fn predict(
             .map(|(j, _)| j)
             .collect()
     };
-    let judged = match judges_of(false) {
-        j if j.is_empty() => judges_of(true),
+    match of(false) {
+        j if j.is_empty() => of(true),
         j => j,
-    };
+    }
+}
+
+/// Every measured candidate's prediction for `goal`.
+pub(super) fn predict(
+    candidates: &[Candidate],
+    runs: &[(usize, Run)],
+    goal: Goal,
+    pilot: (u32, u32),
+    film: u64,
+) -> Prediction {
+    let pixels: Vec<&Halves> = runs.iter().map(|(_, r)| &r.images).collect();
+    let judged = judges(candidates, runs);
     let unbiased: Vec<&Halves> = judged.iter().map(|&j| pixels[j]).collect();
     let width = pilot.0 as usize;
     let (r, var_consensus) = consensus(&unbiased, width);
