@@ -281,6 +281,12 @@ fn pilot_budget(measurements: &[Measurement], goal: Goal) -> (f64, f64) {
     }
 }
 
+/// Seconds the pilot may still spend under both shares of `budget`, having spent `spent` on
+/// the candidates after the first and `overhead` on work the render would not take over.
+fn shares_left(budget: f64, spent: f64, overhead: f64) -> f64 {
+    (PILOT_SHARE * budget - spent).min(PILOT_OVERHEAD * budget - overhead)
+}
+
 fn measure(
     desc: &SceneDesc,
     scene: &mut Scene,
@@ -318,6 +324,15 @@ fn measure(
     let mut always = measured_first(&mut candidates, goal);
     let film = (desc.film.width as u64) * (desc.film.height as u64);
     let pilot = pilot_desc(desc);
+    let predicted = |candidates: &[Candidate], runs: &[(usize, Run)]| {
+        predict(
+            candidates,
+            runs,
+            goal,
+            (pilot.film.width, pilot.film.height),
+            film,
+        )
+    };
 
     let mut runs: Vec<(usize, Run)> = Vec::new();
     let mut measurements = Vec::new();
@@ -384,10 +399,9 @@ fn measure(
         let allowance = if anyway {
             Allowance::UNLIMITED
         } else {
-            let a = Allowance::of(PILOT_SHARE * budget - spent, budget);
             Allowance {
-                left: a.left.min(PILOT_OVERHEAD * budget - overhead),
-                ..a
+                left: shares_left(budget, spent, overhead),
+                ..Allowance::of(PILOT_SHARE * budget - spent, budget)
             }
         };
         match run(c, &pilot, desc.film, scene, frame, threads, allowance) {
@@ -398,13 +412,7 @@ fn measure(
             )),
             Err(e) => ruled_out.push(format!("{}: cannot run: {e}", c.label)),
         }
-        let mut p = predict(
-            &candidates,
-            &runs,
-            goal,
-            (pilot.film.width, pilot.film.height),
-            film,
-        );
+        let mut p = predicted(&candidates, &runs);
         // The first candidates measured, their consensus cannot tell a floor at the goal,
         // and a biased candidate is still to come: more samples of every judge may let it,
         // within the pilot's shares (they count as spent on the candidates after them).
@@ -418,7 +426,7 @@ fn measure(
             let elapsed = start.elapsed().as_secs_f64();
             judges_done = Some(elapsed);
             let (budget, handed) = pilot_budget(&p.measurements, goal);
-            let left = (PILOT_SHARE * budget).min(PILOT_OVERHEAD * budget - (elapsed - handed));
+            let left = shares_left(budget, 0.0, elapsed - handed);
             let deepened = deepen(
                 &mut candidates,
                 &mut runs,
@@ -434,16 +442,7 @@ fn measure(
             match deepened {
                 Ok(what) => {
                     notes.push(what);
-                    p = predict(
-                        &candidates,
-                        &runs,
-                        goal,
-                        (pilot.film.width, pilot.film.height),
-                        film,
-                    );
-                    if p.resolves() {
-                        judged(&candidates, &mut order[n..]);
-                    }
+                    p = predicted(&candidates, &runs);
                 }
                 Err(why) => notes.push(format!("judges not deepened: {why}")),
             }

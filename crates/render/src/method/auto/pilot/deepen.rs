@@ -185,9 +185,9 @@ mod tests {
             p.judges
         );
         let (more, seconds) = plan(&candidates, &runs, 1.2e-2, e).expect("judges to deepen");
-        // 1.2e-2 / 0.7e-2 times their samples: 4 × 0.71 more, rounded up.
+        // 1.2e-2 / (DEEPEN_TO e) times their 4 samples a half: the excess, rounded up.
         assert_eq!(more, vec![(0, 3), (1, 3)]);
-        // Their pilots took 4 s and 1 s for 4 samples a half.
+        // Each run's frame_s (set above) over its 4 samples a half, times the samples added.
         assert!((seconds - 5.0 * 3.0 / 4.0).abs() < 1e-9, "{seconds} s");
 
         for (j, more) in more {
