@@ -72,8 +72,10 @@
 //! it has spent a tenth of the best prediction so far (of a candidate without a caveat) on the
 //! others, or once the whole pilot has cost a fifteenth of it beyond the work that candidate's
 //! render would take over from it ([`PILOT_OVERHEAD`]: on a long render the first candidates
-//! count too), or would with SPPM's photons (timed on their first chunk), a candidate's passes (timed on their first tasks, with
-//! what follows the tasks estimated from them: the photon map's) or a Metropolis pilot's frames
+//! count too; it does not stop a biased candidate, whose pilot is mostly work its render takes
+//! over), or would with SPPM's photons (timed on their first chunk), a candidate's passes
+//! (timed on their first tasks, with what follows the tasks estimated from them: the photon
+//! map's) or a Metropolis pilot's frames
 //! (timed on one group of chains); the photons and passes, which the render takes over where
 //! that candidate wins, count at the odds of that candidate losing ([`Allowance::of`]).
 //! Candidates not measured are said to be. A Metropolis frame's bootstrap, which grows with
@@ -247,7 +249,9 @@ const PILOT_SHARE: f64 = 0.1;
 /// of the best prediction, less the work the render would take over from it (the best
 /// candidate's passes or photons, [`Measurement::handed_s`]): a long render's pilot stays
 /// under a tenth of it, with room for the prediction to err and for the last candidate
-/// measured to overshoot.
+/// measured to overshoot. It stops the unbiased candidates only: a biased one's pilot is
+/// mostly the passes or photons its render takes over, which the tenth counts at the odds
+/// that it loses ([`Allowance::of`]).
 const PILOT_OVERHEAD: f64 = 1.0 / 15.0;
 /// A biased candidate is said unable to reach an error its floor is this close to.
 const FLOOR_MARGIN: f64 = 0.8;
@@ -385,9 +389,13 @@ fn measure(
             ));
             continue;
         }
-        // The whole pilot less what the best candidate's render would take over from it.
+        // The whole pilot less what the best candidate's render would take over from it. A
+        // biased candidate's pilot is mostly work its own render takes over (the photon
+        // map's passes, SPPM's photons, the hierarchical method's point cloud), no overhead
+        // where it wins and counted by the tenth at the odds that it loses: the fifteenth
+        // does not stop it.
         let overhead = elapsed - handed;
-        if !anyway && overhead > PILOT_OVERHEAD * budget {
+        if !anyway && c.model == Model::Unbiased && overhead > PILOT_OVERHEAD * budget {
             ruled_out.push(format!(
                 "{}: not measured: the pilot had cost {overhead:.2} s beyond the work the render would take over from it, a fifteenth of the best prediction ({budget:.2} s)",
                 c.label
