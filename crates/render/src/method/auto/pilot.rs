@@ -391,9 +391,9 @@ fn measure(
         }
         // The whole pilot less what the best candidate's render would take over from it. A
         // biased candidate's pilot is mostly work its own render takes over (the photon
-        // map's passes, SPPM's photons, the hierarchical method's point cloud), no overhead
-        // where it wins and counted by the tenth at the odds that it loses: the fifteenth
-        // does not stop it.
+        // map's passes, SPPM's photons, the hierarchical method's point cloud; the dipole's
+        // is a few path-traced samples), no overhead where it wins and counted by the tenth
+        // at the odds that it loses: the fifteenth does not stop it.
         let overhead = elapsed - handed;
         if !anyway && c.model == Model::Unbiased && overhead > PILOT_OVERHEAD * budget {
             ruled_out.push(format!(
