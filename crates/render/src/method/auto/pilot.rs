@@ -250,8 +250,9 @@ const PILOT_SHARE: f64 = 0.1;
 /// candidate's passes or photons, [`Measurement::handed_s`]): a long render's pilot stays
 /// under a tenth of it, with room for the prediction to err and for the last candidate
 /// measured to overshoot. It stops the unbiased candidates only: a biased one's pilot is
-/// mostly the passes or photons its render takes over, which the tenth counts at the odds
-/// that it loses ([`Allowance::of`]).
+/// mostly work its render takes over (the photon map's passes, SPPM's photons, the
+/// hierarchical method's point cloud; the dipole's, without any, is a few path-traced
+/// samples), which the tenth counts at the odds that it loses ([`Allowance::of`]).
 const PILOT_OVERHEAD: f64 = 1.0 / 15.0;
 /// A biased candidate is said unable to reach an error its floor is this close to.
 const FLOOR_MARGIN: f64 = 0.8;
@@ -389,11 +390,8 @@ fn measure(
             ));
             continue;
         }
-        // The whole pilot less what the best candidate's render would take over from it. A
-        // biased candidate's pilot is mostly work its own render takes over (the photon
-        // map's passes, SPPM's photons, the hierarchical method's point cloud; the dipole's
-        // is a few path-traced samples), no overhead where it wins and counted by the tenth
-        // at the odds that it loses: the fifteenth does not stop it.
+        // The whole pilot less what the best candidate's render would take over from it;
+        // it stops unbiased candidates only ([`PILOT_OVERHEAD`]).
         let overhead = elapsed - handed;
         if !anyway && c.model == Model::Unbiased && overhead > PILOT_OVERHEAD * budget {
             ruled_out.push(format!(
