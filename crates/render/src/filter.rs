@@ -16,8 +16,14 @@ const TABLE: usize = 256;
 pub struct Filter {
     desc: FilterDesc,
     radius: f32,
-    /// |f| along one axis for separable, non-box filters.
+    /// |f| along one axis for separable, non-box filters, tabulated.
     table: Option<Distribution1D>,
+    /// Which bins of the table are negative lobes.
+    negative: Vec<bool>,
+    /// ∫ |f| along one axis over the table: the magnitude of every weight's factor along it.
+    abs_integral: f32,
+    /// ∫ f along one axis over the table: the mean of a weight's factor along it.
+    table_integral: f32,
     /// ∫ f along one axis.
     integral: f32,
 }
@@ -52,29 +58,34 @@ impl Filter {
             desc,
             radius,
             table: None,
+            negative: Vec::new(),
+            abs_integral: 1.0,
+            table_integral: 1.0,
             integral: 1.0,
         };
         f.integral = f.integral_1d();
         if !matches!(desc, FilterDesc::Box { .. }) {
             let values: Vec<f32> = (0..TABLE)
-                .map(|i| {
-                    f.eval_1d(((i as f32 + 0.5) / TABLE as f32 * 2.0 - 1.0) * radius)
-                        .abs()
-                })
+                .map(|i| f.eval_1d(((i as f32 + 0.5) / TABLE as f32 * 2.0 - 1.0) * radius))
                 .collect();
-            f.table = Some(Distribution1D::new(&values));
+            f.negative = values.iter().map(|&v| v < 0.0).collect();
+            let h = 2.0 * radius as f64 / TABLE as f64;
+            f.table_integral = (values.iter().map(|&v| v as f64).sum::<f64>() * h) as f32;
+            let table = Distribution1D::new(&values);
+            f.abs_integral = table.integral() * 2.0 * radius;
+            f.table = Some(table);
         }
         f
     }
 
-    /// E[f/pdf] of [`Self::sample`]'s weights: ∫∫ f = (∫ f along one axis)², and 1 for the
-    /// box, whose samples all weigh 1. Σ w·L / (n E[w]) over n samples is the pixel's filtered
-    /// value without the ratio Σ w·L / Σ w, whose denominator a filter's negative lobes can
-    /// bring near 0 when a pixel has few samples.
+    /// E[w] of [`Self::sample`]'s weights: ∫∫ f over the table = (∫ f along one axis)², and 1
+    /// for the box, whose samples all weigh 1. Σ w·L / (n E[w]) over n samples is the pixel's
+    /// filtered value without the ratio Σ w·L / Σ w, whose denominator a filter's negative
+    /// lobes bring to 0 when a pixel's few samples fall as many in them as out.
     pub fn mean_weight(&self) -> f64 {
         match self.table {
             None => 1.0,
-            Some(_) => (self.integral as f64).powi(2),
+            Some(_) => (self.table_integral as f64).powi(2),
         }
     }
 
@@ -125,7 +136,12 @@ impl Filter {
         }
     }
 
-    /// An offset from the pixel centre and the sample's weight f/pdf.
+    /// An offset from the pixel centre and the sample's weight f/pdf, f the tabulated filter
+    /// (constant over each of its bins, as pbrt-v4's `FilterSampler`): along each axis ±∫ |f|,
+    /// so every weight has the same magnitude and a pixel's Σ w is a multiple of it, never
+    /// near 0 but at 0 (a sample's own f at a bin that straddles a zero of the filter, over
+    /// the bin's mean, could be any small number, and one such sample beside one of the other
+    /// sign left Σ w·L / Σ w unbounded).
     #[inline]
     pub fn sample(&self, u: Vec2) -> (Vec2, f32) {
         let r = self.radius;
@@ -133,9 +149,14 @@ impl Filter {
             None => ((u - Vec2::splat(0.5)) * (2.0 * r), 1.0),
             Some(table) => {
                 let axis = |u: f32| {
-                    let (x01, pdf01, _) = table.sample_continuous(u);
+                    let (x01, _, bin) = table.sample_continuous(u);
                     let x = (x01 * 2.0 - 1.0) * r;
-                    (x, self.eval_1d(x) / (pdf01 / (2.0 * r)))
+                    let w = if self.negative[bin] {
+                        -self.abs_integral
+                    } else {
+                        self.abs_integral
+                    };
+                    (x, w)
                 };
                 let (x, wx) = axis(u.x);
                 let (y, wy) = axis(u.y);
@@ -215,6 +236,48 @@ mod tests {
                 }
             }
             assert!((swg / sw - 1.0).abs() < 1e-3, "{desc:?}: {}", swg / sw);
+        }
+    }
+
+    /// Every weight of a filter has one magnitude, and their mean is `mean_weight`; so a
+    /// pixel of two samples with radiance 1 and 2 is their mean where their signs agree and
+    /// has no weight (Σ w exactly 0) where they do not. A sample's own f over its bin's
+    /// mean gave weights near 0 at the Mitchell's zero crossings, and such a pair's
+    /// Σ w·L / Σ w anywhere.
+    #[test]
+    fn weights_have_one_magnitude_so_a_pixel_is_never_extrapolated() {
+        for desc in [GAUSSIAN, MITCHELL] {
+            let f = Filter::new(desc);
+            let n = 128;
+            let ws: Vec<f32> = (0..n * n)
+                .map(|j| {
+                    let u = Vec2::new(
+                        ((j % n) as f32 + 0.5) / n as f32,
+                        ((j / n) as f32 + 0.5) / n as f32,
+                    );
+                    f.sample(u).1
+                })
+                .collect();
+            let c = ws[0].abs();
+            assert!(ws.iter().all(|w| w.abs() == c), "{desc:?}");
+            let mean = ws.iter().map(|&w| w as f64).sum::<f64>() / ws.len() as f64;
+            assert!(
+                (mean / f.mean_weight() - 1.0).abs() < 1e-2,
+                "{desc:?}: {mean} against {}",
+                f.mean_weight()
+            );
+            if matches!(desc, FilterDesc::Mitchell { .. }) {
+                assert!(ws.iter().any(|&w| w < 0.0), "the Mitchell's lobes");
+            }
+            for (i, &a) in ws.iter().enumerate().step_by(7) {
+                for &b in ws.iter().skip(i % 5).step_by(11) {
+                    let (sw, swl) = (a + b, a * 1.0 + b * 2.0);
+                    assert!(
+                        sw == 0.0 || (1.0..=2.0).contains(&(swl / sw)),
+                        "{desc:?}: weights {a}, {b}"
+                    );
+                }
+            }
         }
     }
 

@@ -233,6 +233,14 @@ pub fn radius2(r: f64) -> f32 {
 /// Hachisuka & Jensen's suggested α.
 pub const DEFAULT_ALPHA: f32 = 2.0 / 3.0;
 
+/// SPPM's initial radius as a share of the photon map's default search radius (twice the
+/// radius that would hold k photons spread evenly, [`crate::photon::PhotonSettings`]): √½, a
+/// disc that would hold 2k. The photon map's radius only caps a k-nearest search, which
+/// shrinks where photons are dense; SPPM gathers everything within its radius, so that cap's
+/// margin would be kernel bias in its first iterations, which α shrinks away slowly. A smaller
+/// share trades it for the noise of fewer photons per pixel (README, "SPPM's initial radius").
+pub const DEFAULT_RADIUS_SHARE: f32 = std::f32::consts::FRAC_1_SQRT_2;
+
 impl SppmSettings {
     pub fn from_photon_settings(p: &PhotonSettings, iterations: u32, alpha: f32) -> Self {
         SppmSettings {
@@ -244,11 +252,15 @@ impl SppmSettings {
     }
 
     /// The settings of `desc`: its `integrator.spp` iterations of `photon_map.photons`
-    /// photons, the photon search radius as the initial radius, `photon_map.alpha`.
+    /// photons, `photon_map.alpha`, and `photon_map.radius` as the initial radius where the
+    /// scene sets it, else [`DEFAULT_RADIUS_SHARE`] of the photon map's default radius.
     pub fn resolve(desc: &SceneDesc, analysis: &Analysis) -> (PhotonSettings, SppmSettings) {
         let (photon, _) = PhotonSettings::resolve(desc, analysis);
         let alpha = desc.integrator.photon.alpha.unwrap_or(DEFAULT_ALPHA);
-        let s = Self::from_photon_settings(&photon, desc.integrator.spp, alpha);
+        let mut s = Self::from_photon_settings(&photon, desc.integrator.spp, alpha);
+        if desc.integrator.photon.radius.is_none() {
+            s.initial_radius *= DEFAULT_RADIUS_SHARE;
+        }
         (photon, s)
     }
 
