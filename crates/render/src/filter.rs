@@ -18,10 +18,9 @@ pub struct Filter {
     radius: f32,
     /// |f| along one axis for separable, non-box filters, tabulated.
     table: Option<Distribution1D>,
-    /// Which bins of the table are negative lobes.
-    negative: Vec<bool>,
-    /// ∫ |f| along one axis over the table: the magnitude of every weight's factor along it.
-    abs_integral: f32,
+    /// A sample's weight factor along one axis, by the table's bin it falls in: ∫ |f| over
+    /// the table, negative in the filter's negative lobes.
+    bin_weights: Vec<f32>,
     /// ∫ f along one axis over the table: the mean of a weight's factor along it.
     table_integral: f32,
     /// ∫ f along one axis.
@@ -58,8 +57,7 @@ impl Filter {
             desc,
             radius,
             table: None,
-            negative: Vec::new(),
-            abs_integral: 1.0,
+            bin_weights: Vec::new(),
             table_integral: 1.0,
             integral: 1.0,
         };
@@ -68,11 +66,14 @@ impl Filter {
             let values: Vec<f32> = (0..TABLE)
                 .map(|i| f.eval_1d(((i as f32 + 0.5) / TABLE as f32 * 2.0 - 1.0) * radius))
                 .collect();
-            f.negative = values.iter().map(|&v| v < 0.0).collect();
             let h = 2.0 * radius as f64 / TABLE as f64;
             f.table_integral = (values.iter().map(|&v| v as f64).sum::<f64>() * h) as f32;
             let table = Distribution1D::new(&values);
-            f.abs_integral = table.integral() * 2.0 * radius;
+            let abs_integral = table.integral() * 2.0 * radius;
+            f.bin_weights = values
+                .iter()
+                .map(|&v| if v < 0.0 { -abs_integral } else { abs_integral })
+                .collect();
             f.table = Some(table);
         }
         f
@@ -150,13 +151,7 @@ impl Filter {
             Some(table) => {
                 let axis = |u: f32| {
                     let (x01, _, bin) = table.sample_continuous(u);
-                    let x = (x01 * 2.0 - 1.0) * r;
-                    let w = if self.negative[bin] {
-                        -self.abs_integral
-                    } else {
-                        self.abs_integral
-                    };
-                    (x, w)
+                    ((x01 * 2.0 - 1.0) * r, self.bin_weights[bin])
                 };
                 let (x, wx) = axis(u.x);
                 let (y, wy) = axis(u.y);
