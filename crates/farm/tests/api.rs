@@ -372,14 +372,6 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
     };
     api.expect(api.submit(&hash, many), bad, &["spp", "1024"])
         .await;
-    // SPPM refines every pixel in each iteration: no adaptive sampling.
-    let sppm = RenderSettings {
-        integrator: Some("sppm".into()),
-        target_error: Some(0.01),
-        ..Default::default()
-    };
-    api.expect(api.submit(&hash, sppm), bad, &["target_error", "sppm"])
-        .await;
     // BDPT refines every pixel at once (its splats land anywhere): no adaptive sampling.
     let bdpt = RenderSettings {
         integrator: Some("bdpt".into()),

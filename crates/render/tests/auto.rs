@@ -55,6 +55,14 @@ fn where_light_is_indirect_auto_measures_and_leaves_the_path_tracer() {
         path > 4.0 * chosen,
         "path {path} s, chosen {chosen} s\n{text}"
     );
+    // So far behind that no judge it could make, the path tracer stands at its probe, and
+    // the bidirectional judges, whose consensus cannot tell a floor at the goal either, stop
+    // being measured whatever the pilot spends after the first.
+    assert!(text.contains("path measured at 2 samples a half"), "{text}");
+    assert!(
+        text.contains("judges measured whatever the pilot spends stopped after bdpt"),
+        "{text}"
+    );
     for name in ["path", "bdpt", "vcm", "photon", "sppm", "pssmlt", "mlt"] {
         assert!(
             s.choice
@@ -72,6 +80,19 @@ fn where_light_is_indirect_auto_measures_and_leaves_the_path_tracer() {
     if matches!(s.choice.method.as_str(), "path" | "photon") {
         assert_eq!(s.choice.target_error, Some(1e-2));
     }
+}
+
+/// On the Cornell box the path tracer can judge the others alone: its probe could resolve the
+/// goal at its full samples (deepened if need be), so it renders them.
+#[test]
+fn where_the_path_tracer_can_judge_alone_its_probe_goes_on() {
+    let desc = scene("cornell-box", 64, 64);
+    let s = select(&desc, Goal::Error(1e-2));
+    let text = report(&s);
+    assert!(
+        text.contains("path probed at 2 samples a half, then 14 more"),
+        "{text}"
+    );
 }
 
 /// Glass and a mirror under a sky with a sun: the path tracer's caustics of the sun are rare,

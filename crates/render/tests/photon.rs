@@ -130,6 +130,72 @@ fn sppm_under_a_mitchell_filter_improves_from_its_first_iterations() {
     assert_falls("material spheres: sppm", &labels, &errors, 0.05);
 }
 
+/// SPPM with a target error stops at the first iteration whose estimated relMSE (the
+/// variance of its iterations' mean) reaches it: the Cornell box at 32×32 with a target
+/// between its estimates at two and at the iteration it stops, the same image as that many
+/// fixed iterations (the stop changes nothing else), and a target it cannot reach runs to the
+/// cap. The header says which.
+#[test]
+fn sppm_with_a_target_error_stops_at_the_iteration_whose_estimate_reaches_it() {
+    use tessera_render::method::{self, Finished, Job, local::Local};
+    let (mut desc, _) = scene_and_reference("cornell-box");
+    desc.integrator.method = "sppm".into();
+    desc.integrator.photon.photons = Some(5_000);
+    let run = |spp: u32, target: Option<f64>| -> Finished {
+        let mut d = desc.clone();
+        d.integrator.spp = spp;
+        let scene = Scene::build(&d);
+        let job = Job {
+            target_error: target,
+            ..Job::new(d.clone(), 1)
+        };
+        let plan = method::plan(&job).unwrap_or_else(|e| panic!("{e}"));
+        let noop = |_| {};
+        pool().install(|| {
+            let local = Local::new(plan.as_ref(), &scene, &d, 2, &noop);
+            local.frame(1).unwrap_or_else(|e| panic!("{e}"))
+        })
+    };
+    let meta = |f: &Finished, key: &str| -> String {
+        f.metadata
+            .iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v.clone())
+            .unwrap_or_else(|| panic!("no {key} in {:?}", f.metadata))
+    };
+    let at = |n: u32| run(n, None).estimated_rel_mse.expect("an estimate");
+    let (two, eight) = (at(2), at(8));
+    assert!(
+        eight < two,
+        "estimates at 2 and 8 iterations: {two}, {eight}"
+    );
+    let target = 0.5 * (two + eight);
+    let stopped = run(64, Some(target));
+    let said = meta(&stopped, "sppm_stopped");
+    let n: u32 = said
+        .strip_prefix("iteration ")
+        .and_then(|r| r.split(':').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("{said}"));
+    assert!((3..=8).contains(&n), "stopped at {n}: {said}");
+    assert!(said.contains("reached the target"), "{said}");
+    let e = stopped.estimated_rel_mse.expect("an estimate");
+    assert!(e <= target, "estimate {e} over the target {target}");
+    assert!(
+        at(n - 1) > target,
+        "iteration {} had reached {target}",
+        n - 1
+    );
+    let fixed = run(n, None);
+    let rgb = |f: &Finished| -> Vec<[f32; 3]> { f.image.pixels.iter().map(|p| p.rgb).collect() };
+    assert_eq!(rgb(&stopped), rgb(&fixed), "the stop changed the image");
+
+    let capped = run(4, Some(1e-12));
+    let said = meta(&capped, "sppm_stopped");
+    assert!(said.starts_with("iteration 4: the cap"), "{said}");
+    assert_eq!(meta(&capped, "target_rel_mse"), "1e-12");
+}
+
 /// Ward's irradiance cache replaces final gathering at most pixels by interpolated records
 /// whose relative error its accuracy a bounds (Ward, Rubinstein & Clear 1988: a record serves
 /// where its estimated error, ∝ distance over its harmonic mean distance, is below a). Against

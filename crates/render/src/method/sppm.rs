@@ -40,6 +40,9 @@ pub struct SppmMethod {
     desc: SceneDesc,
     photon: PhotonSettings,
     settings: SppmSettings,
+    /// The job's target relMSE: the frame stops at the first iteration (from the second) whose
+    /// estimate, the variance of its iterations' mean, is at most this; its spp is the cap.
+    target_error: Option<f64>,
 }
 
 /// An SPPM task's result.
@@ -96,8 +99,8 @@ impl SppmMethod {
     fn plan(job: &Job) -> Result<Self, String> {
         let d = &job.desc;
         refuse_translucent(d, "sppm")?;
-        if job.target_error.is_some() || job.time_limit.is_some() {
-            return Err("target_error: sppm refines every pixel each iteration; give spp (its iterations) instead".into());
+        if job.time_limit.is_some() {
+            return Err("time_limit: sppm runs whole iterations over every pixel; give spp (its iterations) or target_error instead".into());
         }
         if d.integrator
             .photon
@@ -123,6 +126,7 @@ impl SppmMethod {
             desc: d.clone(),
             photon,
             settings,
+            target_error: job.target_error,
         })
     }
 
@@ -363,28 +367,62 @@ impl Method for SppmMethod {
         f.ld = Vec::new();
         f.phi = Vec::new();
         f.m = Vec::new();
-        if f.state.iterations < f.target {
+        // The variance of the iterations' mean needs two of them; with a target error the
+        // frame stops at the first whose estimate reaches it.
+        let (image, estimate) = match (self.target_error, f.state.iterations >= 2) {
+            (Some(_), true) => {
+                let image = Method::preview(self, frame, f);
+                let e = crate::metrics::estimated_rel_mse(&image);
+                (Some(image), Some(e))
+            }
+            _ => (None, None),
+        };
+        let reached = self
+            .target_error
+            .zip(estimate)
+            .is_some_and(|(target, e)| e <= target);
+        if f.state.iterations < f.target && !reached {
             return Ok(Next::Step(self.next_step(frame, f)));
         }
-        let image = Method::preview(self, frame, f);
-        let estimate = (f.state.iterations >= 2).then(|| crate::metrics::estimated_rel_mse(&image));
+        let image = image.unwrap_or_else(|| Method::preview(self, frame, f));
+        let estimate = estimate.or_else(|| {
+            (f.state.iterations >= 2).then(|| crate::metrics::estimated_rel_mse(&image))
+        });
+        let mut metadata = vec![
+            (
+                "variance".into(),
+                "per pixel, of the mean of the iterations' own estimates taken as independent samples: the noise, not the kernel's bias".into(),
+            ),
+            (
+                "estimated_rel_mse".into(),
+                estimate.map_or("unknown (one iteration)".into(), |e| {
+                    format!("{e:.6e} (variance only; the kernel's bias is not in it)")
+                }),
+            ),
+        ];
+        if let Some(t) = self.target_error {
+            metadata.push(("target_rel_mse".into(), format!("{t:e}")));
+            metadata.push((
+                "sppm_stopped".into(),
+                if reached {
+                    format!(
+                        "iteration {}: the estimated relMSE (variance only) reached the target",
+                        f.state.iterations
+                    )
+                } else {
+                    format!(
+                        "iteration {}: the cap (spp) before the estimated relMSE reached the target",
+                        f.state.iterations
+                    )
+                },
+            ));
+        }
         Ok(Next::Done(Finished {
             pixels_s: Some(f.pixels_s),
             fixed_s: 0.0,
             image,
             stats: f.stats,
-            metadata: vec![
-                (
-                    "variance".into(),
-                    "per pixel, of the mean of the iterations' own estimates taken as independent samples: the noise, not the kernel's bias".into(),
-                ),
-                (
-                    "estimated_rel_mse".into(),
-                    estimate.map_or("unknown (one iteration)".into(), |e| {
-                        format!("{e:.6e} (variance only; the kernel's bias is not in it)")
-                    }),
-                ),
-            ],
+            metadata,
             estimated_rel_mse: estimate,
         }))
     }

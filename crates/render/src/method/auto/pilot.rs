@@ -59,8 +59,14 @@
 //!
 //! The first three candidates are measured whatever the pilot spends, until the judges measured
 //! so far resolve the goal (their own relMSE under it, so a floor at the goal can be told from
-//! their noise; on the Cornell box the path tracer alone does): the unbiased ones left then go
-//! after the biased ones ([`judged`]). Where they do not, and a biased candidate is still to
+//! their noise; on the Cornell box the path tracer alone does), or could not even with the
+//! judges still to come as quiet as their consensus and deepened as below
+//! ([`deepen::within_reach`]; after BDPT on the indirect room): the unbiased ones left then go
+//! after the biased ones ([`judged`]), within the shares. The path tracer, first for a target
+//! error, renders a probe of [`deepen::PROBE`] samples a half, and the rest of its samples only
+//! where at all of them it could resolve the goal alone ([`deepen::probed`]); where it could
+//! not, the bidirectional judges after it are the consensus, and its probe stands as its
+//! measurement (of a method then far behind). Where they do not, and a biased candidate is still to
 //! come, every judge renders more samples at seeds of its own until their relMSE is predicted
 //! at [`deepen::DEEPEN_TO`] of the goal, if that takes at most [`deepen::MAX_DEEPEN`] times
 //! their samples and fits in the pilot's shares below ([`deepen()`], which the report names):
@@ -104,7 +110,7 @@ mod predict;
 mod progressive;
 mod radii;
 mod run;
-use deepen::deepen;
+use deepen::{MAX_DEEPEN, PROBE, deepen, probed, within_reach};
 pub use order::FEW_PHOTONS;
 use order::{candidates, defer, judged, measured_first, more_photons_needed, sees_specular};
 use predict::{choose, describe, predict};
@@ -410,8 +416,25 @@ fn measure(
                 ..Allowance::of(PILOT_SHARE * budget - spent, budget)
             }
         };
-        match run(c, &pilot, desc.film, scene, frame, threads, allowance) {
-            Ok(Pilot::Ran(r)) => runs.push((i, r)),
+        // The path tracer, measured first for a target error, renders a probe before the
+        // rest of its pilot ([`probed`]).
+        let probe = match goal {
+            Goal::Error(e)
+                if anyway && c.k > PROBE && c.model == Model::Unbiased && !c.judges() =>
+            {
+                Some((e, c.k))
+            }
+            _ => None,
+        };
+        let c = Candidate {
+            k: probe.map_or(c.k, |_| PROBE),
+            ..c.clone()
+        };
+        match run(&c, &pilot, desc.film, scene, frame, threads, allowance) {
+            Ok(Pilot::Ran(r)) => {
+                candidates[i].k = c.k;
+                runs.push((i, r));
+            }
             Ok(Pilot::TooDear(why)) => ruled_out.push(format!(
                 "{}: not measured: {why}, past the pilot's shares of the best prediction ({budget:.2} s)",
                 c.label
@@ -419,6 +442,50 @@ fn measure(
             Err(e) => ruled_out.push(format!("{}: cannot run: {e}", c.label)),
         }
         let mut p = predicted(&candidates, &runs);
+        if let Some((e, k)) = probe.filter(|_| runs.last().is_some_and(|(j, _)| *j == i)) {
+            let j = runs.len() - 1;
+            let probe = probed(
+                &mut candidates,
+                &mut runs,
+                j,
+                k,
+                p.judges,
+                e,
+                &pilot,
+                desc.film,
+                scene,
+                frame,
+                threads,
+            );
+            notes.push(probe.unwrap_or_else(|why| {
+                format!(
+                    "{}: measured at its probe's {PROBE} samples a half: {why}",
+                    c.label
+                )
+            }));
+            p = predicted(&candidates, &runs);
+        }
+        // A judge measured whatever the pilot spends, after which the judges still to come
+        // could not resolve the goal even as quiet as the consensus so far and deepened: more
+        // of them would tell no floor, so they are measured as the others, within the shares.
+        let to_come = order[n..always.max(n)]
+            .iter()
+            .filter(|&&j| candidates[j].judges())
+            .count();
+        if let Some(e) = p.target.filter(|&e| {
+            anyway
+                && c.judges()
+                && to_come > 0
+                && !p.resolves()
+                && !within_reach(p.judges, e, to_come)
+        }) {
+            notes.push(format!(
+                "judges measured whatever the pilot spends stopped after {}: their relMSE {:.2e} could not tell a floor under {e:.2e} with the {to_come} still to come as quiet and {MAX_DEEPEN} times the samples; those are measured as the others",
+                c.label, p.judges
+            ));
+            always = n;
+            judged(&candidates, &mut order[n..]);
+        }
         // The first candidates measured, their consensus cannot tell a floor at the goal,
         // and a biased candidate is still to come: more samples of every judge may let it,
         // within the pilot's shares (they count as spent on the candidates after them).
@@ -474,9 +541,11 @@ fn measure(
         .find(|c| c.label == m.label)
         .ok_or("auto: the chosen candidate is not a candidate")?;
     let spp = m.spp.unwrap_or(1).clamp(1, MAX_SPP);
-    // Where the method refines tiles, a target error stays adaptive.
+    // Where the method refines tiles, or stops at the target (SPPM, where the pilot told no
+    // bias: its estimate, which the stop reads, is its variance alone, as the prediction
+    // was), a target error stays adaptive.
     let adaptive = match goal {
-        Goal::Error(e) => {
+        Goal::Error(e) if c.model != Model::Progressive || m.floor.is_none_or(|b| b == 0.0) => {
             let mut job = Job::new(pilot.clone(), frame);
             job.desc.integrator.method = c.method.into();
             job.target_error = Some(e);

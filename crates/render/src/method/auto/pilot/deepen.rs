@@ -13,11 +13,28 @@ use crate::scene::Scene;
 /// The judges are deepened until their predicted relMSE is this share of the goal: under the
 /// goal itself ([`super::predict`]'s `resolves`) with room for their own estimate's noise.
 pub(super) const DEEPEN_TO: f64 = 0.7;
+/// Samples a half of the probe the path tracer, measured first, renders before the rest of
+/// its pilot ([`probed`]).
+pub(super) const PROBE: u32 = 2;
+
+/// Seed offsets of the pilots' extra samples (the halves take the job's seed and, where a
+/// method cannot continue a frame, the next): a probe's extension and a judge's deepening
+/// render the same candidate apart, so at seeds of their own.
+const PROBE_SEED: u64 = 4;
+const DEEPEN_SEED: u64 = 2;
 /// The judges take at most this many times their samples. Deepening is worth its cost where
 /// the judges' few samples came near the goal; one much further is a goal their consensus
 /// would cost more to resolve than the candidates it judges (a render reaching it in a few
 /// samples where the judges need hundreds) take to render.
 pub(super) const MAX_DEEPEN: f64 = 3.0;
+
+/// Whether judges of relMSE `judges_rel`, with `to_come` judges still to be measured, could
+/// tell a floor under the goal `e` deepened: at best each judge to come is as quiet as the
+/// consensus so far (their consensus's relMSE falls as 1 / (1 + `to_come`)), and all of them
+/// take at most [`MAX_DEEPEN`] times their samples.
+pub(super) fn within_reach(judges_rel: f64, e: f64, to_come: usize) -> bool {
+    judges_rel / (1 + to_come) as f64 <= MAX_DEEPEN * DEEPEN_TO * e
+}
 
 /// More samples a half for each judge (index into `runs`, samples), for judges of relMSE
 /// `judges_rel` to reach [`DEEPEN_TO`] of the goal `e`, and the seconds they are predicted to
@@ -103,43 +120,117 @@ pub(super) fn deepen(
             left.max(0.0)
         ));
     }
-    // Seeds of their own: the runs' halves took the job's seed and, where a method cannot
-    // continue a frame, the next one.
-    let mut other = pilot.clone();
-    other.integrator.seed = other.integrator.seed.wrapping_add(2);
     let mut done = Vec::new();
     for (j, more) in more {
-        let i = runs[j].0;
-        let label = candidates[i].label.clone();
-        let extra = Candidate {
-            k: more,
-            ..candidates[i].clone()
-        };
-        let Pilot::Ran(second) = run(
-            &extra,
-            &other,
+        let label = candidates[runs[j].0].label.clone();
+        let s = extend(
+            candidates,
+            runs,
+            j,
+            more,
+            DEEPEN_SEED,
+            pilot,
             film,
             scene,
             frame,
             threads,
-            Allowance::UNLIMITED,
-        )?
-        else {
-            return Err(format!("{label}'s pilot did not run again"));
-        };
-        let k = candidates[i].k;
-        let first = &mut runs[j].1;
-        first.images = merge(&first.images, k, &second.images, more);
-        first.frame_s += second.frame_s;
-        first.pixels_s = first.pixels_s.zip(second.pixels_s).map(|(a, b)| a + b);
-        first.pilot_s += second.pilot_s;
-        candidates[i].k = k + more;
-        done.push(format!("{label} {more} ({:.2} s)", second.pilot_s));
+        )?;
+        done.push(format!("{label} {more} ({s:.2} s)"));
     }
     Ok(format!(
         "judges deepened so that they (relMSE {judges_rel:.2e}) can tell a floor under {e:.2e}: more samples a half of {}",
         done.join(", ")
     ))
+}
+
+/// The path tracer, measured first at [`PROBE`] samples a half (`runs[j]`, `k` the samples
+/// it was planned with; `judges_rel` the relMSE of its image, the only judge yet): where at
+/// `k` samples it could resolve the goal `e` alone, even deepened ([`within_reach`]), it
+/// renders the rest of them; where it could not, it is not the judge that settles the goal
+/// (the bidirectional judges measured after it are), and its probe stands as its measurement
+/// (of a method then predicted far behind the others), which saves the rest. Returns what it
+/// did, for the report.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn probed(
+    candidates: &mut [Candidate],
+    runs: &mut [(usize, Run)],
+    j: usize,
+    k: u32,
+    judges_rel: f64,
+    e: f64,
+    pilot: &SceneDesc,
+    film: FilmDesc,
+    scene: &mut Scene,
+    frame: u32,
+    threads: usize,
+) -> Result<String, String> {
+    let label = candidates[runs[j].0].label.clone();
+    let at_k = judges_rel * f64::from(PROBE) / f64::from(k);
+    if !within_reach(at_k, e, 0) {
+        return Ok(format!(
+            "{label} measured at {PROBE} samples a half: at {k} its relMSE ({at_k:.2e}) could not tell a floor under {e:.2e} even with {MAX_DEEPEN} times the samples"
+        ));
+    }
+    let s = extend(
+        candidates,
+        runs,
+        j,
+        k - PROBE,
+        PROBE_SEED,
+        pilot,
+        film,
+        scene,
+        frame,
+        threads,
+    )?;
+    Ok(format!(
+        "{label} probed at {PROBE} samples a half, then {} more ({s:.2} s)",
+        k - PROBE
+    ))
+}
+
+/// Renders `more` samples a half of the candidate of `runs[j]` at the pilot's seed plus
+/// `seed` and merges them into its run; returns their wall seconds.
+#[allow(clippy::too_many_arguments)]
+fn extend(
+    candidates: &mut [Candidate],
+    runs: &mut [(usize, Run)],
+    j: usize,
+    more: u32,
+    seed: u64,
+    pilot: &SceneDesc,
+    film: FilmDesc,
+    scene: &mut Scene,
+    frame: u32,
+    threads: usize,
+) -> Result<f64, String> {
+    let i = runs[j].0;
+    let mut other = pilot.clone();
+    other.integrator.seed = other.integrator.seed.wrapping_add(seed);
+    let extra = Candidate {
+        k: more,
+        ..candidates[i].clone()
+    };
+    let Pilot::Ran(second) = run(
+        &extra,
+        &other,
+        film,
+        scene,
+        frame,
+        threads,
+        Allowance::UNLIMITED,
+    )?
+    else {
+        return Err(format!("{}'s pilot did not run again", candidates[i].label));
+    };
+    let k = candidates[i].k;
+    let first = &mut runs[j].1;
+    first.images = merge(&first.images, k, &second.images, more);
+    first.frame_s += second.frame_s;
+    first.pixels_s = first.pixels_s.zip(second.pixels_s).map(|(a, b)| a + b);
+    first.pilot_s += second.pilot_s;
+    candidates[i].k = k + more;
+    Ok(second.pilot_s)
 }
 
 #[cfg(test)]
@@ -208,6 +299,21 @@ mod tests {
         // Judges at three times the goal would need over four times their samples.
         let far = plan(&candidates, &runs, 3.0 * e, e).expect_err("too far to deepen");
         assert!(far.contains("times their samples"), "{far}");
+    }
+
+    /// Judges are within reach where [`MAX_DEEPEN`] times their samples would bring them to
+    /// [`DEEPEN_TO`] of the goal; each judge still to come, at best as quiet as the
+    /// consensus so far, divides what they need.
+    #[test]
+    fn judges_to_come_bring_a_goal_within_reach() {
+        let e = 1e-2;
+        let edge = MAX_DEEPEN * DEEPEN_TO * e;
+        assert!(within_reach(edge, e, 0));
+        assert!(!within_reach(1.01 * edge, e, 0));
+        assert!(within_reach(1.99 * edge, e, 1));
+        assert!(!within_reach(2.01 * edge, e, 1));
+        assert!(within_reach(2.99 * edge, e, 2));
+        assert!(!within_reach(f64::INFINITY, e, 3));
     }
 
     fn flat(v: f64, n: usize) -> Vec<[f64; 3]> {
