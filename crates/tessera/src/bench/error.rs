@@ -184,10 +184,18 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
     let mut runs = Vec::new();
     let mut auto = Vec::new();
     let noop = |_: Progress| {};
-    warm_up(&base, threads)?;
-    for ((name, (method, subsurface)), &seed) in
-        kinds.iter().flat_map(|k| seeds.iter().map(move |s| (k, s)))
-    {
+    // Each method renders its first budget once, untimed and at a seed of its own, before its
+    // timed runs: each is then timed in a process that has run it, as a farm worker that has
+    // rendered before is, rather than the first paying alone for what a process does once
+    // (its thread pool, tables built on first use, the allocator's first pages of the film
+    // and of the method's own buffers) and the later ones running on what it left.
+    const WARM_SEED: u64 = 1 << 32;
+    for ((name, (method, subsurface)), seed, warming) in kinds.iter().flat_map(|k| {
+        let warm = seeds.first().map(|&s| (k, s.wrapping_add(WARM_SEED), true));
+        warm.into_iter()
+            .chain(seeds.iter().map(move |&s| (k, s, false)))
+    }) {
+        let budgets = if warming { &budgets[..1] } else { &budgets[..] };
         let mut desc = base.clone();
         desc.integrator.method = method.clone();
         desc.integrator.seed = seed;
@@ -209,18 +217,20 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                 Some(m) => format!("{}:{}", c.method, pilot::subsurface_name(m)),
                 None => c.method.clone(),
             };
-            crate::print(&format!(
-                "{name:>8} chose {chosen} (pilot {:.2} s): {}\n",
-                selection.pilot_s,
-                c.report.join("\n           ")
-            ))?;
-            auto.push(AutoChoice {
-                seed,
-                chosen,
-                pilot_s: selection.pilot_s,
-                handed_s: selection.handed_s,
-                report: c.report.clone(),
-            });
+            if !warming {
+                crate::print(&format!(
+                    "{name:>8} chose {chosen} (pilot {:.2} s): {}\n",
+                    selection.pilot_s,
+                    c.report.join("\n           ")
+                ))?;
+                auto.push(AutoChoice {
+                    seed,
+                    chosen,
+                    pilot_s: selection.pilot_s,
+                    handed_s: selection.handed_s,
+                    report: c.report.clone(),
+                });
+            }
             built = selection.artifacts;
         }
         // The first render goes to the first budget's samples (1 for a time budget); later
@@ -237,6 +247,9 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
         let local =
             Local::new(plan.as_ref(), &scene, &first_desc, threads, &noop).with_artifacts(built);
         for p in local.passes().map_err(anyhow::Error::msg)? {
+            if warming {
+                continue;
+            }
             crate::print(&format!(
                 "{name:>8} pass: {p} ({:.2} s setup)\n",
                 start.elapsed().as_secs_f64()
@@ -266,7 +279,7 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                 )
             }
         };
-        for budget in &budgets {
+        for budget in budgets {
             let render = |p: &mut Progressive, n: u32| -> anyhow::Result<(f64, Option<f64>)> {
                 let (t0, c0) = (Instant::now(), crate::render::cpu_seconds());
                 p.render_to(n, &|spp| plan_for(spp), &scene, threads)?;
@@ -310,6 +323,9 @@ pub fn run(args: ErrorArgs) -> anyhow::Result<()> {
                 mean_ratio: e.mean_ratio,
                 estimated_rel_mse: has_variance.then(|| metrics::estimated_rel_mse(image)),
             };
+            if warming {
+                break;
+            }
             crate::print(&format!(
                 "{:>8}{} {:>6} spp  {:8.2} s wall  relMSE {:.3e} (estimated {})  RMSE {:.3e}  mean/ref {:.4}\n",
                 run.integrator,
@@ -364,21 +380,6 @@ fn planned(
     };
     let plan = job::plan(&mut d, &settings, FrameRange::single(1), &Limits::default())?;
     Ok((d, plan))
-}
-
-/// One untimed sample per pixel of the path tracer over the film, so that the first
-/// method timed does not pay alone for what a process does once (its thread pool, tables
-/// built on first use, the allocator's first pages of a film).
-fn warm_up(base: &tessera_scene::SceneDesc, threads: usize) -> anyhow::Result<()> {
-    let mut path = base.clone();
-    path.integrator.method = "path".into();
-    let (desc, plan) = planned(&path, 1).map_err(|e| anyhow::anyhow!("warm-up: {e}"))?;
-    let scene = tessera_render::Scene::build(&desc);
-    let noop = |_: Progress| {};
-    let local = Local::new(plan.as_ref(), &scene, &desc, threads, &noop);
-    local.passes().map_err(anyhow::Error::msg)?;
-    local.frame(1).map_err(anyhow::Error::msg)?;
-    Ok(())
 }
 
 /// A render that can be continued where its method can (tiles, sample ranges, SPPM's
