@@ -110,7 +110,7 @@ mod predict;
 mod progressive;
 mod radii;
 mod run;
-use deepen::{MAX_DEEPEN, PROBE, deepen, probed, within_reach};
+use deepen::{Again, MAX_DEEPEN, PROBE, deepen, probed, within_reach};
 pub use order::FEW_PHOTONS;
 use order::{candidates, defer, judged, measured_first, more_photons_needed, sees_specular};
 use predict::{choose, describe, predict};
@@ -451,11 +451,13 @@ fn measure(
                 k,
                 p.judges,
                 e,
-                &pilot,
-                desc.film,
-                scene,
-                frame,
-                threads,
+                &mut Again {
+                    pilot: &pilot,
+                    film: desc.film,
+                    scene,
+                    frame,
+                    threads,
+                },
             );
             notes.push(probe.unwrap_or_else(|why| {
                 format!(
@@ -506,11 +508,13 @@ fn measure(
                 p.judges,
                 e,
                 left,
-                &pilot,
-                desc.film,
-                scene,
-                frame,
-                threads,
+                &mut Again {
+                    pilot: &pilot,
+                    film: desc.film,
+                    scene,
+                    frame,
+                    threads,
+                },
             );
             match deepened {
                 Ok(what) => {

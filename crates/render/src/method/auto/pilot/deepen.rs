@@ -28,6 +28,16 @@ const DEEPEN_SEED: u64 = 2;
 /// samples where the judges need hundreds) take to render.
 pub(super) const MAX_DEEPEN: f64 = 3.0;
 
+/// Where a pilot's further samples render: the pilot's scene (film and seed), the render's
+/// film, and the scene, frame and threads its runs took.
+pub(super) struct Again<'a> {
+    pub(super) pilot: &'a SceneDesc,
+    pub(super) film: FilmDesc,
+    pub(super) scene: &'a mut Scene,
+    pub(super) frame: u32,
+    pub(super) threads: usize,
+}
+
 /// Whether judges of relMSE `judges_rel`, with `to_come` judges still to be measured, could
 /// tell a floor under the goal `e` deepened: at best each judge to come is as quiet as the
 /// consensus so far (their consensus's relMSE falls as 1 / (1 + `to_come`)), and all of them
@@ -100,18 +110,13 @@ fn merge(first: &Halves, k: u32, second: &Halves, more: u32) -> Halves {
 /// within [`MAX_DEEPEN`] of doing so and the extra samples fit in `left` seconds: renders each
 /// judge's pilot again with more samples at seeds of its own and merges them into its run.
 /// Returns what it did, for the report, or why not.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn deepen(
     candidates: &mut [Candidate],
     runs: &mut [(usize, Run)],
     judges_rel: f64,
     e: f64,
     left: f64,
-    pilot: &SceneDesc,
-    film: FilmDesc,
-    scene: &mut Scene,
-    frame: u32,
-    threads: usize,
+    at: &mut Again,
 ) -> Result<String, String> {
     let (more, seconds) = plan(candidates, runs, judges_rel, e)?;
     if seconds > left {
@@ -123,18 +128,7 @@ pub(super) fn deepen(
     let mut done = Vec::new();
     for (j, more) in more {
         let label = candidates[runs[j].0].label.clone();
-        let s = extend(
-            candidates,
-            runs,
-            j,
-            more,
-            DEEPEN_SEED,
-            pilot,
-            film,
-            scene,
-            frame,
-            threads,
-        )?;
+        let s = extend(candidates, runs, j, more, DEEPEN_SEED, at)?;
         done.push(format!("{label} {more} ({s:.2} s)"));
     }
     Ok(format!(
@@ -150,7 +144,6 @@ pub(super) fn deepen(
 /// (the bidirectional judges measured after it are), and its probe stands as its measurement
 /// (of a method then predicted far behind the others), which saves the rest. Returns what it
 /// did, for the report.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn probed(
     candidates: &mut [Candidate],
     runs: &mut [(usize, Run)],
@@ -158,11 +151,7 @@ pub(super) fn probed(
     k: u32,
     judges_rel: f64,
     e: f64,
-    pilot: &SceneDesc,
-    film: FilmDesc,
-    scene: &mut Scene,
-    frame: u32,
-    threads: usize,
+    at: &mut Again,
 ) -> Result<String, String> {
     let label = candidates[runs[j].0].label.clone();
     let at_k = judges_rel * f64::from(PROBE) / f64::from(k);
@@ -171,18 +160,7 @@ pub(super) fn probed(
             "{label} measured at {PROBE} samples a half: at {k} its relMSE ({at_k:.2e}) could not tell a floor under {e:.2e} even with {MAX_DEEPEN} times the samples"
         ));
     }
-    let s = extend(
-        candidates,
-        runs,
-        j,
-        k - PROBE,
-        PROBE_SEED,
-        pilot,
-        film,
-        scene,
-        frame,
-        threads,
-    )?;
+    let s = extend(candidates, runs, j, k - PROBE, PROBE_SEED, at)?;
     Ok(format!(
         "{label} probed at {PROBE} samples a half, then {} more ({s:.2} s)",
         k - PROBE
@@ -191,21 +169,16 @@ pub(super) fn probed(
 
 /// Renders `more` samples a half of the candidate of `runs[j]` at the pilot's seed plus
 /// `seed` and merges them into its run; returns their wall seconds.
-#[allow(clippy::too_many_arguments)]
 fn extend(
     candidates: &mut [Candidate],
     runs: &mut [(usize, Run)],
     j: usize,
     more: u32,
     seed: u64,
-    pilot: &SceneDesc,
-    film: FilmDesc,
-    scene: &mut Scene,
-    frame: u32,
-    threads: usize,
+    at: &mut Again,
 ) -> Result<f64, String> {
     let i = runs[j].0;
-    let mut other = pilot.clone();
+    let mut other = at.pilot.clone();
     other.integrator.seed = other.integrator.seed.wrapping_add(seed);
     let extra = Candidate {
         k: more,
@@ -214,10 +187,10 @@ fn extend(
     let Pilot::Ran(second) = run(
         &extra,
         &other,
-        film,
-        scene,
-        frame,
-        threads,
+        at.film,
+        at.scene,
+        at.frame,
+        at.threads,
         Allowance::UNLIMITED,
     )?
     else {
