@@ -55,10 +55,16 @@ fn where_light_is_indirect_auto_measures_and_leaves_the_path_tracer() {
         path > 4.0 * chosen,
         "path {path} s, chosen {chosen} s\n{text}"
     );
-    // So far behind that no judge it could make, the path tracer stands at its probe, and
-    // the bidirectional judges, whose consensus cannot tell a floor at the goal either, stop
-    // being measured whatever the pilot spends after the first.
+    // So far behind that no judge it could make, the path tracer stands at its probe; so
+    // does the first bidirectional judge, which could not tell a floor at the goal even at
+    // its full samples with the one still to come, and the judges stop being measured
+    // whatever the pilot spends after it.
     assert!(text.contains("path measured at 2 samples a half"), "{text}");
+    assert!(
+        text.contains("bdpt measured at 2 samples a half")
+            && text.contains("with the 1 still to come as quiet"),
+        "{text}"
+    );
     assert!(
         text.contains("judges measured whatever the pilot spends stopped after bdpt"),
         "{text}"

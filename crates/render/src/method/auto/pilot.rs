@@ -66,9 +66,11 @@
 //! error, renders a probe of [`deepen::PROBE`] samples a half, and the rest of its samples only
 //! where at all of them it could resolve the goal alone ([`deepen::probed`]); where it could
 //! not, the bidirectional judges after it are the consensus, and its probe stands as its
-//! measurement (of a method then far behind). Where they do not, and a biased candidate is still to
-//! come, every judge renders more samples at seeds of its own until their relMSE is predicted
-//! at [`deepen::DEEPEN_TO`] of the goal, if that takes at most [`deepen::MAX_DEEPEN`] times
+//! measurement (of a method then far behind); the first of those judges is then probed too,
+//! and stands at its probe where even at all its samples, with the judges still to come as
+//! quiet, it could not resolve the goal (on the indirect room). Where they do not, and a
+//! biased candidate is still to come, every judge renders more samples at seeds of its own
+//! until their relMSE is predicted at [`deepen::DEEPEN_TO`] of the goal, if that takes at most [`deepen::MAX_DEEPEN`] times
 //! their samples and fits in the pilot's shares below ([`deepen()`], which the report names):
 //! a near miss of a cheap measure, such as the glass's judges at a few samples, would
 //! otherwise leave the photon map unmeasured. Where the judges still do not resolve the goal,
@@ -358,6 +360,8 @@ fn measure(
     let mut judges_done: Option<f64> = None;
     // Whether the judges measured so far cannot tell a floor at the goal from their noise.
     let mut unresolved = false;
+    // Whether the path tracer's probe stood as its measurement ([`probed`]).
+    let mut path_probe_stood = false;
     let mut n = 0;
     while let Some(&i) = order.get(n) {
         let c = &candidates[i];
@@ -417,10 +421,16 @@ fn measure(
             }
         };
         // The path tracer, measured first for a target error, renders a probe before the
-        // rest of its pilot ([`probed`]).
+        // rest of its pilot ([`probed`]); so does the first judge after a probe that stood
+        // (a scene whose light the path tracer could not find at a few samples).
+        let first_judge =
+            c.judges() && path_probe_stood && !runs.iter().any(|(j, _)| candidates[*j].judges());
         let probe = match goal {
             Goal::Error(e)
-                if anyway && c.k > PROBE && c.model == Model::Unbiased && !c.judges() =>
+                if anyway
+                    && c.k > PROBE
+                    && c.model == Model::Unbiased
+                    && (!c.judges() || first_judge) =>
             {
                 Some((e, c.k))
             }
@@ -442,6 +452,11 @@ fn measure(
             Err(e) => ruled_out.push(format!("{}: cannot run: {e}", c.label)),
         }
         let mut p = predicted(&candidates, &runs);
+        // The judges measured whatever the pilot spends that are still to come.
+        let to_come = order[n..always.max(n)]
+            .iter()
+            .filter(|&&j| candidates[j].judges())
+            .count();
         if let Some((e, k)) = probe.filter(|_| runs.last().is_some_and(|(j, _)| *j == i)) {
             let j = runs.len() - 1;
             let probe = probed(
@@ -450,6 +465,7 @@ fn measure(
                 j,
                 k,
                 p.judges,
+                if c.judges() { to_come } else { 0 },
                 e,
                 &mut Again {
                     pilot: &pilot,
@@ -465,15 +481,12 @@ fn measure(
                     c.label
                 )
             }));
+            path_probe_stood |= !c.judges() && candidates[i].k == PROBE;
             p = predicted(&candidates, &runs);
         }
         // A judge measured whatever the pilot spends, after which the judges still to come
         // could not resolve the goal even as quiet as the consensus so far and deepened: more
         // of them would tell no floor, so they are measured as the others, within the shares.
-        let to_come = order[n..always.max(n)]
-            .iter()
-            .filter(|&&j| candidates[j].judges())
-            .count();
         if let Some(e) = p.target.filter(|&e| {
             anyway
                 && c.judges()

@@ -137,27 +137,35 @@ pub(super) fn deepen(
     ))
 }
 
-/// The path tracer, measured first at [`PROBE`] samples a half (`runs[j]`, `k` the samples
-/// it was planned with; `judges_rel` the relMSE of its image, the only judge yet): where at
-/// `k` samples it could resolve the goal `e` alone, even deepened ([`within_reach`]), it
-/// renders the rest of them; where it could not, it is not the judge that settles the goal
-/// (the bidirectional judges measured after it are), and its probe stands as its measurement
-/// (of a method then predicted far behind the others), which saves the rest. Returns what it
-/// did, for the report.
+/// A candidate measured at [`PROBE`] samples a half (`runs[j]`, `k` the samples it was
+/// planned with; `judges_rel` the relMSE of its image, the only judge yet; `to_come` the
+/// judges still to be measured whatever the pilot spends): where at `k` samples it could
+/// resolve the goal `e`, with those to come and deepened ([`within_reach`]), it renders the
+/// rest of them; where it could not, it is not the judge that settles the goal, and its probe
+/// stands as its measurement, which saves the rest. The path tracer (`to_come` 0: it judges
+/// alone or not at all) is probed first; where its probe stood, the scene's light is one it
+/// finds too rarely, and the first bidirectional judge is probed too. Returns what it did,
+/// for the report.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn probed(
     candidates: &mut [Candidate],
     runs: &mut [(usize, Run)],
     j: usize,
     k: u32,
     judges_rel: f64,
+    to_come: usize,
     e: f64,
     at: &mut Again,
 ) -> Result<String, String> {
     let label = candidates[runs[j].0].label.clone();
     let at_k = judges_rel * f64::from(PROBE) / f64::from(k);
-    if !within_reach(at_k, e, 0) {
+    if !within_reach(at_k, e, to_come) {
+        let with = match to_come {
+            0 => String::new(),
+            n => format!(" with the {n} still to come as quiet"),
+        };
         return Ok(format!(
-            "{label} measured at {PROBE} samples a half: at {k} its relMSE ({at_k:.2e}) could not tell a floor under {e:.2e} even with {MAX_DEEPEN} times the samples"
+            "{label} measured at {PROBE} samples a half: at {k} its relMSE ({at_k:.2e}) could not tell a floor under {e:.2e}{with} even with {MAX_DEEPEN} times the samples"
         ));
     }
     let s = extend(candidates, runs, j, k - PROBE, PROBE_SEED, at)?;
