@@ -362,6 +362,14 @@ fn measure(
     let mut unresolved = false;
     // Whether the path tracer's probe stood as its measurement ([`probed`]).
     let mut path_probe_stood = false;
+    // Where the candidates' pilots render: their probes, extensions and deepening too.
+    let mut at = Again {
+        pilot: &pilot,
+        film: desc.film,
+        scene,
+        frame,
+        threads,
+    };
     let mut n = 0;
     while let Some(&i) = order.get(n) {
         let c = &candidates[i];
@@ -440,7 +448,7 @@ fn measure(
             k: probe.map_or(c.k, |_| PROBE),
             ..c.clone()
         };
-        match run(&c, &pilot, desc.film, scene, frame, threads, allowance) {
+        match run(&c, at.pilot, at.film, at.scene, frame, threads, allowance) {
             Ok(Pilot::Ran(r)) => {
                 candidates[i].k = c.k;
                 runs.push((i, r));
@@ -467,13 +475,7 @@ fn measure(
                 p.judges,
                 if c.judges() { to_come } else { 0 },
                 e,
-                &mut Again {
-                    pilot: &pilot,
-                    film: desc.film,
-                    scene,
-                    frame,
-                    threads,
-                },
+                &mut at,
             );
             notes.push(probe.unwrap_or_else(|why| {
                 format!(
@@ -515,20 +517,7 @@ fn measure(
             judges_done = Some(elapsed);
             let (budget, handed) = pilot_budget(&p.measurements, goal);
             let left = shares_left(budget, 0.0, elapsed - handed);
-            let deepened = deepen(
-                &mut candidates,
-                &mut runs,
-                p.judges,
-                e,
-                left,
-                &mut Again {
-                    pilot: &pilot,
-                    film: desc.film,
-                    scene,
-                    frame,
-                    threads,
-                },
-            );
+            let deepened = deepen(&mut candidates, &mut runs, p.judges, e, left, &mut at);
             match deepened {
                 Ok(what) => {
                     notes.push(what);
