@@ -383,14 +383,25 @@ impl<'a> Sppm<'a> {
     /// Camera paths of iteration `t` for the row-major pixels `pixels` (one thread).
     pub fn visible_points(&self, camera: &Camera, t: u32, pixels: Range<u32>) -> VisiblePoints {
         let w = self.scene.film.width;
+        self.visible_points_of(camera, t, pixels.map(|i| UVec2::new(i % w, i / w)))
+    }
+
+    /// Camera paths of iteration `t` for `pixels` of `camera`'s film, in their order (one
+    /// thread).
+    pub fn visible_points_of(
+        &self,
+        camera: &Camera,
+        t: u32,
+        pixels: impl IntoIterator<Item = UVec2>,
+    ) -> VisiblePoints {
         let mut sampler = self.sampler.clone();
         let mut stats = RayStats::default();
         let (mut ld, mut points) = (Vec::new(), Vec::new());
-        for i in pixels {
+        for pixel in pixels {
             let (l, vp) = visible_point(
                 self.scene,
                 camera,
-                UVec2::new(i % w, i / w),
+                pixel,
                 t,
                 self.max_depth,
                 &mut sampler,

@@ -5,8 +5,9 @@ use std::ops::Range;
 use std::sync::Arc;
 use std::time::Instant;
 
+use glam::UVec2;
 use rayon::prelude::*;
-use tessera_scene::SceneDesc;
+use tessera_scene::{FilmDesc, SceneDesc};
 
 use super::run::rgb;
 use crate::camera::Camera;
@@ -58,11 +59,24 @@ pub(super) fn sppm_photons(
     Ok(shot)
 }
 
+/// What SPPM's second half came to.
+pub(super) struct SecondHalf {
+    pub(super) image: Vec<[f64; 3]>,
+    /// Wall seconds of its camera paths and gathering.
+    pub(super) pixels_s: f64,
+    /// The pixels' seconds as they would be at the render's pixel spacing over the pilot's:
+    /// [`gathering_at_the_render`]'s ratio on its share of them.
+    pub(super) spacing: f64,
+    /// Wall seconds of that measurement (pilot time, not the render's).
+    pub(super) probe_s: f64,
+}
+
 /// SPPM's second half: the photons of iterations k..2k of the job's seed (`photons`, by key:
 /// those the render's iterations k..2k use) gathered at the camera paths of the next seed's
 /// first k iterations, from the initial radii: the same estimator as the first half's k
-/// iterations, on independent samples.
-/// Its image, and the wall seconds of its camera paths and gathering.
+/// iterations, on independent samples. Its first iteration's gathering is also timed at the
+/// render's film `film` ([`gathering_at_the_render`]).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn sppm_second_half(
     desc: &SceneDesc,
     scene: &Scene,
@@ -71,7 +85,8 @@ pub(super) fn sppm_second_half(
     frame: u32,
     k: u32,
     photons: &[(String, Loaded)],
-) -> Result<(Vec<[f64; 3]>, f64), String> {
+    film: &FilmDesc,
+) -> Result<SecondHalf, String> {
     let start = Instant::now();
     // Camera paths of the next seed: iteration k's of the job's seed would be the next points
     // of the first half's low-discrepancy sequence, anticorrelated with them.
@@ -87,10 +102,13 @@ pub(super) fn sppm_second_half(
         settings.initial_radius,
         scene.filter.mean_weight(),
     );
+    let (mut gathering_s, mut spacing, mut probe_s) = (0.0, 1.0, 0.0);
     for t in k..2 * k {
         let vps = sppm.visible_points_parallel(&camera, t - k);
         let r2 = state.radii2();
         let mut sums = Vec::new();
+        let mut trees = Vec::new();
+        let gathering = Instant::now();
         for chunk in sppm::chunks(settings.photons) {
             let key = sppm::photons_key(photon, &settings, frame, t, &chunk);
             let tree = photons
@@ -99,13 +117,90 @@ pub(super) fn sppm_second_half(
                 .and_then(|(_, p)| p.clone().downcast::<KdTree<Photon>>().ok())
                 .ok_or_else(|| format!("auto: sppm's pilot lost its photons ({key})"))?;
             sums.push(sppm.gather_parallel(&vps, &r2, &tree));
+            trees.push(tree);
+        }
+        let here = gathering.elapsed().as_secs_f64();
+        gathering_s += here;
+        if t == k {
+            let probe = Instant::now();
+            let there = gathering_at_the_render(&sppm, desc, film, frame, &trees, settings);
+            let pixels = (desc.film.width * desc.film.height) as f64;
+            spacing = match there {
+                Some((s, n)) if here > 0.0 && n > 0 => (s / n as f64) / (here / pixels),
+                _ => 1.0,
+            };
+            probe_s = probe.elapsed().as_secs_f64();
         }
         state.add_iteration(&vps.camera, sums.iter().map(Vec::as_slice), settings.alpha);
     }
-    Ok((
-        rgb(&state.image(camera.exposure)),
-        start.elapsed().as_secs_f64(),
-    ))
+    let pixels_s = start.elapsed().as_secs_f64() - probe_s;
+    // Gathering is the share of the pixels' seconds whose pace depends on their spacing.
+    let share = (gathering_s / pixels_s).min(1.0);
+    Ok(SecondHalf {
+        image: rgb(&state.image(camera.exposure)),
+        pixels_s,
+        spacing: 1.0 - share + share * spacing,
+        probe_s,
+    })
+}
+
+/// Blocks of the render's film `film` SPPM's pilot gathers at, on a grid across it.
+const BLOCKS: u32 = 4;
+
+/// `BLOCKS`² square blocks of `film`'s pixels, `pixels` of them in all or fewer, one in the
+/// middle of each cell of a `BLOCKS` × `BLOCKS` grid: their side and top-left corners.
+fn blocks(pixels: u32, film: &FilmDesc) -> (u32, Vec<(u32, u32)>) {
+    let side = ((pixels as f64 / (BLOCKS * BLOCKS) as f64).sqrt() as u32)
+        .min(film.width / BLOCKS)
+        .min(film.height / BLOCKS);
+    let corner = |extent: u32, i: u32| extent * (2 * i + 1) / (2 * BLOCKS) - side / 2;
+    let corners = (0..BLOCKS * BLOCKS)
+        .map(|b| {
+            (
+                corner(film.width, b % BLOCKS),
+                corner(film.height, b / BLOCKS),
+            )
+        })
+        .collect();
+    (side, corners)
+}
+
+/// SPPM's gathering (each pixel's search of every photon tree) runs faster where neighbouring
+/// pixels search the same part of the trees: at the render's film than at the pilot's coarser
+/// one. Timed here on as many of the render's pixels as the pilot has, in `BLOCKS`² square
+/// blocks spread across the film (each block's pixels row by row, as the render's are), from
+/// the initial radii against `trees` (an iteration's chunks): the wall seconds and the pixels,
+/// `None` where the film has no pixels to spare.
+fn gathering_at_the_render(
+    sppm: &Sppm,
+    pilot: &SceneDesc,
+    film: &FilmDesc,
+    frame: u32,
+    trees: &[Arc<KdTree<Photon>>],
+    settings: SppmSettings,
+) -> Option<(f64, usize)> {
+    let (side, blocks) = blocks(pilot.film.width * pilot.film.height, film);
+    if side == 0 {
+        return None;
+    }
+    let camera = Camera::new(&pilot.camera_at(frame), film);
+    let r2 = vec![sppm::radius2(settings.initial_radius as f64); (side * side) as usize];
+    let vps: Vec<_> = blocks
+        .par_iter()
+        .map(|&(x0, y0)| {
+            let pixels = (0..side * side).map(|i| UVec2::new(x0 + i % side, y0 + i / side));
+            sppm.visible_points_of(&camera, 0, pixels)
+        })
+        .collect();
+    // As the render gathers: each tree in turn, at every pixel on every thread.
+    let start = Instant::now();
+    for tree in trees {
+        vps.par_iter().for_each(|v| {
+            std::hint::black_box(sppm.gather(v, &r2, tree, 0..side * side));
+        });
+    }
+    let n = vps.len() * (side * side) as usize;
+    Some((start.elapsed().as_secs_f64(), n))
 }
 
 #[cfg(test)]
@@ -115,6 +210,46 @@ mod tests {
     use crate::analysis::analyze;
     use crate::method::local::{Local, Progress};
     use crate::method::{Job, plan};
+
+    /// The blocks SPPM's pilot times its gathering on lie inside the render's film, apart,
+    /// and hold as many pixels as the pilot's film, less what whole squares leave over.
+    #[test]
+    fn gathering_blocks_lie_apart_inside_the_film() {
+        let film = |width, height| FilmDesc {
+            width,
+            height,
+            filter: tessera_scene::FilterDesc::Box { radius: 0.5 },
+        };
+        for (pixels, w, h) in [
+            (4070, 512, 384),
+            (2048, 256, 256),
+            (256, 16, 16),
+            (4096, 1920, 1080),
+            (300, 5, 7),
+        ] {
+            let f = film(w, h);
+            let (side, corners) = blocks(pixels, &f);
+            assert_eq!(corners.len(), (BLOCKS * BLOCKS) as usize);
+            let n = corners.len() as u32 * side * side;
+            assert!(n <= pixels, "{w}×{h}: {n} pixels for the pilot's {pixels}");
+            if side < w / BLOCKS && side < h / BLOCKS {
+                assert!(2 * n >= pixels, "{w}×{h}: only {n} of the pilot's {pixels}");
+            }
+            for (i, &(x, y)) in corners.iter().enumerate() {
+                assert!(
+                    x + side <= w && y + side <= h,
+                    "{w}×{h}: block at ({x}, {y}) of side {side}"
+                );
+                for &(u, v) in &corners[..i] {
+                    let apart = x >= u + side || u >= x + side || y >= v + side || v >= y + side;
+                    assert!(
+                        apart,
+                        "{w}×{h}: blocks at ({x}, {y}) and ({u}, {v}) overlap"
+                    );
+                }
+            }
+        }
+    }
 
     /// SPPM's photons handed on by the pilot are the ones the render would shoot: a render
     /// that takes them is the render that shoots its own, bit for bit, and it does take them

@@ -300,11 +300,12 @@ pub(super) fn run(
         None => {
             let b = if let Some((photon, settings)) = &sppm {
                 let second = Instant::now();
-                let (b, b_pixels_s) =
-                    sppm_second_half(&desc, scene, photon, *settings, frame, c.k, &photons)?;
-                frame_s += second.elapsed().as_secs_f64();
-                pixels_s = pixels_s.map(|a| a + b_pixels_s);
-                b
+                let b =
+                    sppm_second_half(&desc, scene, photon, *settings, frame, c.k, &photons, &film)?;
+                frame_s += second.elapsed().as_secs_f64() - b.probe_s;
+                // Both halves' pixels as the render's spacing would have them.
+                pixels_s = pixels_s.map(|a| (a + b.pixels_s) * b.spacing);
+                b.image
             } else {
                 let mut other = desc.clone();
                 other.integrator.seed = other.integrator.seed.wrapping_add(1);
