@@ -448,7 +448,7 @@ fn measure(
             k: probe.map_or(c.k, |_| PROBE),
             ..c.clone()
         };
-        match run(&c, at.pilot, at.film, at.scene, frame, threads, allowance) {
+        match run(&c, at.pilot, at.film, at.scene, at.frame, at.threads, allowance) {
             Ok(Pilot::Ran(r)) => {
                 candidates[i].k = c.k;
                 runs.push((i, r));

@@ -106,19 +106,22 @@ pub(super) fn sppm_second_half(
     for t in k..2 * k {
         let vps = sppm.visible_points_parallel(&camera, t - k);
         let r2 = state.radii2();
-        let mut sums = Vec::new();
-        let mut trees = Vec::new();
+        let trees = sppm::chunks(settings.photons)
+            .into_iter()
+            .map(|chunk| {
+                let key = sppm::photons_key(photon, &settings, frame, t, &chunk);
+                photons
+                    .iter()
+                    .find(|(name, _)| *name == key)
+                    .and_then(|(_, p)| p.clone().downcast::<KdTree<Photon>>().ok())
+                    .ok_or_else(|| format!("auto: sppm's pilot lost its photons ({key})"))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         let gathering = Instant::now();
-        for chunk in sppm::chunks(settings.photons) {
-            let key = sppm::photons_key(photon, &settings, frame, t, &chunk);
-            let tree = photons
-                .iter()
-                .find(|(name, _)| *name == key)
-                .and_then(|(_, p)| p.clone().downcast::<KdTree<Photon>>().ok())
-                .ok_or_else(|| format!("auto: sppm's pilot lost its photons ({key})"))?;
-            sums.push(sppm.gather_parallel(&vps, &r2, &tree));
-            trees.push(tree);
-        }
+        let sums: Vec<_> = trees
+            .iter()
+            .map(|tree| sppm.gather_parallel(&vps, &r2, tree))
+            .collect();
         let here = gathering.elapsed().as_secs_f64();
         gathering_s += here;
         if t == k {
