@@ -1,7 +1,8 @@
 //! Embree 3 (Debian's libembree-dev) through its C API, for `tessera bench rays` only: a
 //! triangle scene, closest-hit and occlusion queries one ray at a time (`rtcIntersect1`,
-//! `rtcOccluded1`), as our BVH answers them. Built with `--features embree`; nothing else
-//! depends on it.
+//! `rtcOccluded1`), as our BVH answers them, and in packets of eight (`rtcIntersect8`,
+//! `rtcOccluded8`: how much tracing several rays per instruction stream gains on the same
+//! rays). Built with `--features embree`; nothing else depends on it.
 //!
 //! Declarations follow embree3/rtcore_*.h of Embree 3.13 (RTC_MAX_INSTANCE_LEVEL_COUNT 1,
 //! RTC_MIN_WIDTH 0).
@@ -61,6 +62,42 @@ struct RayHit {
     hit: RtcHit,
 }
 
+/// Eight rays, structure of arrays (`RTCRay8`).
+#[repr(C, align(32))]
+#[derive(Clone, Copy)]
+struct RtcRay8 {
+    org: [[f32; 8]; 3],
+    tnear: [f32; 8],
+    dir: [[f32; 8]; 3],
+    time: [f32; 8],
+    tfar: [f32; 8],
+    mask: [u32; 8],
+    id: [u32; 8],
+    flags: [u32; 8],
+}
+
+/// Their hits (`RTCHit8`).
+#[repr(C, align(32))]
+#[derive(Clone, Copy)]
+struct RtcHit8 {
+    ng: [[f32; 8]; 3],
+    u: [f32; 8],
+    v: [f32; 8],
+    prim_id: [u32; 8],
+    geom_id: [u32; 8],
+    inst_id: [[u32; 8]; 1],
+}
+
+#[repr(C, align(32))]
+struct RayHit8 {
+    ray: RtcRay8,
+    hit: RtcHit8,
+}
+
+/// A packet's lanes: −1 where a ray is, 0 where none is.
+#[repr(C, align(32))]
+struct Valid8([i32; 8]);
+
 #[link(name = "embree3")]
 unsafe extern "C" {
     fn rtcNewDevice(config: *const c_char) -> Device;
@@ -83,7 +120,22 @@ unsafe extern "C" {
     fn rtcCommitScene(scene: RtcScene);
     fn rtcIntersect1(scene: RtcScene, context: *mut IntersectContext, rayhit: *mut RayHit);
     fn rtcOccluded1(scene: RtcScene, context: *mut IntersectContext, ray: *mut RtcRay);
+    fn rtcIntersect8(
+        valid: *const Valid8,
+        scene: RtcScene,
+        context: *mut IntersectContext,
+        rayhit: *mut RayHit8,
+    );
+    fn rtcOccluded8(
+        valid: *const Valid8,
+        scene: RtcScene,
+        context: *mut IntersectContext,
+        ray: *mut RtcRay8,
+    );
 }
+
+/// `RTC_INTERSECT_CONTEXT_FLAG_COHERENT`: the packet's rays are told to be coherent.
+const CONTEXT_FLAG_COHERENT: u32 = 1;
 
 /// An Embree device and a committed scene of one triangle mesh.
 pub struct Scene {
@@ -151,8 +203,12 @@ impl Scene {
     }
 
     fn context() -> IntersectContext {
+        Self::context_with(0)
+    }
+
+    fn context_with(flags: u32) -> IntersectContext {
         IntersectContext {
-            flags: 0,
+            flags,
             filter: std::ptr::null(),
             inst_id: [INVALID_GEOMETRY_ID],
         }
@@ -184,6 +240,66 @@ impl Scene {
         // SAFETY: as above.
         unsafe { rtcOccluded1(self.scene, &mut context, &mut ray) };
         ray.tfar == f32::NEG_INFINITY
+    }
+}
+
+impl Scene {
+    /// Up to eight rays as a packet: its lanes and the valid mask.
+    fn packet(rays: &[Ray]) -> (RtcRay8, Valid8) {
+        let mut p = RtcRay8 {
+            org: [[0.0; 8]; 3],
+            tnear: [0.0; 8],
+            dir: [[1.0; 8]; 3],
+            time: [0.0; 8],
+            tfar: [f32::INFINITY; 8],
+            mask: [u32::MAX; 8],
+            id: [0; 8],
+            flags: [0; 8],
+        };
+        let mut valid = Valid8([0; 8]);
+        for (lane, r) in rays.iter().take(8).enumerate() {
+            for axis in 0..3 {
+                p.org[axis][lane] = r.o[axis];
+                p.dir[axis][lane] = r.d[axis];
+            }
+            valid.0[lane] = -1;
+        }
+        (p, valid)
+    }
+
+    /// How many of up to eight rays hit a triangle, traced as one packet (`coherent`: the
+    /// context says they are).
+    pub fn intersect8(&self, rays: &[Ray], coherent: bool) -> usize {
+        let (ray, valid) = Self::packet(rays);
+        let mut rh = RayHit8 {
+            ray,
+            hit: RtcHit8 {
+                ng: [[0.0; 8]; 3],
+                u: [0.0; 8],
+                v: [0.0; 8],
+                prim_id: [INVALID_GEOMETRY_ID; 8],
+                geom_id: [INVALID_GEOMETRY_ID; 8],
+                inst_id: [[INVALID_GEOMETRY_ID; 8]; 1],
+            },
+        };
+        let mut context = Self::context_with(if coherent { CONTEXT_FLAG_COHERENT } else { 0 });
+        // SAFETY: a committed scene, an initialised context, and a 32-byte aligned packet
+        // and mask of eight lanes, as rtcIntersect8 requires.
+        unsafe { rtcIntersect8(&valid, self.scene, &mut context, &mut rh) };
+        (0..rays.len().min(8))
+            .filter(|&lane| rh.hit.geom_id[lane] != INVALID_GEOMETRY_ID)
+            .count()
+    }
+
+    /// How many of up to eight rays are blocked, traced as one packet.
+    pub fn occluded8(&self, rays: &[Ray], coherent: bool) -> usize {
+        let (mut ray, valid) = Self::packet(rays);
+        let mut context = Self::context_with(if coherent { CONTEXT_FLAG_COHERENT } else { 0 });
+        // SAFETY: as in `intersect8`.
+        unsafe { rtcOccluded8(&valid, self.scene, &mut context, &mut ray) };
+        (0..rays.len().min(8))
+            .filter(|&lane| ray.tfar[lane] == f32::NEG_INFINITY)
+            .count()
     }
 }
 

@@ -111,7 +111,8 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
     let mut rule = "|---|---:|---:|---:|---:|---:|---:|---:|---:|".to_string();
     if cfg!(feature = "embree") {
         header += " Embree 3: coherent closest | coherent occluded | incoherent closest | incoherent occluded |";
-        rule += "---:|---:|---:|---:|";
+        header += " Embree 3, packets of 8: coherent closest | coherent occluded | incoherent closest | incoherent occluded |";
+        rule += "---:|---:|---:|---:|---:|---:|---:|---:|";
     }
     println!("{header}\n{rule}");
     for case in &cases {
@@ -143,13 +144,24 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
 #[cfg(feature = "embree")]
 fn embree_columns(case: &Case, repeat: u32, ours: &Row) -> anyhow::Result<String> {
     if case.accel.sphere_count() > 0 {
-        return Ok(" — | — | — | — |".into());
+        return Ok(" — | — | — | — |".repeat(2));
     }
     let scene = super::embree::Scene::new(&case.accel.triangles())?;
-    let theirs = measure(case, repeat, |r| scene.intersect(r), |r| scene.occluded(r));
-    Ok(theirs
+    let single = measure(case, repeat, |r| scene.intersect(r), |r| scene.occluded(r));
+    // Packets of eight consecutive rays: neighbouring pixels of a tile row, or their bounces.
+    let packets = |rays: &[Ray], q: &dyn Fn(&[Ray]) -> usize| {
+        rate(rays.len(), repeat, || rays.chunks(8).map(q).sum())
+    };
+    let packet = [
+        packets(&case.coherent, &|p| scene.intersect8(p, true)),
+        packets(&case.coherent, &|p| scene.occluded8(p, true)),
+        packets(&case.incoherent, &|p| scene.intersect8(p, false)),
+        packets(&case.incoherent, &|p| scene.occluded8(p, false)),
+    ];
+    Ok(single
         .iter()
-        .zip(ours)
+        .chain(&packet)
+        .zip(ours.iter().chain(ours))
         .map(|(t, o)| {
             if t.hits == o.hits {
                 format!(" {:.2} |", t.mrays)
