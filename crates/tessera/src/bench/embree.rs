@@ -202,13 +202,10 @@ impl Scene {
         }
     }
 
-    fn context() -> IntersectContext {
-        Self::context_with(0)
-    }
-
-    fn context_with(flags: u32) -> IntersectContext {
+    /// A query's context; `coherent` tells Embree a packet's rays are.
+    fn context(coherent: bool) -> IntersectContext {
         IntersectContext {
-            flags,
+            flags: if coherent { CONTEXT_FLAG_COHERENT } else { 0 },
             filter: std::ptr::null(),
             inst_id: [INVALID_GEOMETRY_ID],
         }
@@ -227,7 +224,7 @@ impl Scene {
                 inst_id: [INVALID_GEOMETRY_ID],
             },
         };
-        let mut context = Self::context();
+        let mut context = Self::context(false);
         // SAFETY: a committed scene, an initialised context and ray.
         unsafe { rtcIntersect1(self.scene, &mut context, &mut rh) };
         rh.hit.geom_id != INVALID_GEOMETRY_ID
@@ -236,7 +233,7 @@ impl Scene {
     /// Whether anything blocks the ray (Embree sets tfar to −∞ then).
     pub fn occluded(&self, r: &Ray) -> bool {
         let mut ray = Self::ray(r);
-        let mut context = Self::context();
+        let mut context = Self::context(false);
         // SAFETY: as above.
         unsafe { rtcOccluded1(self.scene, &mut context, &mut ray) };
         ray.tfar == f32::NEG_INFINITY
@@ -282,7 +279,7 @@ impl Scene {
                 inst_id: [[INVALID_GEOMETRY_ID; 8]; 1],
             },
         };
-        let mut context = Self::context_with(if coherent { CONTEXT_FLAG_COHERENT } else { 0 });
+        let mut context = Self::context(coherent);
         // SAFETY: a committed scene, an initialised context, and a 32-byte aligned packet
         // and mask of eight lanes, as rtcIntersect8 requires.
         unsafe { rtcIntersect8(&valid, self.scene, &mut context, &mut rh) };
@@ -294,7 +291,7 @@ impl Scene {
     /// How many of up to eight rays are blocked, traced as one packet.
     pub fn occluded8(&self, rays: &[Ray], coherent: bool) -> usize {
         let (mut ray, valid) = Self::packet(rays);
-        let mut context = Self::context_with(if coherent { CONTEXT_FLAG_COHERENT } else { 0 });
+        let mut context = Self::context(coherent);
         // SAFETY: as in `intersect8`.
         unsafe { rtcOccluded8(&valid, self.scene, &mut context, &mut ray) };
         (0..rays.len().min(8))
