@@ -11,7 +11,8 @@
 //!
 //! Each query runs over the whole ray set `--repeat` times; the best run counts (these machines
 //! are noisy). Built with `--features embree` (Debian's libembree-dev, Embree 3), the same rays
-//! go through Embree's BVH too, for triangle-only scenes.
+//! go through Embree's BVH too, for triangle-only scenes: one at a time, and in packets of eight
+//! consecutive rays.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
