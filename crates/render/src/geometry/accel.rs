@@ -12,7 +12,7 @@ use obvhs::aabb::Aabb;
 use obvhs::bvh2::builder::build_bvh2;
 use obvhs::{Boundable, BvhBuildParams};
 
-use super::bvh8::{BoxRay, Bvh8, Visit, avx_available, safe_inverse};
+use super::bvh8::{BoxRay, Bvh8, Ref, Visit, avx_available, safe_inverse};
 use super::sphere;
 use super::triangle::{self, Triangle4, TriangleRay};
 use crate::ray::Ray;
@@ -56,20 +56,23 @@ impl Boundable for Padded {
     }
 }
 
+/// Most rays in a packet ([`Accel::intersect8`]).
+pub const LANES: usize = 8;
+
 /// Triangles in a leaf: one block.
 const LEAF_TRIANGLES: u32 = 4;
 
 /// Bounding volume hierarchies over a scene's triangles and spheres.
 pub struct Accel {
-    triangles: Bvh8,
+    pub(super) triangles: Bvh8,
     /// Triangle blocks in leaf order, and each lane's triangle id (u32::MAX where unused).
-    blocks: Vec<Triangle4>,
+    pub(super) blocks: Vec<Triangle4>,
     block_ids: Vec<[u32; 4]>,
     spheres: Bvh8,
     sphere_list: Vec<(Sphere, u32)>,
-    /// Whether queries test a node's eight boxes in one AVX group (else in two SSE ones):
-    /// the same hits either way.
-    avx: bool,
+    /// Whether queries test a node's eight boxes in one AVX group (else in two SSE ones),
+    /// and packets of rays eight at a time (else one by one): the same hits either way.
+    pub(super) avx: bool,
 }
 
 impl Accel {
@@ -194,17 +197,29 @@ impl Accel {
     }
 
     #[inline(always)]
-    fn intersect_with<const AVX: bool>(&self, ray: &Ray, t_max: f32) -> Option<PrimHit> {
+    pub(super) fn intersect_with<const AVX: bool>(&self, ray: &Ray, t_max: f32) -> Option<PrimHit> {
         let box_ray = BoxRay::new(ray.o, safe_inverse(ray.d));
         let mut t_best = t_max;
-        let best = match triangle::dominant_axis(ray.d) {
-            0 => self.closest_triangle::<0, AVX>(ray, &box_ray, &mut t_best),
-            1 => self.closest_triangle::<1, AVX>(ray, &box_ray, &mut t_best),
-            _ => self.closest_triangle::<2, AVX>(ray, &box_ray, &mut t_best),
-        };
+        let mut best = None;
+        if let Some(root) = self.triangles.root {
+            self.closest_triangle_from::<AVX>(root, ray, &box_ray, &mut t_best, &mut best);
+        }
+        self.nearest_with_spheres::<AVX>(ray, &box_ray, t_best, best)
+    }
+
+    /// The closest hit given the closest triangle hit `best` (block, lane, barycentrics) at
+    /// `t_best` (else the query's `t_max`): a nearer sphere's, or the triangle's.
+    #[inline(always)]
+    pub(super) fn nearest_with_spheres<const AVX: bool>(
+        &self,
+        ray: &Ray,
+        box_ray: &BoxRay,
+        mut t_best: f32,
+        best: Option<(usize, usize, [f32; 3])>,
+    ) -> Option<PrimHit> {
         let mut best_sphere = None;
         self.spheres
-            .closest::<AVX>(&box_ray, &mut t_best, |first, count, t_max| {
+            .closest::<AVX>(box_ray, &mut t_best, |first, count, t_max| {
                 for slot in first..first + count {
                     let (s, _) = self.sphere_list[slot as usize];
                     if let Some(t) = sphere::intersect(s.center, s.radius, ray.o, ray.d, *t_max) {
@@ -240,30 +255,88 @@ impl Accel {
         })
     }
 
-    /// Closest triangle hit (block, lane, barycentrics), lowering `t_max`, for rays whose
-    /// dominant axis is `KZ`.
+    /// Lowers `t_max` to the closest triangle hit in the subtree at `root` and sets `best` to
+    /// it (block, lane, barycentrics), if there is one nearer than `t_max`.
     #[inline(always)]
-    fn closest_triangle<const KZ: usize, const AVX: bool>(
+    pub(super) fn closest_triangle_from<const AVX: bool>(
         &self,
+        root: Ref,
         ray: &Ray,
         box_ray: &BoxRay,
         t_max: &mut f32,
-    ) -> Option<(usize, usize, [f32; 3])> {
+        best: &mut Option<(usize, usize, [f32; 3])>,
+    ) {
+        match triangle::dominant_axis(ray.d) {
+            0 => self.closest_triangle::<0, AVX>(root, ray, box_ray, t_max, best),
+            1 => self.closest_triangle::<1, AVX>(root, ray, box_ray, t_max, best),
+            _ => self.closest_triangle::<2, AVX>(root, ray, box_ray, t_max, best),
+        }
+    }
+
+    /// [`Accel::closest_triangle_from`] for rays whose dominant axis is `KZ`.
+    #[inline(always)]
+    fn closest_triangle<const KZ: usize, const AVX: bool>(
+        &self,
+        root: Ref,
+        ray: &Ray,
+        box_ray: &BoxRay,
+        t_max: &mut f32,
+        best: &mut Option<(usize, usize, [f32; 3])>,
+    ) {
         let tr = TriangleRay::<KZ>::new(ray.o, ray.d);
-        let mut best = None;
         self.triangles
-            .closest::<AVX>(box_ray, t_max, |first, count, t_max| {
+            .closest_from::<AVX>(root, box_ray, t_max, |first, count, t_max| {
                 for block in first..first + count {
                     if let Some((lane, h)) =
                         triangle::intersect4(&tr, &self.blocks[block as usize], *t_max)
                     {
                         *t_max = h.t;
-                        best = Some((block as usize, lane, h.b));
+                        *best = Some((block as usize, lane, h.b));
                     }
                 }
                 Visit::Continue
             });
-        best
+    }
+
+    /// The closest hits of up to [`LANES`] rays, ray i's with 0 < t < `t_max[i]`, into
+    /// `hits`: each as [`Accel::intersect`] finds it (of two triangles at exactly the same
+    /// distance, either), traced together as a packet where the CPU has AVX (see `packet`).
+    pub fn intersect8(&self, rays: &[Ray], t_max: &[f32], hits: &mut [Option<PrimHit>]) {
+        assert!(
+            rays.len() <= LANES && t_max.len() == rays.len() && hits.len() == rays.len(),
+            "a packet of {} rays, {} distances, {} hits",
+            rays.len(),
+            t_max.len(),
+            hits.len()
+        );
+        #[cfg(target_arch = "x86_64")]
+        if self.avx {
+            // SAFETY: `avx` is set only where the CPU has AVX.
+            unsafe { self.intersect8_avx(rays, t_max, hits) };
+            return;
+        }
+        for ((r, &t), h) in rays.iter().zip(t_max).zip(hits) {
+            *h = self.intersect(r, t);
+        }
+    }
+
+    /// Of up to [`LANES`] rays, the mask of those that hit something with 0 < t < `t_max[i]`
+    /// (bit i for ray i): each as [`Accel::occluded`] finds it, traced as a packet where the
+    /// CPU has AVX.
+    pub fn occluded8(&self, rays: &[Ray], t_max: &[f32]) -> u32 {
+        assert!(
+            rays.len() <= LANES && t_max.len() == rays.len(),
+            "a packet of {} rays, {} distances",
+            rays.len(),
+            t_max.len()
+        );
+        #[cfg(target_arch = "x86_64")]
+        if self.avx {
+            // SAFETY: `avx` is set only where the CPU has AVX.
+            return unsafe { self.occluded8_avx(rays, t_max) };
+        }
+        let hit = rays.iter().zip(t_max).map(|(r, &t)| self.occluded(r, t));
+        hit.enumerate().map(|(l, h)| (h as u32) << l).sum()
     }
 
     /// Whether anything is hit with 0 < t < `t_max`.
@@ -284,14 +357,23 @@ impl Accel {
     }
 
     #[inline(always)]
-    fn occluded_with<const AVX: bool>(&self, ray: &Ray, t_max: f32) -> bool {
+    pub(super) fn occluded_with<const AVX: bool>(&self, ray: &Ray, t_max: f32) -> bool {
         let box_ray = BoxRay::new(ray.o, safe_inverse(ray.d));
-        let hit = match triangle::dominant_axis(ray.d) {
-            0 => self.any_triangle::<0, AVX>(ray, &box_ray, t_max),
-            1 => self.any_triangle::<1, AVX>(ray, &box_ray, t_max),
-            _ => self.any_triangle::<2, AVX>(ray, &box_ray, t_max),
-        };
-        hit || self.spheres.any::<AVX>(&box_ray, t_max, |first, count| {
+        self.triangles
+            .root
+            .is_some_and(|root| self.any_triangle_from::<AVX>(root, ray, &box_ray, t_max))
+            || self.any_sphere::<AVX>(ray, &box_ray, t_max)
+    }
+
+    /// Whether a sphere is hit with 0 < t < `t_max`.
+    #[inline(always)]
+    pub(super) fn any_sphere<const AVX: bool>(
+        &self,
+        ray: &Ray,
+        box_ray: &BoxRay,
+        t_max: f32,
+    ) -> bool {
+        self.spheres.any::<AVX>(box_ray, t_max, |first, count| {
             (first..first + count).any(|slot| {
                 let (s, _) = self.sphere_list[slot as usize];
                 sphere::intersect(s.center, s.radius, ray.o, ray.d, t_max).is_some()
@@ -299,19 +381,37 @@ impl Accel {
         })
     }
 
+    /// Whether a triangle in the subtree at `root` is hit with 0 < t < `t_max`.
+    #[inline(always)]
+    pub(super) fn any_triangle_from<const AVX: bool>(
+        &self,
+        root: Ref,
+        ray: &Ray,
+        box_ray: &BoxRay,
+        t_max: f32,
+    ) -> bool {
+        match triangle::dominant_axis(ray.d) {
+            0 => self.any_triangle::<0, AVX>(root, ray, box_ray, t_max),
+            1 => self.any_triangle::<1, AVX>(root, ray, box_ray, t_max),
+            _ => self.any_triangle::<2, AVX>(root, ray, box_ray, t_max),
+        }
+    }
+
     #[inline(always)]
     fn any_triangle<const KZ: usize, const AVX: bool>(
         &self,
+        root: Ref,
         ray: &Ray,
         box_ray: &BoxRay,
         t_max: f32,
     ) -> bool {
         let tr = TriangleRay::<KZ>::new(ray.o, ray.d);
-        self.triangles.any::<AVX>(box_ray, t_max, |first, count| {
-            (first..first + count).any(|block| {
-                triangle::intersect4(&tr, &self.blocks[block as usize], t_max).is_some()
+        self.triangles
+            .any_from::<AVX>(root, box_ray, t_max, |first, count| {
+                (first..first + count).any(|block| {
+                    triangle::intersect4(&tr, &self.blocks[block as usize], t_max).is_some()
+                })
             })
-        })
     }
 }
 
@@ -417,14 +517,19 @@ mod tests {
     /// The closest hit and occlusion of every ray equal a test of every primitive, through
     /// both forms of the node test (eight lanes with AVX, two groups of four without): a soup
     /// of thousands of triangles and some spheres, so that nodes are full and deep.
-    #[test]
-    fn queries_equal_a_test_of_every_primitive_with_and_without_avx() {
+    /// Uniform numbers in [0, 1), a fixed sequence.
+    fn uniform() -> impl FnMut() -> f32 {
         use crate::sampler::hash::{mix64, u32_to_unit};
         let mut k = 0u64;
-        let mut u = || {
+        move || {
             k += 1;
             u32_to_unit(mix64(k) as u32)
-        };
+        }
+    }
+
+    /// A soup of thousands of small triangles and some spheres in [0, 10]³, so that nodes are
+    /// full and deep.
+    fn soup(u: &mut impl FnMut() -> f32) -> (Vec<[Vec3A; 3]>, Vec<(Vec3A, f32)>) {
         let mut point = |scale: f32| Vec3A::new(u(), u(), u()) * scale;
         let mut tris = Vec::new();
         for _ in 0..3000 {
@@ -434,35 +539,53 @@ mod tests {
         let spheres: Vec<(Vec3A, f32)> = (0..40)
             .map(|i| (point(10.0), 0.05 + 0.01 * i as f32))
             .collect();
+        (tris, spheres)
+    }
+
+    /// The closest hit by testing every primitive, one by one.
+    fn brute(
+        tris: &[[Vec3A; 3]],
+        spheres: &[(Vec3A, f32)],
+        ray: &Ray,
+        t_max: f32,
+    ) -> Option<(f32, Prim)> {
+        let mut best: Option<(f32, Prim)> = None;
+        for (i, t) in tris.iter().enumerate() {
+            let block = Triangle4::new(&[*t]);
+            let limit = best.map_or(t_max, |b| b.0);
+            let hit = match triangle::dominant_axis(ray.d) {
+                0 => triangle::intersect4(&TriangleRay::<0>::new(ray.o, ray.d), &block, limit),
+                1 => triangle::intersect4(&TriangleRay::<1>::new(ray.o, ray.d), &block, limit),
+                _ => triangle::intersect4(&TriangleRay::<2>::new(ray.o, ray.d), &block, limit),
+            };
+            if let Some((_, h)) = hit {
+                best = Some((
+                    h.t,
+                    Prim::Triangle {
+                        id: i as u32,
+                        b: h.b,
+                    },
+                ));
+            }
+        }
+        for (i, &(c, r)) in spheres.iter().enumerate() {
+            let limit = best.map_or(t_max, |b| b.0);
+            if let Some(t) = sphere::intersect(c, r, ray.o, ray.d, limit) {
+                best = Some((t, Prim::Sphere { id: i as u32 }));
+            }
+        }
+        best
+    }
+
+    /// Closest-hit and occlusion queries equal a test of every primitive, with each of
+    /// both forms of the node test (eight lanes with AVX, two groups of four without).
+    #[test]
+    fn queries_equal_a_test_of_every_primitive_with_and_without_avx() {
+        let mut u = uniform();
+        let (tris, spheres) = soup(&mut u);
+        let mut point = |scale: f32| Vec3A::new(u(), u(), u()) * scale;
         let mut accel = Accel::build(&tris, &spheres);
-        let brute = |ray: &Ray, t_max: f32| -> Option<(f32, Prim)> {
-            let mut best: Option<(f32, Prim)> = None;
-            for (i, t) in tris.iter().enumerate() {
-                let block = Triangle4::new(&[*t]);
-                let limit = best.map_or(t_max, |b| b.0);
-                let hit = match triangle::dominant_axis(ray.d) {
-                    0 => triangle::intersect4(&TriangleRay::<0>::new(ray.o, ray.d), &block, limit),
-                    1 => triangle::intersect4(&TriangleRay::<1>::new(ray.o, ray.d), &block, limit),
-                    _ => triangle::intersect4(&TriangleRay::<2>::new(ray.o, ray.d), &block, limit),
-                };
-                if let Some((_, h)) = hit {
-                    best = Some((
-                        h.t,
-                        Prim::Triangle {
-                            id: i as u32,
-                            b: h.b,
-                        },
-                    ));
-                }
-            }
-            for (i, &(c, r)) in spheres.iter().enumerate() {
-                let limit = best.map_or(t_max, |b| b.0);
-                if let Some(t) = sphere::intersect(c, r, ray.o, ray.d, limit) {
-                    best = Some((t, Prim::Sphere { id: i as u32 }));
-                }
-            }
-            best
-        };
+        let brute = |ray: &Ray, t_max: f32| brute(&tris, &spheres, ray, t_max);
         let rays: Vec<(Ray, f32)> = (0..2000)
             .map(|i| {
                 let o = point(12.0) - 1.0;
@@ -492,6 +615,70 @@ mod tests {
         }
         // Neither all hits nor all misses: the comparison means something.
         assert!(hits > 200 && hits < 3800, "{hits} hits");
+    }
+
+    /// Packets of eight rays get each ray's hit as a test of every primitive finds it: packets
+    /// that stay together (rays from nearby points in nearby directions, as a pixel's samples),
+    /// packets that split at once (random rays), and packets of fewer than eight rays.
+    #[test]
+    fn packet_queries_equal_a_test_of_every_primitive() {
+        let mut u = uniform();
+        let (tris, spheres) = soup(&mut u);
+        let mut point = |scale: f32| Vec3A::new(u(), u(), u()) * scale;
+        let mut accel = Accel::build(&tris, &spheres);
+        let mut packets: Vec<Vec<(Ray, f32)>> = Vec::new();
+        for k in 0..600 {
+            let (o, d) = (point(12.0) - 1.0, point(2.0) - 1.0);
+            let spread = [0.0, 0.01, 0.1, 1.0][k % 4];
+            let n = if k % 5 == 0 { 1 + k % 8 } else { LANES };
+            packets.push(
+                (0..n)
+                    .map(|i| {
+                        let o = o + (point(2.0) - 1.0) * spread;
+                        let d = (d + (point(2.0) - 1.0) * spread).normalize();
+                        let t_max = if (k + i) % 3 == 0 { 2.0 } else { f32::INFINITY };
+                        (Ray::new(o, d), t_max)
+                    })
+                    .collect(),
+            );
+        }
+        let mut forms = vec![false];
+        if avx_available() {
+            forms.push(true);
+        }
+        let (mut hits, mut rays) = (0, 0);
+        for avx in forms {
+            accel.avx = avx;
+            for packet in &packets {
+                let (r, t): (Vec<Ray>, Vec<f32>) = packet.iter().copied().unzip();
+                let mut got = vec![None; r.len()];
+                accel.intersect8(&r, &t, &mut got);
+                let occluded = accel.occluded8(&r, &t);
+                for (i, (ray, t_max)) in packet.iter().enumerate() {
+                    let want = brute(&tris, &spheres, ray, *t_max);
+                    let hit = got[i].map(|h| (h.t, h.prim));
+                    assert_eq!(
+                        hit, want,
+                        "closest hit (avx {avx}) of {ray:?} in {packet:?}"
+                    );
+                    if let Some(h) = got[i] {
+                        assert_eq!(Some(h), accel.intersect(ray, *t_max), "hit record");
+                    }
+                    assert_eq!(
+                        occluded >> i & 1 == 1,
+                        want.is_some(),
+                        "occlusion of {ray:?}"
+                    );
+                    hits += want.is_some() as u32;
+                    rays += 1;
+                }
+                assert_eq!(occluded >> r.len(), 0, "no bits beyond the packet");
+            }
+        }
+        assert!(
+            hits > rays / 10 && hits < rays * 9 / 10,
+            "{hits} hits of {rays}"
+        );
     }
 
     #[test]

@@ -21,7 +21,7 @@ use obvhs::bvh2::Bvh2;
 
 /// A reference to a child: an inner node, or a leaf (first block and block count).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Ref(u32);
+pub struct Ref(pub(super) u32);
 
 const LEAF: u32 = 1 << 31;
 const COUNT_SHIFT: u32 = 27;
@@ -38,27 +38,28 @@ impl Ref {
         Ref(LEAF | ((count - 1) << COUNT_SHIFT) | first)
     }
     #[inline(always)]
-    fn is_leaf(self) -> bool {
+    pub(super) fn is_leaf(self) -> bool {
         self.0 & LEAF != 0
     }
     #[inline(always)]
-    fn blocks(self) -> (u32, u32) {
+    pub(super) fn blocks(self) -> (u32, u32) {
         (self.0 & FIRST_MASK, ((self.0 & !LEAF) >> COUNT_SHIFT) + 1)
     }
 }
 
 /// Children per node.
-const WIDTH: usize = 8;
+pub(super) const WIDTH: usize = 8;
 /// Four-wide SIMD groups per node.
 const GROUPS: usize = WIDTH / 4;
 
 /// Eight children: `b[axis][g]` the minima of children 4g..4g+4 and `b[axis + 3][g]` their
-/// maxima along x, y, z.
+/// maxima along x, y, z. Children fill the first `len` slots.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
-struct Node {
-    b: [[Vec4; GROUPS]; 6],
-    child: [Ref; WIDTH],
+pub(super) struct Node {
+    pub(super) b: [[Vec4; GROUPS]; 6],
+    pub(super) child: [Ref; WIDTH],
+    pub(super) len: u32,
 }
 
 // `BoxRay::test_avx` loads each plane of eight bounds as one aligned 32-byte row.
@@ -178,8 +179,8 @@ pub fn avx_available() -> bool {
 
 #[derive(Debug, Clone, Default)]
 pub struct Bvh8 {
-    nodes: Vec<Node>,
-    root: Option<Ref>,
+    pub(super) nodes: Vec<Node>,
+    pub(super) root: Option<Ref>,
 }
 
 /// Cost of testing one leaf of up to four primitives (one SIMD block), in units of one
@@ -312,6 +313,7 @@ impl Bvh8 {
         self.nodes.push(Node {
             b: [[Vec4::ZERO; GROUPS]; 6],
             child: [Ref(0); WIDTH],
+            len: kids.len() as u32,
         });
         let mut node = self.nodes[index];
         for slot in 0..WIDTH {
@@ -335,9 +337,22 @@ impl Bvh8 {
         &self,
         ray: &BoxRay,
         t_max: &mut f32,
+        leaf: impl FnMut(u32, u32, &mut f32) -> Visit,
+    ) {
+        if let Some(root) = self.root {
+            self.closest_from::<AVX>(root, ray, t_max, leaf);
+        }
+    }
+
+    /// [`Bvh8::closest`] in the subtree at `root`.
+    #[inline(always)]
+    pub(super) fn closest_from<const AVX: bool>(
+        &self,
+        root: Ref,
+        ray: &BoxRay,
+        t_max: &mut f32,
         mut leaf: impl FnMut(u32, u32, &mut f32) -> Visit,
     ) {
-        let Some(root) = self.root else { return };
         // Each level pushes at most seven entries; 512 covers 73 levels. Left uninitialised:
         // zeroing it would cost more than a whole traversal of a small scene.
         let mut stack = [MaybeUninit::<(Ref, f32)>::uninit(); 512];
@@ -414,9 +429,21 @@ impl Bvh8 {
         &self,
         ray: &BoxRay,
         t_max: f32,
+        leaf: impl FnMut(u32, u32) -> bool,
+    ) -> bool {
+        self.root
+            .is_some_and(|root| self.any_from::<AVX>(root, ray, t_max, leaf))
+    }
+
+    /// [`Bvh8::any`] in the subtree at `root`.
+    #[inline(always)]
+    pub(super) fn any_from<const AVX: bool>(
+        &self,
+        root: Ref,
+        ray: &BoxRay,
+        t_max: f32,
         mut leaf: impl FnMut(u32, u32) -> bool,
     ) -> bool {
-        let Some(root) = self.root else { return false };
         let mut stack = [MaybeUninit::<Ref>::uninit(); 512];
         let mut top = 0usize;
         let mut cur = root;

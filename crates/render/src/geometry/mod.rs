@@ -2,7 +2,9 @@
 
 pub mod accel;
 pub mod bvh8;
+#[cfg(target_arch = "x86_64")]
+mod packet;
 pub mod sphere;
 pub mod triangle;
 
-pub use accel::{Accel, Prim, PrimHit};
+pub use accel::{Accel, LANES, Prim, PrimHit};

@@ -23,7 +23,7 @@ use crate::math::gamma;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C, align(16))]
 pub struct Triangle4 {
-    v: [[Vec4; 3]; 3],
+    pub(super) v: [[Vec4; 3]; 3],
 }
 
 impl Triangle4 {
@@ -67,9 +67,9 @@ impl Triangle4 {
 #[derive(Debug, Clone, Copy)]
 pub struct TriangleRay<const KZ: usize> {
     /// Origin and direction in permuted order.
-    o: Vec3A,
-    d: Vec3A,
-    shear: Vec3A,
+    pub(super) o: Vec3A,
+    pub(super) d: Vec3A,
+    pub(super) shear: Vec3A,
 }
 
 /// The axis along which `d` is largest in magnitude: the `KZ` to use for it.
@@ -222,7 +222,10 @@ pub fn intersect4<const KZ: usize>(
 /// The same transform, edge functions and distance in f64, with the same error bound in f64
 /// unit roundoff: the distance, if the hit is certainly in front of the origin.
 #[cold]
-fn distance_f64<const KZ: usize>(ray: &TriangleRay<KZ>, tri: &[Vec3A; 3]) -> Option<f32> {
+pub(super) fn distance_f64<const KZ: usize>(
+    ray: &TriangleRay<KZ>,
+    tri: &[Vec3A; 3],
+) -> Option<f32> {
     let g = |n: f64| n * f64::EPSILON * 0.5 / (1.0 - n * f64::EPSILON * 0.5);
     let d = ray.d.as_dvec3();
     let (sx, sy, sz) = (-d.x / d.z, -d.y / d.z, 1.0 / d.z);

@@ -109,7 +109,8 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
     );
     println!();
     let mut header = "| scene | triangles | spheres | BVH nodes, blocks | rays | coherent closest | coherent occluded | incoherent closest | incoherent occluded |".to_string();
-    let mut rule = "|---|---:|---:|---:|---:|---:|---:|---:|---:|".to_string();
+    header += " packets of 8: coherent closest | coherent occluded | incoherent closest | incoherent occluded |";
+    let mut rule = "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|".to_string();
     if cfg!(feature = "embree") {
         header += " Embree 3: coherent closest | coherent occluded | incoherent closest | incoherent occluded |";
         header += " Embree 3, packets of 8: coherent closest | coherent occluded | incoherent closest | incoherent occluded |";
@@ -123,6 +124,22 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
             |r| case.accel.intersect(r, f32::INFINITY).is_some(),
             |r| case.accel.occluded(r, f32::INFINITY),
         );
+        let accel = &case.accel;
+        let packets = packets(
+            case,
+            repeat,
+            |p, _| {
+                let mut hits = [None; 8];
+                let hits = &mut hits[..p.len()];
+                accel.intersect8(p, &[f32::INFINITY; 8][..p.len()], hits);
+                hits.iter().filter(|h| h.is_some()).count()
+            },
+            |p, _| {
+                accel
+                    .occluded8(p, &[f32::INFINITY; 8][..p.len()])
+                    .count_ones() as usize
+            },
+        );
         let (nodes, blocks) = case.accel.triangle_bvh_size();
         let row = format!(
             "| {} | {} | {} | {nodes}, {blocks} | {} + {} |{}",
@@ -132,7 +149,7 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
             case.coherent.len(),
             case.incoherent.len(),
             columns(&ours),
-        );
+        ) + &labelled(&packets, &ours);
         #[cfg(feature = "embree")]
         let row = row + &embree_columns(case, repeat, &ours)?;
         println!("{row}");
@@ -149,20 +166,19 @@ fn embree_columns(case: &Case, repeat: u32, ours: &Row) -> anyhow::Result<String
     }
     let scene = super::embree::Scene::new(&case.accel.triangles())?;
     let single = measure(case, repeat, |r| scene.intersect(r), |r| scene.occluded(r));
-    // Packets of eight consecutive rays: neighbouring pixels of a tile row, or their bounces.
-    let packets = |rays: &[Ray], q: &dyn Fn(&[Ray]) -> usize| {
-        rate(rays.len(), repeat, || rays.chunks(8).map(q).sum())
-    };
-    let packet = [
-        packets(&case.coherent, &|p| scene.intersect8(p, true)),
-        packets(&case.coherent, &|p| scene.occluded8(p, true)),
-        packets(&case.incoherent, &|p| scene.intersect8(p, false)),
-        packets(&case.incoherent, &|p| scene.occluded8(p, false)),
-    ];
-    Ok(single
-        .iter()
-        .chain(&packet)
-        .zip(ours.iter().chain(ours))
+    let packet = packets(
+        case,
+        repeat,
+        |p, coherent| scene.intersect8(p, coherent),
+        |p, coherent| scene.occluded8(p, coherent),
+    );
+    Ok(labelled(&single, ours) + &labelled(&packet, ours))
+}
+
+/// The row's figures, each with its hit count where that differs from ours.
+fn labelled(row: &Row, ours: &Row) -> String {
+    row.iter()
+        .zip(ours)
         .map(|(t, o)| {
             if t.hits == o.hits {
                 format!(" {:.2} |", t.mrays)
@@ -170,7 +186,28 @@ fn embree_columns(case: &Case, repeat: u32, ours: &Row) -> anyhow::Result<String
                 format!(" {:.2} ({} hits, ours {}) |", t.mrays, t.hits, o.hits)
             }
         })
-        .collect())
+        .collect()
+}
+
+/// A query over `rays` in packets of eight consecutive rays: neighbouring pixels of a tile
+/// row, or their bounces. `q` returns how many of a packet's rays hit.
+fn packet_rate(rays: &[Ray], repeat: u32, q: &dyn Fn(&[Ray]) -> usize) -> Rate {
+    rate(rays.len(), repeat, || rays.chunks(8).map(q).sum())
+}
+
+/// [`measure`] for packet queries, which are told whether the rays are the coherent set.
+fn packets(
+    case: &Case,
+    repeat: u32,
+    closest: impl Fn(&[Ray], bool) -> usize,
+    occluded: impl Fn(&[Ray], bool) -> usize,
+) -> Row {
+    [
+        packet_rate(&case.coherent, repeat, &|p| closest(p, true)),
+        packet_rate(&case.coherent, repeat, &|p| occluded(p, true)),
+        packet_rate(&case.incoherent, repeat, &|p| closest(p, false)),
+        packet_rate(&case.incoherent, repeat, &|p| occluded(p, false)),
+    ]
 }
 
 /// The fastest of `repeat` runs of `f` over `n` rays; `f` returns how many hit.
