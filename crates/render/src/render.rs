@@ -7,13 +7,9 @@ use rayon::prelude::*;
 
 use crate::camera::{Camera, camera_ray};
 use crate::film::{Image, SampleRange, Tile, TileSums, tiles};
-use glam::Vec3A;
-
-use crate::integrator::{Integrator, LANES, RayStats};
-use crate::ray::Ray;
+use crate::integrator::{Integrator, RayStats};
 use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::Scene;
-use crate::spectrum::Spectrum;
 
 /// Renders samples `range` of every pixel of `tile`, seen by `camera`.
 pub fn render_tile(
@@ -25,42 +21,21 @@ pub fn render_tile(
 ) -> (TileSums, RayStats) {
     let mut sums = TileSums::new(tile, range);
     let mut stats = RayStats::default();
-    // A pixel's samples go LANES at a time, each with its own sampler: integrators that trace
-    // packets of rays trace their camera rays, near one another, together.
-    let mut samplers: Vec<PixelSampler> = (0..LANES)
-        .map(|_| PixelSampler::new(scene.integrator.sampler, scene.integrator.seed))
-        .collect();
-    let mut rays = [Ray::new(Vec3A::ZERO, Vec3A::Z); LANES];
-    let mut weights = [0.0f32; LANES];
-    let mut radiance = [Spectrum::ZERO; LANES];
+    let mut sampler = PixelSampler::new(scene.integrator.sampler, scene.integrator.seed);
     let exposure = camera.exposure;
     for (pixel, acc) in tile.pixels().zip(sums.pixels.iter_mut()) {
-        let mut index = range.start;
-        while index < range.end {
-            let n = ((range.end - index) as usize).min(LANES);
-            for (k, sampler) in samplers[..n].iter_mut().enumerate() {
-                sampler.start_pixel_sample(pixel, index + k as u32);
-                (rays[k], weights[k]) = camera_ray(scene, camera, pixel, sampler);
+        for index in range.start..range.end {
+            sampler.start_pixel_sample(pixel, index);
+            let (ray, w) = camera_ray(scene, camera, pixel, &mut sampler);
+            let mut l = integrator.li(scene, ray, &mut sampler, &mut stats) * exposure;
+            stats.samples += 1;
+            // DESIGN invariant 3: no NaN or Inf reaches the film. The sample counts as black
+            // (every pixel keeps as many samples as its range), and is counted.
+            if !l.is_finite() {
+                stats.nonfinite += 1;
+                l = crate::spectrum::Spectrum::ZERO;
             }
-            integrator.li8(
-                scene,
-                &rays[..n],
-                &mut samplers[..n],
-                &mut stats,
-                &mut radiance[..n],
-            );
-            for (&l, &w) in radiance[..n].iter().zip(&weights[..n]) {
-                let mut l = l * exposure;
-                stats.samples += 1;
-                // DESIGN invariant 3: no NaN or Inf reaches the film. The sample counts as
-                // black (every pixel keeps as many samples as its range), and is counted.
-                if !l.is_finite() {
-                    stats.nonfinite += 1;
-                    l = Spectrum::ZERO;
-                }
-                acc.add(w, l);
-            }
-            index += n as u32;
+            acc.add(w, l);
         }
     }
     (sums, stats)

@@ -8,7 +8,7 @@ use tessera_scene::{Coverage, CoverageMode, FilmDesc, IntegratorDesc, LightDesc,
 use crate::bsdf::{self, Bsdf, BsdfFlags};
 use crate::bssrdf::Subsurface;
 use crate::filter::Filter;
-use crate::geometry::{Accel, LANES, Prim, PrimHit};
+use crate::geometry::{Accel, Prim, PrimHit};
 use crate::light::{
     DirectionalLight, EnvironmentLight, Light, LightSample, LightSet, PointLight, ShadowTarget,
     SphereLight, SpotLight, Target, TriangleLight,
@@ -659,11 +659,6 @@ impl Scene {
         }
     }
 
-    /// Whether some material is translucent (has subsurface transport).
-    pub fn has_subsurface(&self) -> bool {
-        self.materials.iter().any(|m| m.subsurface.is_some())
-    }
-
     #[inline]
     pub fn material(&self, i: u32) -> &Material {
         &self.materials[i as usize]
@@ -691,38 +686,9 @@ impl Scene {
         Some(self.interaction(hit, ray.d))
     }
 
-    /// [`Scene::intersect`] of up to eight rays (`hits[i]` for `rays[i]`), traced together
-    /// as a packet.
-    pub fn intersect8(&self, rays: &[Ray], hits: &mut [Option<SurfaceInteraction>]) {
-        let mut prim = [None; LANES];
-        let prim = &mut prim[..rays.len()];
-        if self.holes {
-            for (h, r) in prim.iter_mut().zip(rays) {
-                *h = self.through_holes(r, f32::INFINITY);
-            }
-        } else {
-            self.accel
-                .intersect8(rays, &[f32::INFINITY; LANES][..rays.len()], prim);
-        }
-        for ((h, p), r) in hits.iter_mut().zip(prim).zip(rays) {
-            *h = p.map(|p| self.interaction(p, r.d));
-        }
-    }
-
-    /// Of up to eight rays, the mask of those along which something is there before their
-    /// `t_max` (bit i for ray i), traced together as a packet.
-    pub(crate) fn occluded8(&self, rays: &[Ray], t_max: &[f32]) -> u32 {
-        if self.holes {
-            let hit = rays.iter().zip(t_max).map(|(r, &t)| self.occluded(r, t));
-            hit.enumerate().map(|(l, h)| (h as u32) << l).sum()
-        } else {
-            self.accel.occluded8(rays, t_max)
-        }
-    }
-
     /// Whether something is there along `ray` before `t_max`.
     #[inline]
-    pub(crate) fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
+    fn occluded(&self, ray: &Ray, t_max: f32) -> bool {
         if self.holes {
             self.through_holes(ray, t_max).is_some()
         } else {
@@ -843,60 +809,39 @@ impl Scene {
 
     /// Whether nothing blocks the light sample `ls` as seen from `si`.
     pub fn unoccluded(&self, si: &SurfaceInteraction, ls: &LightSample) -> bool {
-        self.shadow_ray(si, ls)
-            .is_none_or(|(r, t)| !self.occluded(&r, t))
-    }
-
-    /// The ray (and its length) whose occlusion decides whether `ls` is seen from `si`;
-    /// `None` where there is nothing between them.
-    pub fn shadow_ray(&self, si: &SurfaceInteraction, ls: &LightSample) -> Option<(Ray, f32)> {
         match ls.target {
-            ShadowTarget::Infinite => Some(ray_to_infinity((si.p, si.p_error, si.ng), ls.wi)),
+            ShadowTarget::Infinite => self.unoccluded_to_infinity((si.p, si.p_error, si.ng), ls.wi),
             ShadowTarget::Point { p, p_error, n } => {
-                segment_ray((si.p, si.p_error, si.ng), (p, p_error, n))
+                self.unoccluded_between((si.p, si.p_error, si.ng), (p, p_error, n))
             }
         }
     }
 
     /// Whether nothing blocks the ray from a point (position, error bound, normal) along `w`
     /// to infinity: the way to a light at infinity.
-    pub fn unoccluded_to_infinity(&self, from: (Vec3A, Vec3A, Vec3A), w: Vec3A) -> bool {
-        let (ray, t) = ray_to_infinity(from, w);
-        !self.occluded(&ray, t)
+    pub fn unoccluded_to_infinity(&self, (p, p_error, n): (Vec3A, Vec3A, Vec3A), w: Vec3A) -> bool {
+        let o = if n == Vec3A::ZERO {
+            p
+        } else {
+            offset_ray_origin(p, p_error, n, w)
+        };
+        !self.occluded(&Ray::new(o, w), f32::INFINITY)
     }
 
     /// Whether nothing blocks the segment between two points, each (position, error bound,
     /// normal; a zero normal for a point in space, such as a pinhole or a point light).
     pub fn unoccluded_between(&self, a: (Vec3A, Vec3A, Vec3A), b: (Vec3A, Vec3A, Vec3A)) -> bool {
-        segment_ray(a, b).is_none_or(|(r, t)| !self.occluded(&r, t))
+        let end = |(p, e, n): (Vec3A, Vec3A, Vec3A), toward: Vec3A| {
+            if n == Vec3A::ZERO {
+                p
+            } else {
+                offset_ray_origin(p, e, n, toward - p)
+            }
+        };
+        let o = end(a, b.0);
+        let target = end(b, o);
+        let d = target - o;
+        let dist = d.length();
+        dist == 0.0 || !self.occluded(&Ray::new(o, d / dist), dist * (1.0 - SHADOW_EPSILON))
     }
-}
-
-/// The ray from a point (position, error bound, normal; a zero normal for a point in space)
-/// along `w` to infinity, its origin offset off the surface.
-fn ray_to_infinity((p, p_error, n): (Vec3A, Vec3A, Vec3A), w: Vec3A) -> (Ray, f32) {
-    let o = if n == Vec3A::ZERO {
-        p
-    } else {
-        offset_ray_origin(p, p_error, n, w)
-    };
-    (Ray::new(o, w), f32::INFINITY)
-}
-
-/// The ray and length of the segment between two points (as for [`ray_to_infinity`]), each end
-/// offset off its surface and the far end pulled in by [`SHADOW_EPSILON`]; `None` where the
-/// ends meet.
-fn segment_ray(a: (Vec3A, Vec3A, Vec3A), b: (Vec3A, Vec3A, Vec3A)) -> Option<(Ray, f32)> {
-    let end = |(p, e, n): (Vec3A, Vec3A, Vec3A), toward: Vec3A| {
-        if n == Vec3A::ZERO {
-            p
-        } else {
-            offset_ray_origin(p, e, n, toward - p)
-        }
-    };
-    let o = end(a, b.0);
-    let target = end(b, o);
-    let d = target - o;
-    let dist = d.length();
-    (dist != 0.0).then(|| (Ray::new(o, d / dist), dist * (1.0 - SHADOW_EPSILON)))
 }

@@ -20,7 +20,6 @@ use glam::{Vec2, Vec3A};
 use tessera_scene::{IntegratorDesc, SceneDesc, SubsurfaceMethod};
 
 use crate::analysis::Analysis;
-pub use crate::geometry::LANES;
 
 use crate::bsdf::TransportMode;
 use crate::math::Frame;
@@ -85,53 +84,31 @@ pub(crate) fn sample_direct(
     u: Vec3A,
     stats: &mut RayStats,
 ) -> Spectrum {
-    match direct_sample(scene, si, material, frame, wo, u, stats) {
-        Some(d) if d.shadow.is_none_or(|(r, t)| !scene.occluded(&r, t)) => d.l,
-        _ => Spectrum::ZERO,
-    }
-}
-
-/// A light sample's contribution if nothing blocks its shadow ray (`None`: nothing to test).
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct DirectSample {
-    pub l: Spectrum,
-    pub shadow: Option<(Ray, f32)>,
-}
-
-/// [`sample_direct`] up to its shadow ray, which the caller tests (alone, or with other
-/// paths' in a packet); `None` where the sample contributes nothing whatever the shadow ray
-/// finds.
-#[inline]
-pub(crate) fn direct_sample(
-    scene: &Scene,
-    si: &SurfaceInteraction,
-    material: &Material,
-    frame: &Frame,
-    wo: Vec3A,
-    u: Vec3A,
-    stats: &mut RayStats,
-) -> Option<DirectSample> {
     let mode = TransportMode::Radiance;
-    let (li, pmf) = scene.lights.choose(u.x)?;
-    let ls = scene.lights.get(li).sample_li(si.p, Vec2::new(u.y, u.z))?;
+    let Some((li, pmf)) = scene.lights.choose(u.x) else {
+        return Spectrum::ZERO;
+    };
+    let Some(ls) = scene.lights.get(li).sample_li(si.p, Vec2::new(u.y, u.z)) else {
+        return Spectrum::ZERO;
+    };
     let wo_local = frame.to_local(wo);
     let wi_local = frame.to_local(ls.wi);
     let bsdf = material.bsdf_at(si);
     let f = bsdf.eval(wo_local, wi_local, mode) * wi_local.z.abs();
     if is_black(f) || !consistent(si, wo, ls.wi, wo_local, wi_local) {
-        return None;
+        return Spectrum::ZERO;
     }
     stats.rays += 1;
+    if !scene.unoccluded(si, &ls) {
+        return Spectrum::ZERO;
+    }
     let p_light = pmf * ls.pdf;
     let w = if ls.delta {
         1.0
     } else {
         power_heuristic(p_light, bsdf.pdf(wo_local, wi_local, mode))
     };
-    Some(DirectSample {
-        l: f * ls.li * (w / p_light),
-        shadow: scene.shadow_ray(si, &ls),
-    })
+    f * ls.li * (w / p_light)
 }
 
 /// Direct light toward `wo` at `si`, for estimators that end the camera path there (photon
@@ -204,22 +181,6 @@ pub trait Integrator: Send + Sync {
         sampler: &mut PixelSampler,
         stats: &mut RayStats,
     ) -> Spectrum;
-
-    /// [`Integrator::li`] of up to [`LANES`] camera rays, `out[i]` along `rays[i]` with
-    /// `samplers[i]`: the same estimates, for integrators that trace their paths' rays
-    /// together in packets (the default takes them one by one).
-    fn li8(
-        &self,
-        scene: &Scene,
-        rays: &[Ray],
-        samplers: &mut [PixelSampler],
-        stats: &mut RayStats,
-        out: &mut [Spectrum],
-    ) {
-        for ((ray, sampler), l) in rays.iter().zip(samplers).zip(out) {
-            *l = self.li(scene, *ray, sampler, stats);
-        }
-    }
 }
 
 /// A path tracer, or the direct-lighting estimator for `direct`.

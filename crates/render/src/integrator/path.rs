@@ -7,9 +7,7 @@ use tessera_scene::SubsurfaceMethod;
 
 use super::subsurface::hierarchical::{self, PointClouds};
 use super::subsurface::{probe, single, walk};
-use super::{DirectSample, Integrator, RayStats, consistent, direct_sample, sample_direct};
-mod packet;
-
+use super::{Integrator, RayStats, consistent, sample_direct};
 use crate::bsdf::TransportMode;
 use crate::math::Frame;
 use crate::ray::Ray;
@@ -93,24 +91,6 @@ impl Integrator for PathIntegrator {
     ) -> Spectrum {
         self.trace(scene, ray, sampler, stats, None)
     }
-
-    fn li8(
-        &self,
-        scene: &Scene,
-        rays: &[Ray],
-        samplers: &mut [PixelSampler],
-        stats: &mut RayStats,
-        out: &mut [Spectrum],
-    ) {
-        if scene.has_subsurface() {
-            // Subsurface transport casts its own rays one path at a time.
-            for ((ray, sampler), l) in rays.iter().zip(samplers).zip(out) {
-                *l = self.li(scene, *ray, sampler, stats);
-            }
-        } else {
-            self.trace8(scene, rays, samplers, stats, out);
-        }
-    }
 }
 
 impl PathIntegrator {
@@ -141,155 +121,131 @@ impl PathIntegrator {
         gather: Option<Gather>,
         start: PathStart,
     ) -> Spectrum {
-        let mut path = PathState::new(ray.o, start);
+        let mode = TransportMode::Radiance;
+        let mut l = Spectrum::ZERO;
+        let mut beta = Spectrum::ONE;
+        let mut eta_scale = 1.0f32;
+        // The last scattering was specular (or there was none yet): emitters hit now could
+        // not have been found by light sampling, so they count fully.
+        let mut specular = start.specular;
+        let mut prev_p = ray.o;
+        let mut prev_pdf = start.prev_pdf;
+        let mut depth = start.depth;
+        let mut nonspecular = start.depth;
+
         loop {
             stats.rays += 1;
-            let hit = scene.intersect(&ray);
-            let (next, direct) = self.step(scene, &ray, hit, &mut path, sampler, stats, gather);
-            if let Some(d) = direct
-                && d.shadow.is_none_or(|(r, t)| !scene.occluded(&r, t))
-            {
-                path.l += d.l;
-            }
-            match next {
-                Some(r) => ray = r,
-                None => return path.l,
-            }
-        }
-    }
-
-    /// One vertex of a path: light from the emitter `ray` hit (`hit`), or from the environment
-    /// where it hit nothing; then a light sample, returned with its shadow ray for the caller
-    /// to test, and the ray the path continues along (`None` where it ends).
-    #[allow(clippy::too_many_arguments)]
-    #[inline]
-    fn step(
-        &self,
-        scene: &Scene,
-        ray: &Ray,
-        hit: Option<SurfaceInteraction>,
-        path: &mut PathState,
-        sampler: &mut PixelSampler,
-        stats: &mut RayStats,
-        gather: Option<Gather>,
-    ) -> (Option<Ray>, Option<DirectSample>) {
-        let mode = TransportMode::Radiance;
-        let Some(si) = hit else {
-            for (i, light) in scene.lights.environment() {
-                let le = light.le_direction(ray.d);
-                let w = if path.specular {
-                    1.0
-                } else {
-                    power_heuristic(
-                        path.prev_pdf,
-                        scene.lights.pmf(i) * light.pdf_li_direction(ray.d),
-                    )
-                };
-                path.l += path.beta * le * w;
-            }
-            return (None, None);
-        };
-        let material = scene.material(si.material);
-        let wo = -ray.d;
-        if si.light != NO_LIGHT {
-            let light = scene.lights.get(si.light);
-            let le = light.le_surface(si.ng, wo, si.p);
-            if !is_black(le) {
-                let w = if path.specular {
-                    1.0
-                } else {
-                    power_heuristic(
-                        path.prev_pdf,
-                        scene.lights.pmf(si.light) * light.pdf_li_surface(path.prev_p, si.p, si.ng),
-                    )
-                };
-                path.l += path.beta * le * w;
-            }
-        }
-        if path.depth >= self.max_depth
-            || material.is_black()
-            || path.nonspecular >= self.max_nonspecular
-        {
-            return (None, None);
-        }
-        path.depth += 1;
-        let frame = material.frame(&si, wo);
-        if let Some(gather) = gather
-            && material.flags.diffuse
-        {
-            path.l += path.beta * gather(&si, material, &frame, wo, sampler, stats);
-            return (None, None);
-        }
-        let wo_local = frame.to_local(wo);
-
-        // Next-event estimation: one light chosen by power, one point on it.
-        let direct = if material.flags.smooth {
-            let u = sampler.get_3d();
-            direct_sample(scene, &si, material, &frame, wo, u, stats).map(|d| DirectSample {
-                l: path.beta * d.l,
-                ..d
-            })
-        } else {
-            None
-        };
-
-        // Continue the path by sampling the BSDF; the fourth value decides Russian roulette.
-        let u = sampler.get_4d();
-        let Some(bs) = material
-            .bsdf_at(&si)
-            .sample(wo_local, u.x, Vec2::new(u.y, u.z), mode)
-        else {
-            return (None, direct);
-        };
-        let wi = frame.to_world(bs.wi);
-        if !consistent(&si, wo, wi, wo_local, bs.wi) {
-            return (None, direct);
-        }
-        let (ray, u_rr) = if let Some(sub) = &material.subsurface
-            && bs.transmission
-            && wo_local.z > 0.0
-        {
-            // Light enters a translucent object (the Fresnel transmittance was the
-            // probability of this branch) and leaves elsewhere.
-            let Some(exit) =
-                self.subsurface(scene, &si, wi, sub, sampler, stats, &mut path.l, path.beta)
-            else {
-                return (None, direct);
-            };
-            path.beta *= exit.weight;
-            path.specular = exit.specular;
-            path.nonspecular += 1;
-            path.prev_pdf = exit.pdf;
-            path.prev_p = exit.ray.o;
-            (exit.ray, exit.u_rr)
-        } else {
-            path.beta *= bs.weight();
-            if bs.transmission {
-                path.eta_scale *= bs.eta * bs.eta;
-            }
-            path.specular = bs.specular;
-            if !bs.specular {
-                path.nonspecular += 1;
-            }
-            path.prev_pdf = bs.pdf;
-            path.prev_p = si.p;
-            (si.spawn(wi), u.w)
-        };
-        if is_black(path.beta) {
-            return (None, direct);
-        }
-        // Russian roulette on the throughput (undoing the η² of refraction, which is not
-        // a loss of energy).
-        if path.depth >= self.rr_depth {
-            let survive = (path.beta * path.eta_scale).max_element();
-            if survive < 1.0 {
-                if u_rr >= survive {
-                    return (None, direct);
+            let Some(si) = scene.intersect(&ray) else {
+                for (i, light) in scene.lights.environment() {
+                    let le = light.le_direction(ray.d);
+                    let w = if specular {
+                        1.0
+                    } else {
+                        power_heuristic(
+                            prev_pdf,
+                            scene.lights.pmf(i) * light.pdf_li_direction(ray.d),
+                        )
+                    };
+                    l += beta * le * w;
                 }
-                path.beta /= survive;
+                break;
+            };
+            let material = scene.material(si.material);
+            let wo = -ray.d;
+            if si.light != NO_LIGHT {
+                let light = scene.lights.get(si.light);
+                let le = light.le_surface(si.ng, wo, si.p);
+                if !is_black(le) {
+                    let w = if specular {
+                        1.0
+                    } else {
+                        power_heuristic(
+                            prev_pdf,
+                            scene.lights.pmf(si.light) * light.pdf_li_surface(prev_p, si.p, si.ng),
+                        )
+                    };
+                    l += beta * le * w;
+                }
+            }
+            if depth >= self.max_depth || material.is_black() || nonspecular >= self.max_nonspecular
+            {
+                break;
+            }
+            depth += 1;
+            let frame = material.frame(&si, wo);
+            if let Some(gather) = gather
+                && material.flags.diffuse
+            {
+                l += beta * gather(&si, material, &frame, wo, sampler, stats);
+                break;
+            }
+            let wo_local = frame.to_local(wo);
+
+            // Next-event estimation: one light chosen by power, one point on it.
+            if material.flags.smooth {
+                let u = sampler.get_3d();
+                l += beta * sample_direct(scene, &si, material, &frame, wo, u, stats);
+            }
+
+            // Continue the path by sampling the BSDF; the fourth value decides Russian roulette.
+            let u = sampler.get_4d();
+            let Some(bs) = material
+                .bsdf_at(&si)
+                .sample(wo_local, u.x, Vec2::new(u.y, u.z), mode)
+            else {
+                break;
+            };
+            let wi = frame.to_world(bs.wi);
+            if !consistent(&si, wo, wi, wo_local, bs.wi) {
+                break;
+            }
+            let u_rr = if let Some(sub) = &material.subsurface
+                && bs.transmission
+                && wo_local.z > 0.0
+            {
+                // Light enters a translucent object (the Fresnel transmittance was the
+                // probability of this branch) and leaves elsewhere.
+                let Some(exit) = self.subsurface(scene, &si, wi, sub, sampler, stats, &mut l, beta)
+                else {
+                    break;
+                };
+                beta *= exit.weight;
+                specular = exit.specular;
+                nonspecular += 1;
+                prev_pdf = exit.pdf;
+                prev_p = exit.ray.o;
+                ray = exit.ray;
+                exit.u_rr
+            } else {
+                beta *= bs.weight();
+                if bs.transmission {
+                    eta_scale *= bs.eta * bs.eta;
+                }
+                specular = bs.specular;
+                if !bs.specular {
+                    nonspecular += 1;
+                }
+                prev_pdf = bs.pdf;
+                prev_p = si.p;
+                ray = si.spawn(wi);
+                u.w
+            };
+            if is_black(beta) {
+                break;
+            }
+            // Russian roulette on the throughput (undoing the η² of refraction, which is not
+            // a loss of energy).
+            if depth >= self.rr_depth {
+                let survive = (beta * eta_scale).max_element();
+                if survive < 1.0 {
+                    if u_rr >= survive {
+                        break;
+                    }
+                    beta /= survive;
+                }
             }
         }
-        (Some(ray), direct)
+        l
     }
 
     /// Subsurface transport from `si`, where the path refracted into a translucent object
@@ -341,41 +297,6 @@ impl PathIntegrator {
                     u_rr: sampler.get_1d(),
                 })
             }
-        }
-    }
-}
-
-/// A path's state between vertices.
-#[derive(Debug, Clone, Copy)]
-struct PathState {
-    /// Radiance gathered so far.
-    l: Spectrum,
-    /// Throughput: the product of f·|cos θ|/p of the scatterings so far.
-    beta: Spectrum,
-    /// The product of η² over refractions, which roulette undoes.
-    eta_scale: f32,
-    /// The last scattering was specular (or there was none yet): emitters hit now could not
-    /// have been found by light sampling, so they count fully.
-    specular: bool,
-    /// The last vertex and its scattering density (for MIS against light sampling).
-    prev_p: Vec3A,
-    prev_pdf: f32,
-    /// Scattering events, and those of them diffuse or glossy.
-    depth: u32,
-    nonspecular: u32,
-}
-
-impl PathState {
-    fn new(origin: Vec3A, start: PathStart) -> Self {
-        PathState {
-            l: Spectrum::ZERO,
-            beta: Spectrum::ONE,
-            eta_scale: 1.0,
-            specular: start.specular,
-            prev_p: origin,
-            prev_pdf: start.prev_pdf,
-            depth: start.depth,
-            nonspecular: start.depth,
         }
     }
 }
