@@ -56,6 +56,9 @@ impl Boundable for Padded {
     }
 }
 
+/// A closest triangle hit, if any: block, lane in the block, barycentrics.
+pub(super) type TriangleBest = Option<(usize, usize, [f32; 3])>;
+
 /// Most rays in a packet ([`Accel::intersect8`]).
 pub const LANES: usize = 8;
 
@@ -215,7 +218,7 @@ impl Accel {
         ray: &Ray,
         box_ray: &BoxRay,
         mut t_best: f32,
-        best: Option<(usize, usize, [f32; 3])>,
+        best: TriangleBest,
     ) -> Option<PrimHit> {
         let mut best_sphere = None;
         self.spheres
@@ -264,7 +267,7 @@ impl Accel {
         ray: &Ray,
         box_ray: &BoxRay,
         t_max: &mut f32,
-        best: &mut Option<(usize, usize, [f32; 3])>,
+        best: &mut TriangleBest,
     ) {
         match triangle::dominant_axis(ray.d) {
             0 => self.closest_triangle::<0, AVX>(root, ray, box_ray, t_max, best),
@@ -281,7 +284,7 @@ impl Accel {
         ray: &Ray,
         box_ray: &BoxRay,
         t_max: &mut f32,
-        best: &mut Option<(usize, usize, [f32; 3])>,
+        best: &mut TriangleBest,
     ) {
         let tr = TriangleRay::<KZ>::new(ray.o, ray.d);
         self.triangles

@@ -8,10 +8,10 @@
 //! fewer than [`SINGLE_BELOW`] rays are left in a subtree, they finish it one at a time with
 //! the single-ray traversal, which tests eight children (or four triangles) per instruction:
 //! coherent rays (a pixel's samples, a tile's camera rays) share nodes, incoherent ones soon
-//! split up.
+//! split up. Rays whose directions are not within a narrow cone go one by one from the start.
 //!
-//! Every lane computes the single-ray tests' operations in their order — the slab test with
-//! the near plane chosen by the direction's sign, Woop's watertight test in the ray's own
+//! Every lane computes the single-ray tests' operations in their order — the slab test (its
+//! near plane, the one the direction's sign picks, is the nearer of the two), Woop's watertight test in the ray's own
 //! permuted axes with its f64 fallbacks and pbrt's bound on t — so each ray gets the hit
 //! [`Accel::intersect`] gives it, except that of two triangles at exactly the same distance
 //! either may be reported.
@@ -19,7 +19,7 @@
 use std::arch::x86_64::*;
 use std::mem::MaybeUninit;
 
-use super::accel::{Accel, LANES, PrimHit};
+use super::accel::{Accel, LANES, PrimHit, TriangleBest};
 use super::bvh8::{BoxRay, Bvh8, Node, Ref, safe_inverse};
 use super::triangle::{self, Triangle4, TriangleRay};
 use crate::math::gamma;
@@ -29,9 +29,6 @@ use crate::ray::Ray;
 const SINGLE_BELOW: u32 = 5;
 
 type F8 = __m256;
-
-/// A closest triangle hit: block, lane in the block, barycentrics.
-type TriangleBest = Option<(usize, usize, [f32; 3])>;
 
 /// The rays of a packet as structure of arrays, lane i for ray i.
 struct Packet {
