@@ -200,7 +200,7 @@ impl Accel {
     }
 
     #[inline(always)]
-    pub(super) fn intersect_with<const AVX: bool>(&self, ray: &Ray, t_max: f32) -> Option<PrimHit> {
+    fn intersect_with<const AVX: bool>(&self, ray: &Ray, t_max: f32) -> Option<PrimHit> {
         let box_ray = BoxRay::new(ray.o, safe_inverse(ray.d));
         let mut t_best = t_max;
         let mut best = None;
@@ -303,7 +303,8 @@ impl Accel {
 
     /// The closest hits of up to [`LANES`] rays, ray i's with 0 < t < `t_max[i]`, into
     /// `hits`: each as [`Accel::intersect`] finds it (of two triangles at exactly the same
-    /// distance, either), traced together as a packet where the CPU has AVX (see `packet`).
+    /// distance, either), traced together as a packet where the CPU has AVX and their
+    /// directions lie in a narrow cone (see `packet`), else one by one.
     pub fn intersect8(&self, rays: &[Ray], t_max: &[f32], hits: &mut [Option<PrimHit>]) {
         assert!(
             rays.len() <= LANES && t_max.len() == rays.len() && hits.len() == rays.len(),
@@ -313,7 +314,7 @@ impl Accel {
             hits.len()
         );
         #[cfg(target_arch = "x86_64")]
-        if self.avx {
+        if self.avx && super::packet::coherent(rays) {
             // SAFETY: `avx` is set only where the CPU has AVX.
             unsafe { self.intersect8_avx(rays, t_max, hits) };
             return;
@@ -324,8 +325,8 @@ impl Accel {
     }
 
     /// Of up to [`LANES`] rays, the mask of those that hit something with 0 < t < `t_max[i]`
-    /// (bit i for ray i): each as [`Accel::occluded`] finds it, traced as a packet where the
-    /// CPU has AVX.
+    /// (bit i for ray i): each as [`Accel::occluded`] finds it, traced as a packet where
+    /// [`Accel::intersect8`] would trace them as one.
     pub fn occluded8(&self, rays: &[Ray], t_max: &[f32]) -> u32 {
         assert!(
             rays.len() <= LANES && t_max.len() == rays.len(),
@@ -334,7 +335,7 @@ impl Accel {
             t_max.len()
         );
         #[cfg(target_arch = "x86_64")]
-        if self.avx {
+        if self.avx && super::packet::coherent(rays) {
             // SAFETY: `avx` is set only where the CPU has AVX.
             return unsafe { self.occluded8_avx(rays, t_max) };
         }
@@ -360,7 +361,7 @@ impl Accel {
     }
 
     #[inline(always)]
-    pub(super) fn occluded_with<const AVX: bool>(&self, ray: &Ray, t_max: f32) -> bool {
+    fn occluded_with<const AVX: bool>(&self, ray: &Ray, t_max: f32) -> bool {
         let box_ray = BoxRay::new(ray.o, safe_inverse(ray.d));
         self.triangles
             .root

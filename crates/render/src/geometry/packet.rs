@@ -60,8 +60,19 @@ fn lanes(mut m: u32) -> impl Iterator<Item = usize> {
 /// Whether the rays may stay together through the BVH: their directions within a narrow cone
 /// of the first's (a pixel's camera rays, shadow rays from nearby points to a small light).
 /// Other rays split up at once and go one by one from the start.
-fn coherent(rays: &[Ray]) -> bool {
+pub(super) fn coherent(rays: &[Ray]) -> bool {
     rays.iter().all(|r| r.d.dot(rays[0].d) > 0.9)
+}
+
+/// Each ray's data for the one-ray slab test (for the subtrees rays finish alone, and the
+/// spheres), made once per packet; lanes without a ray repeat the first ray's. `None` for no
+/// rays.
+fn box_rays(rays: &[Ray]) -> Option<[BoxRay; LANES]> {
+    let first = rays.first()?;
+    Some(std::array::from_fn(|l| {
+        let r = rays.get(l).unwrap_or(first);
+        BoxRay::new(r.o, safe_inverse(r.d))
+    }))
 }
 
 /// Permuted origin and shear of `TriangleRay::<KZ>`.
@@ -478,12 +489,9 @@ impl Accel {
         t_max: &[f32],
         hits: &mut [Option<PrimHit>],
     ) {
-        if !coherent(rays) {
-            for ((r, &t), h) in rays.iter().zip(t_max).zip(hits) {
-                *h = self.intersect_with::<true>(r, t);
-            }
+        let Some(box_rays) = box_rays(rays) else {
             return;
-        }
+        };
         // Lanes without a ray have a negative limit, which no box test passes.
         let mut t_far = [-1.0f32; LANES];
         t_far[..rays.len()].copy_from_slice(t_max);
@@ -534,11 +542,10 @@ impl Accel {
                 |r: Ref, mask: u32, t_far: &mut [f32; LANES], best: &mut [TriangleBest; LANES]| {
                     for l in lanes(mask) {
                         let ray = &rays[l];
-                        let box_ray = BoxRay::new(ray.o, safe_inverse(ray.d));
                         self.closest_triangle_from::<true>(
                             r,
                             ray,
-                            &box_ray,
+                            &box_rays[l],
                             &mut t_far[l],
                             &mut best[l],
                         );
@@ -551,8 +558,7 @@ impl Accel {
             };
         }
         for (l, (ray, hit)) in rays.iter().zip(hits).enumerate() {
-            let box_ray = BoxRay::new(ray.o, safe_inverse(ray.d));
-            *hit = self.nearest_with_spheres::<true>(ray, &box_ray, t_far[l], best[l]);
+            *hit = self.nearest_with_spheres::<true>(ray, &box_rays[l], t_far[l], best[l]);
         }
     }
 
@@ -562,13 +568,9 @@ impl Accel {
     /// The CPU must have AVX.
     #[target_feature(enable = "avx")]
     pub(super) unsafe fn occluded8_avx(&self, rays: &[Ray], t_max: &[f32]) -> u32 {
-        if !coherent(rays) {
-            let hit = rays
-                .iter()
-                .zip(t_max)
-                .map(|(r, &t)| self.occluded_with::<true>(r, t));
-            return hit.enumerate().map(|(l, h)| (h as u32) << l).sum();
-        }
+        let Some(box_rays) = box_rays(rays) else {
+            return 0;
+        };
         let active = (1u32 << rays.len()) - 1;
         let mut occluded = 0;
         if let Some(root) = self.triangles.root {
@@ -596,8 +598,7 @@ impl Accel {
             let single = |r: Ref, mask: u32| {
                 let hit = lanes(mask).filter(|&l| {
                     let ray = &rays[l];
-                    let box_ray = BoxRay::new(ray.o, safe_inverse(ray.d));
-                    self.any_triangle_from::<true>(r, ray, &box_ray, t_max[l])
+                    self.any_triangle_from::<true>(r, ray, &box_rays[l], t_max[l])
                 });
                 hit.map(|l| 1 << l).sum()
             };
@@ -609,8 +610,7 @@ impl Accel {
         }
         for l in lanes(active & !occluded) {
             let ray = &rays[l];
-            let box_ray = BoxRay::new(ray.o, safe_inverse(ray.d));
-            if self.any_sphere::<true>(ray, &box_ray, t_max[l]) {
+            if self.any_sphere::<true>(ray, &box_rays[l], t_max[l]) {
                 occluded |= 1 << l;
             }
         }

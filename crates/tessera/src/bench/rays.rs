@@ -75,10 +75,6 @@ fn measure(
     ]
 }
 
-fn columns(row: &Row) -> String {
-    row.iter().map(|r| format!(" {:.2} |", r.mrays)).collect()
-}
-
 pub fn run(args: RaysArgs) -> anyhow::Result<()> {
     let crate::render::Size([w, h]) = args.size.unwrap_or(crate::render::Size([1024, 1024]));
     let repeat = args.repeat.max(1);
@@ -148,7 +144,7 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
             case.accel.sphere_count(),
             case.coherent.len(),
             case.incoherent.len(),
-            columns(&ours),
+            labelled(&ours, &ours),
         ) + &labelled(&packets, &ours);
         #[cfg(feature = "embree")]
         let row = row + &embree_columns(case, repeat, &ours)?;
