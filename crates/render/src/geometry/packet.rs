@@ -229,12 +229,9 @@ impl Packet {
                     (arr(x0), arr(y0), arr(x1), arr(y1), arr(x2), arr(y2));
                 let (mut a0, mut a1, mut a2) = (arr(e0), arr(e1), arr(e2));
                 for lane in lanes(zeros) {
-                    let p = |x: &[f32; LANES], y: &[f32; LANES]| (x[lane] as f64, y[lane] as f64);
-                    let dop = |a: (f64, f64), b: (f64, f64)| (a.0 * b.1 - a.1 * b.0) as f32;
-                    let (p0, p1, p2) = (p(&ax0, &ay0), p(&ax1, &ay1), p(&ax2, &ay2));
-                    a0[lane] = dop(p1, p2);
-                    a1[lane] = dop(p2, p0);
-                    a2[lane] = dop(p0, p1);
+                    let p = |x: &[f32; LANES], y: &[f32; LANES]| [x[lane], y[lane]];
+                    [a0[lane], a1[lane], a2[lane]] =
+                        triangle::edges_f64([p(&ax0, &ay0), p(&ax1, &ay1), p(&ax2, &ay2)]);
                 }
                 e0 = _mm256_loadu_ps(a0.as_ptr());
                 e1 = _mm256_loadu_ps(a1.as_ptr());

@@ -153,12 +153,8 @@ pub fn intersect4<const KZ: usize>(
         while m != 0 {
             let lane = m.trailing_zeros() as usize;
             m &= m - 1;
-            let p = |x: Vec4, y: Vec4| (x[lane] as f64, y[lane] as f64);
-            let dop = |a: (f64, f64), b: (f64, f64)| (a.0 * b.1 - a.1 * b.0) as f32;
-            let (p0, p1, p2) = (p(x0, y0), p(x1, y1), p(x2, y2));
-            e0[lane] = dop(p1, p2);
-            e1[lane] = dop(p2, p0);
-            e2[lane] = dop(p0, p1);
+            let p = |x: Vec4, y: Vec4| [x[lane], y[lane]];
+            [e0[lane], e1[lane], e2[lane]] = edges_f64([p(x0, y0), p(x1, y1), p(x2, y2)]);
         }
     }
     let negative = e0.cmplt(Vec4::ZERO) | e1.cmplt(Vec4::ZERO) | e2.cmplt(Vec4::ZERO);
@@ -217,6 +213,16 @@ pub fn intersect4<const KZ: usize>(
             b: [e0[lane] * inv_det, e1[lane] * inv_det, e2[lane] * inv_det],
         },
     ))
+}
+
+/// The edge functions of transformed vertices `p` (x, y of vertex 0, 1, 2), computed in f64:
+/// where their f32 values round to zero, the sign decides which of two triangles sharing the
+/// edge the ray hits.
+#[inline]
+pub(super) fn edges_f64(p: [[f32; 2]; 3]) -> [f32; 3] {
+    let [p0, p1, p2] = p.map(|[x, y]| (x as f64, y as f64));
+    let dop = |a: (f64, f64), b: (f64, f64)| (a.0 * b.1 - a.1 * b.0) as f32;
+    [dop(p1, p2), dop(p2, p0), dop(p0, p1)]
 }
 
 /// The same transform, edge functions and distance in f64, with the same error bound in f64
