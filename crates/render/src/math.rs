@@ -92,6 +92,21 @@ impl Frame {
         }
     }
 
+    /// Some frame around unit `n`, for sampling that needs no particular tangent: Duff et
+    /// al. 2017, "Building an Orthonormal Basis, Revisited" (one division, no square root,
+    /// no branch on the axis).
+    #[inline]
+    pub fn around(n: Vec3A) -> Frame {
+        let sign = 1.0f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        Frame {
+            s: Vec3A::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+            t: Vec3A::new(b, sign + n.y * n.y * a, -n.y),
+            n,
+        }
+    }
+
     /// The same frame seen from the other side (normal flipped, still right-handed).
     #[inline]
     pub fn flipped(&self) -> Frame {
@@ -133,15 +148,24 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal_and_round_trips() {
-        for n in [
+        let normals = [
             Vec3A::X,
             -Vec3A::Z,
             Vec3A::new(0.3, -0.8, 0.52).normalize(),
             Vec3A::new(0.95, 0.1, 0.1).normalize(),
-        ] {
-            let f = Frame::from_normal(n);
+            // Duff et al.'s frame near its seam (n.z about −0): still orthonormal.
+            Vec3A::new(0.6, 0.8, -1e-7).normalize(),
+        ];
+        for (n, f) in normals
+            .into_iter()
+            .flat_map(|n| [(n, Frame::from_normal(n)), (n, Frame::around(n))])
+        {
             assert!((f.s.length() - 1.0).abs() < 1e-6 && (f.t.length() - 1.0).abs() < 1e-6);
             assert!(f.s.dot(f.t).abs() < 1e-6 && f.s.dot(n).abs() < 1e-6);
+            assert!(
+                (f.s.cross(f.t) - n).length() < 1e-6,
+                "right-handed around {n}"
+            );
             let v = Vec3A::new(0.2, 0.5, -0.7);
             assert!((f.to_world(f.to_local(v)) - v).length() < 1e-6);
             assert!((f.to_local(n) - Vec3A::Z).length() < 1e-6);

@@ -225,42 +225,39 @@ impl SphereLight {
     }
 
     pub fn sample_li(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
-        let (pl, p_error, n, pdf) = match self.cone(p) {
+        let (pl, n, wi, pdf) = match self.cone(p) {
             Some(cone) => {
                 // A direction at angle θ from the axis, uniform in the cone, meets the sphere
                 // first at angle α from the axis seen from the centre (pbrt-v4 §6.2.4):
                 // cos α = sin²θ / sin θ_max + cos θ √(1 − sin²θ / sin²θ_max). No ray to trace.
+                // The direction is the sampled one (opposite azimuth to the point's normal),
+                // not the normalised difference of the points: the same up to rounding, and
+                // off the chain of square roots and divisions the point needs.
                 let to_center = self.center - p;
-                let dist2 = to_center.length_squared();
-                let axis = to_center / dist2.sqrt();
-                let sin2_max = self.radius * self.radius / dist2;
+                let dist = to_center.length();
+                let frame = Frame::around(to_center / dist);
+                let inv_sin_max = dist / self.radius;
                 let one_minus_cos = u.x * cone;
                 let cos_theta = 1.0 - one_minus_cos;
                 let sin2_theta = one_minus_cos * (2.0 - one_minus_cos);
-                let cos_alpha = sin2_theta / sin2_max.sqrt()
-                    + cos_theta * (1.0 - sin2_theta / sin2_max).max(0.0).sqrt();
+                let k = sin2_theta * inv_sin_max;
+                let cos_alpha = k + cos_theta * (1.0 - k * inv_sin_max).max(0.0).sqrt();
                 let sin_alpha = (1.0 - cos_alpha * cos_alpha).max(0.0).sqrt();
+                let sin_theta = sin2_theta.sqrt();
                 let (s, c) = (2.0 * PI * u.y).sin_cos();
-                let n = Frame::from_normal(axis).to_world(-Vec3A::new(
-                    sin_alpha * c,
-                    sin_alpha * s,
-                    cos_alpha,
-                ));
-                let pl = self.center + n * self.radius;
-                let err = (n * self.radius).abs() * gamma(5) + pl.abs() * gamma(2);
-                (pl, err, n, uniform_cone_pdf(cone))
+                let n = frame.to_world(-Vec3A::new(sin_alpha * c, sin_alpha * s, cos_alpha));
+                let wi = frame.to_world(Vec3A::new(-sin_theta * c, -sin_theta * s, cos_theta));
+                (self.center + n * self.radius, n, wi, uniform_cone_pdf(cone))
             }
             None => {
                 let n = square_to_uniform_sphere(u);
                 let pl = self.center + n * self.radius;
-                let err = (n * self.radius).abs() * gamma(5) + pl.abs() * gamma(2);
                 let pdf =
                     area_to_solid_angle(1.0 / (4.0 * PI * self.radius * self.radius), p, pl, n);
-                (pl, err, n, pdf)
+                (pl, n, (pl - p).normalize_or_zero(), pdf)
             }
         };
-        let to = pl - p;
-        let wi = to.normalize_or_zero();
+        let p_error = (n * self.radius).abs() * gamma(5) + pl.abs() * gamma(2);
         let li = emitted(self.radiance, self.two_sided, n, -wi);
         (pdf > 0.0 && pdf.is_finite() && li.max_element() > 0.0 && wi != Vec3A::ZERO).then_some(
             LightSample {
