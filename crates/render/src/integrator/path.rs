@@ -23,8 +23,8 @@ use crate::spectrum::{Spectrum, is_black};
 /// roulette is this with a floor of 1: each survivor returns to the weight of a primary
 /// sample, so a long path that then reaches a small emitter through glass, or by the rare
 /// BSDF sample, adds a sample as bright as direct light. A floor of one half lets paths run
-/// longer but halves those outliers; it gave the lowest time × relMSE on both Cornell scenes
-/// (bench-report/profile.md).
+/// longer but halves those outliers; of the floors measured it gave the lowest time × relMSE
+/// on the Cornell glass and was within noise of the lowest on the box (bench-report/profile.md).
 pub const ROULETTE_FLOOR: f32 = 0.5;
 
 #[derive(Debug, Clone)]
