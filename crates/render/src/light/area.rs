@@ -216,16 +216,18 @@ impl SphereLight {
         }
     }
 
-    /// 1 − cos of the half-angle of the cone the sphere subtends from `p`, if `p` is outside.
+    /// 1 − cos of the half-angle of the cone the sphere subtends from a point outside it,
+    /// given the vector from that point to the centre (`None` inside).
     #[inline]
-    fn cone(&self, p: Vec3A) -> Option<f32> {
-        let dist2 = (p - self.center).length_squared();
+    fn cone(&self, to_center: Vec3A) -> Option<f32> {
+        let dist2 = to_center.length_squared();
         let r2 = self.radius * self.radius;
         (dist2 > r2 * 1.0001).then(|| sphere_cone_one_minus_cos(r2, dist2))
     }
 
     pub fn sample_li(&self, p: Vec3A, u: Vec2) -> Option<LightSample> {
-        let (pl, n, wi, pdf) = match self.cone(p) {
+        let to_center = self.center - p;
+        let (pl, n, wi, pdf) = match self.cone(to_center) {
             Some(cone) => {
                 // A direction at angle θ from the axis, uniform in the cone, meets the sphere
                 // first at angle α from the axis seen from the centre (pbrt-v4 §6.2.4):
@@ -233,7 +235,6 @@ impl SphereLight {
                 // The direction is the sampled one (opposite azimuth to the point's normal),
                 // not the normalised difference of the points: the same up to rounding, and
                 // off the chain of square roots and divisions the point needs.
-                let to_center = self.center - p;
                 let dist = to_center.length();
                 let frame = Frame::around(to_center / dist);
                 let inv_sin_max = dist / self.radius;
@@ -271,7 +272,7 @@ impl SphereLight {
     }
 
     pub fn pdf_li(&self, p: Vec3A, p_light: Vec3A, n_light: Vec3A) -> f32 {
-        match self.cone(p) {
+        match self.cone(self.center - p) {
             Some(cone) => uniform_cone_pdf(cone),
             None => area_to_solid_angle(
                 1.0 / (4.0 * PI * self.radius * self.radius),
@@ -349,7 +350,7 @@ mod tests {
         for (k, dist) in [0.6f32, 2.0, 50.0, 5000.0].into_iter().enumerate() {
             let dir = Vec3A::new(0.3, -0.8, 0.52).normalize();
             let p = center + dir * dist;
-            let cone = light.cone(p).expect("outside");
+            let cone = light.cone(center - p).expect("outside");
             let axis = (center - p).normalize();
             let mut mean = 0.0f64;
             for i in 0..n {
