@@ -34,7 +34,10 @@ impl SceneSource for Bundle {
 }
 
 impl Bundle {
-    /// Unpacks a tar archive, refusing entries that leave the bundle or are not plain files.
+    /// Unpacks a tar archive, refusing entries that leave the bundle or are not plain files,
+    /// entries whose bytes are fewer than their header claims, and an archive with no file.
+    /// Nothing is allocated on a header's word: an entry's bytes are read as they come, so
+    /// the archive's own length bounds what it can take.
     pub fn from_tar(bytes: &[u8]) -> Result<Bundle, String> {
         let mut archive = tar::Archive::new(bytes);
         let mut files = BTreeMap::new();
@@ -54,10 +57,33 @@ impl Bundle {
                 ));
             }
             let path = confine(&raw).map_err(|e| format!("bundle entry \"{raw}\": {e}"))?;
-            let mut data = Vec::with_capacity(entry.size() as usize);
+            let claimed = entry.size();
+            if claimed > bytes.len() as u64 {
+                return Err(format!(
+                    "bundle entry \"{raw}\": its header claims {claimed} bytes, but the whole archive has {}",
+                    bytes.len()
+                ));
+            }
+            let mut data = Vec::new();
             std::io::Read::read_to_end(&mut entry, &mut data)
                 .map_err(|e| format!("bundle entry \"{raw}\": {e}"))?;
-            files.insert(path, data);
+            if data.len() as u64 != claimed {
+                return Err(format!(
+                    "bundle entry \"{raw}\": its header claims {claimed} bytes, the archive holds {} (cut short)",
+                    data.len()
+                ));
+            }
+            if files.insert(path, data).is_some() {
+                return Err(format!(
+                    "bundle entry \"{raw}\": expected each file once, this path comes twice"
+                ));
+            }
+        }
+        if files.is_empty() {
+            return Err(
+                "expected a tar archive of a scene file and the files it references, got no file"
+                    .into(),
+            );
         }
         Ok(Bundle { files })
     }
@@ -244,5 +270,48 @@ mod tests {
         let err = Bundle::from_tar(&tar).unwrap_err();
         assert!(err.contains("leaves"), "{err}");
         assert!(is_hash(&hash(b"x")) && !is_hash("../x"));
+    }
+
+    /// A tar of one entry named `name` whose header claims `claimed` bytes, followed by
+    /// `body` (padded to a block) and the two zero blocks that end an archive.
+    pub(crate) fn lying_tar(name: &str, claimed: u64, body: &[u8]) -> Vec<u8> {
+        let mut header = tar::Header::new_gnu();
+        header.set_path(name).expect("name");
+        header.set_size(claimed);
+        header.set_mode(0o644);
+        header.set_entry_type(tar::EntryType::Regular);
+        header.set_cksum();
+        let mut tar = header.as_bytes().to_vec();
+        tar.extend_from_slice(body);
+        tar.resize(tar.len().next_multiple_of(512) + 1024, 0);
+        tar
+    }
+
+    #[test]
+    fn a_claimed_size_is_not_believed() {
+        // 64 GiB claimed, 100 bytes there: refused without allocating the claim.
+        let tar = lying_tar("scene.json", 64 << 30, &[b'x'; 100]);
+        assert!(tar.len() <= 2048);
+        let err = Bundle::from_tar(&tar).unwrap_err();
+        assert!(
+            err.contains("scene.json") && err.contains("68719476736"),
+            "{err}"
+        );
+        // A claim within the archive's length, but past its end, is cut short.
+        let tar = lying_tar("mesh.obj", 1600, &[b'v'; 100]);
+        assert!(tar.len() > 1600);
+        let err = Bundle::from_tar(&tar).unwrap_err();
+        assert!(
+            err.contains("mesh.obj") && err.contains("cut short"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn an_archive_without_files_is_refused() {
+        for bytes in [Vec::new(), vec![0u8; 1024]] {
+            let err = Bundle::from_tar(&bytes).unwrap_err();
+            assert!(err.contains("got no file"), "{err}");
+        }
     }
 }

@@ -120,6 +120,8 @@ pub struct Limits {
     pub max_resolution: u32,
     pub max_spp: u32,
     pub max_frames: u32,
+    /// Most bytes a job's frames may hold in the process folding them ([`job_memory`]).
+    pub max_memory: u64,
 }
 
 impl Default for Limits {
@@ -128,8 +130,71 @@ impl Default for Limits {
             max_resolution: 16384,
             max_spp: MAX_SPP,
             max_frames: 100_000,
+            max_memory: default_max_memory(),
         }
     }
+}
+
+impl Limits {
+    /// No farm's limits (the core's own still hold): for a job another process admitted (a
+    /// worker, a coordinator planning its stored jobs again) or will admit (a client).
+    pub fn none() -> Self {
+        Limits {
+            max_resolution: u32::MAX,
+            max_spp: MAX_SPP,
+            max_frames: u32::MAX,
+            max_memory: u64::MAX,
+        }
+    }
+}
+
+/// Frames a process folds in memory at once (the coordinator keeps the rest as checkpoints).
+pub const FRAMES_IN_MEMORY: u32 = 2;
+
+/// Half of this machine's memory (`MemTotal` of /proc/meminfo), or 8 GiB where it cannot
+/// be read: what one job may hold by default.
+pub fn default_max_memory() -> u64 {
+    machine_memory().map_or(8 << 30, |m| m / 2)
+}
+
+/// This machine's memory in bytes, where the system says.
+pub fn machine_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Bytes a job's frames hold in the process that folds them: the states of the frames in
+/// memory at once ([`Plan::frame_bytes`]), and a finished frame's image and its OpenEXR
+/// encoding.
+pub fn job_memory(plan: &dyn Plan, width: u32, height: u32, frames: FrameRange) -> u64 {
+    let pixels = width as u64 * height as u64;
+    let image = pixels * std::mem::size_of::<tessera_render::film::Pixel>() as u64;
+    plan.frame_bytes() * u64::from(frames.len().min(FRAMES_IN_MEMORY)) + 2 * image
+}
+
+/// Checks [`job_memory`] against the limit, with the figures.
+fn check_memory(
+    plan: &dyn Plan,
+    desc: &SceneDesc,
+    frames: FrameRange,
+    limits: &Limits,
+) -> Result<(), String> {
+    let (w, h) = (desc.film.width, desc.film.height);
+    let need = job_memory(plan, w, h, frames);
+    if need > limits.max_memory {
+        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        return Err(format!(
+            "film: a {w}×{h} frame of {} needs {:.1} GiB to fold ({:.1} GiB of state per frame, {} in memory at once, and the finished image); this farm admits jobs of up to {:.1} GiB (--max-job-memory-gib)",
+            plan.method(),
+            gib(need),
+            gib(plan.frame_bytes()),
+            frames.len().min(FRAMES_IN_MEMORY),
+            gib(limits.max_memory)
+        ));
+    }
+    Ok(())
 }
 
 /// Applies `settings` to `desc` and checks them and the frames against `limits` and the
@@ -151,6 +216,9 @@ pub fn apply(
         desc.integrator.method = m.trim().to_string();
     }
     method::lookup(&desc.integrator.method)?;
+    if let Some(choice) = &settings.choice {
+        check_choice(choice, &desc.integrator.method)?;
+    }
     if let Some([w, h]) = settings.size {
         if w == 0 || h == 0 {
             return Err(format!(
@@ -160,12 +228,19 @@ pub fn apply(
         desc.film.width = w;
         desc.film.height = h;
     }
-    let spp = desc.integrator.spp;
+    // The samples the plan will take: the scene's or the settings', or a recorded choice's.
     let max_spp = limits.max_spp.min(MAX_SPP);
-    if !(1..=max_spp).contains(&spp) {
-        return Err(format!(
-            "spp: expected 1 to {max_spp} samples per pixel (this farm's limit: --max-spp), got {spp}"
-        ));
+    let spp = [("spp", Some(desc.integrator.spp))]
+        .into_iter()
+        .chain([("choice.spp", settings.choice.as_ref().map(|c| c.spp))]);
+    for (field, spp) in spp {
+        if let Some(spp) = spp
+            && !(1..=max_spp).contains(&spp)
+        {
+            return Err(format!(
+                "{field}: expected 1 to {max_spp} samples per pixel (this farm's limit: --max-spp), got {spp}"
+            ));
+        }
     }
     let (w, h) = (desc.film.width, desc.film.height);
     if w > limits.max_resolution || h > limits.max_resolution {
@@ -179,10 +254,18 @@ pub fn apply(
     {
         return Err(format!("tile: expected 1 to {MAX_TILE} pixels, got {tile}"));
     }
-    if let Some(t) = settings.target_error
-        && !(t > 0.0 && t.is_finite())
-    {
-        return Err(format!("target_error: expected a positive relMSE, got {t}"));
+    let targets = [("target_error", settings.target_error)]
+        .into_iter()
+        .chain([(
+            "choice.target_error",
+            settings.choice.as_ref().and_then(|c| c.target_error),
+        )]);
+    for (field, t) in targets {
+        if let Some(t) = t
+            && !(t > 0.0 && t.is_finite())
+        {
+            return Err(format!("{field}: expected a positive relMSE, got {t}"));
+        }
     }
     if settings.samples_per_task == Some(0) {
         return Err("samples_per_task: expected at least 1".into());
@@ -208,6 +291,17 @@ pub fn apply(
         ));
     }
     Ok(())
+}
+
+/// Checks that a recorded `auto` choice replays `auto` and that what it sets besides its
+/// samples and target (checked with the settings' own) is the core's to take.
+fn check_choice(choice: &Choice, method: &str) -> Result<(), String> {
+    if method != "auto" {
+        return Err(format!(
+            "choice: a recorded choice replays `auto`; this job's method is {method}"
+        ));
+    }
+    choice.check().map_err(|e| format!("choice.{e}"))
 }
 
 /// The core's view of a job whose settings were applied to `desc`.
@@ -254,7 +348,9 @@ pub fn plan(
     limits: &Limits,
 ) -> Result<Box<dyn Plan>, String> {
     apply(desc, settings, frames, limits)?;
-    method::plan(&job(desc.clone(), settings, frames))
+    let plan = method::plan(&job(desc.clone(), settings, frames))?;
+    check_memory(plan.as_ref(), desc, frames, limits)?;
+    Ok(plan)
 }
 
 /// The EXR metadata of a finished frame: what determines it and what was dropped. No times or
@@ -398,5 +494,52 @@ pub(crate) mod tests {
             Ok(FrameRange { first: 2, last: 24 })
         );
         assert!(FrameRange::parse("0").is_err() && FrameRange::parse("5-2").is_err());
+    }
+
+    /// A recorded `auto` choice is checked like the settings: its samples against the same
+    /// limit, its photons against the scene format's, its method against the registry.
+    #[test]
+    fn a_recorded_choice_is_held_to_the_same_limits() {
+        let choice = |spp: u32, photons: Option<u32>, method: &str| RenderSettings {
+            integrator: Some("auto".into()),
+            choice: Some(Choice {
+                method: method.into(),
+                subsurface: None,
+                photons,
+                spp,
+                target_error: None,
+                report: Vec::new(),
+            }),
+            ..Default::default()
+        };
+        let limits = Limits {
+            max_spp: 1024,
+            ..Default::default()
+        };
+        let run = |settings: RenderSettings| {
+            apply(
+                &mut scene("cornell-box", 5),
+                &settings,
+                FrameRange::single(1),
+                &limits,
+            )
+        };
+        assert_eq!(run(choice(64, None, "path")), Ok(()));
+        for (settings, needle) in [
+            (
+                choice(3_000_000, None, "path"),
+                "choice.spp: expected 1 to 1024",
+            ),
+            (choice(u32::MAX, None, "path"), "choice.spp"),
+            (choice(64, Some(u32::MAX), "photon"), "choice.photons"),
+            (choice(64, None, "auto"), "choice.method"),
+            (choice(64, None, "raytrace"), "choice.method"),
+        ] {
+            let err = run(settings).unwrap_err();
+            assert!(err.contains(needle), "{needle:?} not in {err}");
+        }
+        let mut on_path = choice(64, None, "path");
+        on_path.integrator = Some("path".into());
+        assert!(run(on_path).unwrap_err().contains("replays `auto`"));
     }
 }

@@ -166,6 +166,33 @@ impl Objects {
         check().with_context(|| format!("the object store {} cannot be written", self.location))
     }
 
+    /// The store's identity: an id kept in the store itself (`tessera-objects-id`), `fresh`
+    /// (random) written by the first process to ask. Copies of a store share it; two stores
+    /// never do.
+    pub fn identity(
+        &self,
+        fresh: impl FnOnce() -> anyhow::Result<String>,
+    ) -> anyhow::Result<String> {
+        const KEY: &str = "tessera-objects-id";
+        let read = || -> anyhow::Result<Option<String>> {
+            Ok(self
+                .get(KEY)?
+                .map(|b| String::from_utf8_lossy(&b).trim().to_string()))
+        };
+        if let Some(id) = read()? {
+            anyhow::ensure!(
+                !id.is_empty() && id.len() <= 64 && id.bytes().all(|b| b.is_ascii_hexdigit()),
+                "the object store {}: {KEY} holds {id:?}, expected a hex id",
+                self.location
+            );
+            return Ok(id);
+        }
+        let id = fresh()?;
+        self.put(KEY, Bytes::from(id.clone()))?;
+        // Two first coordinators at once: whoever wrote last is the store's identity.
+        Ok(read()?.unwrap_or(id))
+    }
+
     /// The spool directory: scratch space of this process, on local disk.
     pub fn spool(&self) -> &Path {
         &self.spool

@@ -409,6 +409,11 @@ pub struct Failure {
     pub lease: i64,
     pub worker: String,
     pub error: String,
+    /// No retry can mend it: the job's own inputs are at fault (its bundle is not in the
+    /// object store, its scene does not load or plan from the bundle's verified bytes), so
+    /// the job fails at once with this error.
+    #[serde(default)]
+    pub permanent: bool,
 }
 
 /// A worker as the coordinator sees it.

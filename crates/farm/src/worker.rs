@@ -260,6 +260,18 @@ fn watch_parent(parent: u32) {
 #[cfg(not(unix))]
 fn watch_parent(_parent: u32) {}
 
+/// A failure no retry can mend: the job's own inputs are at fault.
+#[derive(Debug)]
+struct Permanent(String);
+
+impl std::fmt::Display for Permanent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Permanent {}
+
 /// Retries `f` while the coordinator is unreachable or answers 5xx, backing off up to 5 s,
 /// for at most `patience`.
 async fn retrying<T, F, Fut>(what: &str, patience: Duration, mut f: F) -> anyhow::Result<T>
@@ -321,23 +333,39 @@ impl Worker {
         }
     }
 
-    /// The scene and plan of a job, loaded, built and planned once per worker.
+    /// The scene and plan of a job, loaded, built and planned once per worker. A bundle the
+    /// coordinator does not have, or whose verified bytes do not load and plan, is a
+    /// [`Permanent`] failure: every worker would fail the same way.
     async fn prepared(&self, grant: &LeaseGrant) -> anyhow::Result<Arc<Prepared>> {
         cached(&self.jobs, grant.job_id, || async {
             let bytes = retrying("bundle download", Duration::from_secs(600), || {
                 self.client.download_bundle(&grant.bundle)
             })
-            .await?;
+            .await
+            .map_err(|e| {
+                if status_of(&e) == Some(reqwest::StatusCode::NOT_FOUND) {
+                    anyhow::Error::new(Permanent(format!("{e:#}")))
+                } else {
+                    e
+                }
+            })?;
+            let got = crate::bundle::hash(&bytes);
+            anyhow::ensure!(
+                got == grant.bundle,
+                "the bundle downloaded for {} has the hash {got}: damaged in transit",
+                grant.bundle
+            );
             let (scene, settings, frames) =
                 (grant.scene.clone(), grant.settings.clone(), grant.frames);
             let started = Instant::now();
             let prepared = tokio::task::spawn_blocking(move || -> anyhow::Result<Prepared> {
-                let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
-                let mut desc = bundle.load(&scene)?;
+                let permanent = |e: String| anyhow::Error::new(Permanent(e));
+                let bundle = Bundle::from_tar(&bytes).map_err(permanent)?;
+                let mut desc = bundle.load(&scene).map_err(|e| permanent(e.to_string()))?;
                 // Planned as the coordinator planned it: the same frames give the same passes
                 // and artifact keys.
-                let plan = job::plan(&mut desc, &settings, frames, &Limits::default())
-                    .map_err(anyhow::Error::msg)?;
+                let plan =
+                    job::plan(&mut desc, &settings, frames, &Limits::none()).map_err(permanent)?;
                 Ok(Prepared {
                     scene: Scene::build(&desc),
                     desc,
@@ -492,16 +520,24 @@ impl Worker {
                     }
                 }
             }
-            Err(e) => self.report_failure(task, lease, format!("{e:#}")).await,
+            Err(e) => {
+                let permanent = e.chain().any(|c| c.is::<Permanent>());
+                self.report(task, lease, format!("{e:#}"), permanent).await
+            }
         }
     }
 
     async fn report_failure(&self, task: i64, lease: i64, error: String) {
-        tracing::error!(task, lease, error = %error, "task failed");
+        self.report(task, lease, error, false).await
+    }
+
+    async fn report(&self, task: i64, lease: i64, error: String, permanent: bool) {
+        tracing::error!(task, lease, error = %error, permanent, "task failed");
         let failure = Failure {
             lease,
             worker: self.id.clone(),
             error,
+            permanent,
         };
         if let Err(e) = retrying("failure report", Duration::from_secs(60), || {
             self.client.fail(task, &failure)

@@ -161,20 +161,22 @@ async fn pause_resume_fail_requeue_drain_and_tags_steer_what_a_worker_leases() {
 
     // Failed three times (max attempts), the job fails with the worker's error; the
     // attempt log has each failure, newest first.
-    let mut grant = g;
+    let (mut grant, mut holder) = (g, "w");
     for i in 0..3 {
         workers
             .fail(
                 grant.task_id,
                 &Failure {
                     lease: grant.lease,
-                    worker: "w".into(),
+                    worker: holder.into(),
                     error: format!("disk full {i}"),
+                    permanent: false,
                 },
             )
             .await
             .expect("fail");
         if i < 2 {
+            holder = "w2";
             grant = workers
                 .lease(&worker("w2", &[]))
                 .await

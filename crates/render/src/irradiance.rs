@@ -32,6 +32,18 @@ pub struct Record {
     pub r: f32,
 }
 
+impl Record {
+    /// Whether every value is finite and the distance positive: what the octree and the
+    /// weights need of a record.
+    pub fn is_finite(&self) -> bool {
+        self.p.is_finite()
+            && self.n.is_finite()
+            && self.e.is_finite()
+            && self.r.is_finite()
+            && self.r > 0.0
+    }
+}
+
 /// Deepest octree level (a node's half-size is the root's / 2^depth).
 const MAX_DEPTH: u32 = 20;
 

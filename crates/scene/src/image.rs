@@ -16,7 +16,18 @@ impl RgbImage {
     }
 }
 
-/// Decodes the first RGB(A) layer of an OpenEXR file. Alpha is ignored.
+/// Reads an OpenEXR file's headers alone and checks every layer's stated size against
+/// [`crate::budget::MAX_IMAGE_PIXELS`], before any pixel is allocated.
+fn check_exr_size(bytes: &[u8]) -> Result<(), String> {
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| format!("expected an OpenEXR image: {e}"))?;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        crate::budget::check_image_size(size.width() as u64, size.height() as u64)?;
+    }
+    Ok(())
+}
+
 /// The named channels of the first layer of an OpenEXR file, as f32 in row order, with the
 /// layer's width and height (e.g. `variance.R` of a Tessera EXR).
 pub fn read_exr_channels(
@@ -24,6 +35,7 @@ pub fn read_exr_channels(
     names: &[&str],
 ) -> Result<(u32, u32, Vec<Vec<f32>>), String> {
     use exr::prelude::*;
+    check_exr_size(bytes)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -49,8 +61,10 @@ pub fn read_exr_channels(
     Ok((w, h, channels))
 }
 
+/// Decodes the first RGB(A) layer of an OpenEXR file. Alpha is ignored.
 pub fn read_exr_rgb(bytes: &[u8]) -> Result<RgbImage, String> {
     use exr::prelude::*;
+    check_exr_size(bytes)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -70,4 +84,49 @@ pub fn read_exr_rgb(bytes: &[u8]) -> Result<RgbImage, String> {
         .from_buffered(std::io::Cursor::new(bytes))
         .map_err(|e| format!("expected an OpenEXR image with R, G and B channels: {e}"))?;
     Ok(image.layer_data.channel_data.pixels)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small, valid OpenEXR file of `w`×`h` pixels, then its header's data window
+    /// rewritten to claim `claim`×`claim` (the pixels stay as they were).
+    pub(crate) fn lying_exr(w: usize, h: usize, claim: i32) -> Vec<u8> {
+        use exr::prelude::*;
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        Image::from_channels(
+            (w, h),
+            SpecificChannels::rgb(|_: Vec2<usize>| (0.5f32, 0.5f32, 0.5f32)),
+        )
+        .write()
+        .to_buffered(&mut bytes)
+        .expect("write");
+        let mut bytes = bytes.into_inner();
+        // dataWindow: box2i, four i32 after its name, type and size.
+        let key = b"dataWindow\0box2i\0";
+        let at = bytes
+            .windows(key.len())
+            .position(|w| w == key)
+            .expect("dataWindow")
+            + key.len()
+            + 4;
+        bytes[at + 8..at + 12].copy_from_slice(&(claim - 1).to_le_bytes());
+        bytes[at + 12..at + 16].copy_from_slice(&(claim - 1).to_le_bytes());
+        bytes
+    }
+
+    #[test]
+    fn a_claimed_size_over_the_limit_is_refused_before_decoding() {
+        let honest = lying_exr(8, 8, 8);
+        assert_eq!(read_exr_rgb(&honest).expect("decodes").pixels.len(), 64);
+        let lying = lying_exr(8, 8, 60000);
+        assert!(lying.len() < 4096);
+        for e in [
+            read_exr_rgb(&lying).unwrap_err(),
+            read_exr_channels(&lying, &["R"]).unwrap_err(),
+        ] {
+            assert!(e.contains("60000×60000") && e.contains("limit"), "{e}");
+        }
+    }
 }

@@ -4,6 +4,7 @@
 //! expected — never a panic.
 
 pub mod animation;
+pub mod budget;
 pub mod camera;
 pub mod desc;
 pub mod error;
@@ -23,7 +24,7 @@ use std::path::Path;
 pub use animation::{CameraPath, Keyframe};
 pub use desc::*;
 pub use error::{Problem, SceneError};
-pub use resolve::{MAX_FILM_SIDE, MAX_FRAMES, box_mesh, is_gltf};
+pub use resolve::{MAX_FILM_SIDE, MAX_FRAMES, MAX_PHOTONS, box_mesh, is_gltf};
 pub use source::{DirSource, SceneSource};
 
 /// Loads and validates the scene file at `path` (a `scene.json`); referenced files are

@@ -24,8 +24,29 @@ impl DirSource {
 }
 
 impl SceneSource for DirSource {
+    /// Reads a regular file whose resolved path (links followed) lies inside the folder: a
+    /// link that leads out of it, or to a device or pipe, is refused.
     fn read(&self, relative: &Path) -> std::io::Result<Vec<u8>> {
-        std::fs::read(self.root.join(relative))
+        use std::io::{Error, ErrorKind};
+        let root = self.root.canonicalize()?;
+        let path = self.root.join(relative).canonicalize()?;
+        if !path.starts_with(&root) {
+            return Err(Error::new(
+                ErrorKind::PermissionDenied,
+                format!(
+                    "it resolves to {}, outside the scene folder {}: expected a file inside it",
+                    path.display(),
+                    root.display()
+                ),
+            ));
+        }
+        if !std::fs::metadata(&path)?.is_file() {
+            return Err(Error::new(
+                ErrorKind::InvalidInput,
+                format!("{} is not a regular file", path.display()),
+            ));
+        }
+        std::fs::read(path)
     }
     fn display_path(&self, relative: &Path) -> PathBuf {
         self.root.join(relative)
@@ -95,5 +116,27 @@ mod tests {
         assert!(confine("/etc/passwd").unwrap_err().contains("absolute"));
         assert!(confine("").is_err());
         assert!(confine("meshes/..").is_err());
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_link_out_of_the_folder_is_refused_and_one_inside_is_followed() {
+        let outside = tempfile::tempdir().expect("dir");
+        let secret = outside.path().join("secret.obj");
+        std::fs::write(&secret, "v 0 0 0\n").expect("write");
+        let scene = tempfile::tempdir().expect("dir");
+        std::os::unix::fs::symlink(&secret, scene.path().join("leak.obj")).expect("link");
+        std::fs::write(scene.path().join("mesh.obj"), "v 1 1 1\n").expect("write");
+        std::os::unix::fs::symlink("mesh.obj", scene.path().join("alias.obj")).expect("link");
+        let source = DirSource::new(scene.path());
+        let e = source.read(Path::new("leak.obj")).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::PermissionDenied);
+        assert!(e.to_string().contains("outside the scene folder"), "{e}");
+        assert_eq!(
+            source.read(Path::new("alias.obj")).expect("inside"),
+            b"v 1 1 1\n"
+        );
+        std::os::unix::fs::symlink("/dev/zero", scene.path().join("zero.obj")).expect("link");
+        assert!(source.read(Path::new("zero.obj")).is_err());
     }
 }

@@ -229,12 +229,17 @@ pub fn linear_to_srgb(v: f32) -> f32 {
 /// Decodes a PNG or JPEG file's bytes for `role`; `name` is for messages. 8-bit files keep
 /// their codes; 16-bit data keeps its codes; 16-bit colour is decoded to linear floats.
 pub fn decode(bytes: &[u8], name: &str, role: TextureRole) -> Result<TextureImage, String> {
-    let img = image::load_from_memory(bytes)
-        .map_err(|e| format!("cannot decode the image (PNG or JPEG expected): {e}"))?;
+    let bad = |e: image::ImageError| format!("cannot decode the image (PNG or JPEG expected): {e}");
+    let reader = || {
+        image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| format!("cannot read the image: {e}"))
+    };
+    // The header's size is checked before the decoder allocates for it.
+    let (width, height) = reader()?.into_dimensions().map_err(bad)?;
+    crate::budget::check_image_size(width as u64, height as u64)?;
+    let img = reader()?.decode().map_err(bad)?;
     let (width, height) = (img.width(), img.height());
-    if width == 0 || height == 0 {
-        return Err("the image is empty".into());
-    }
     let eight = matches!(
         img.color(),
         image::ColorType::L8
@@ -359,6 +364,54 @@ mod tests {
         match t.like(&linear) {
             Texels::Srgb8(back) => assert_eq!(back, codes),
             _ => panic!("kind changed"),
+        }
+    }
+
+    /// A 1×1 image of `format`, its header rewritten to claim `w`×`h` pixels.
+    pub(crate) fn lying_image(format: image::ImageFormat, w: u32, h: u32) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        image::RgbImage::from_raw(1, 1, vec![10, 20, 30])
+            .expect("image")
+            .write_to(&mut std::io::Cursor::new(&mut bytes), format)
+            .expect("encode");
+        match format {
+            image::ImageFormat::Png => {
+                // IHDR: length, "IHDR", width, height, …, then the CRC of type and data.
+                let at = bytes.windows(4).position(|w| w == b"IHDR").expect("IHDR");
+                bytes[at + 4..at + 8].copy_from_slice(&w.to_be_bytes());
+                bytes[at + 8..at + 12].copy_from_slice(&h.to_be_bytes());
+                let crc = crc32fast::hash(&bytes[at..at + 17]);
+                bytes[at + 17..at + 21].copy_from_slice(&crc.to_be_bytes());
+            }
+            image::ImageFormat::Jpeg => {
+                // SOF0: FF C0, length, precision, height, width (16 bits each).
+                let at = bytes
+                    .windows(2)
+                    .position(|w| w == [0xFF, 0xC0])
+                    .expect("SOF0");
+                bytes[at + 5..at + 7].copy_from_slice(&(h as u16).to_be_bytes());
+                bytes[at + 7..at + 9].copy_from_slice(&(w as u16).to_be_bytes());
+            }
+            _ => unreachable!("PNG or JPEG"),
+        }
+        bytes
+    }
+
+    #[test]
+    fn a_claimed_size_over_the_limit_is_refused_before_decoding() {
+        for format in [image::ImageFormat::Png, image::ImageFormat::Jpeg] {
+            let honest = lying_image(format, 1, 1);
+            assert!(
+                decode(&honest, "t", TextureRole::Color).is_ok(),
+                "{format:?}"
+            );
+            let lying = lying_image(format, 60000, 60000);
+            assert!(lying.len() < 2048);
+            let e = decode(&lying, "t", TextureRole::Color).unwrap_err();
+            assert!(
+                e.contains("60000×60000") && e.contains("limit"),
+                "{format:?}: {e}"
+            );
         }
     }
 }

@@ -68,6 +68,10 @@ pub struct ServeArgs {
     /// Most frames per job.
     #[arg(long, default_value_t = 100_000)]
     pub max_frames: u32,
+    /// Most memory one job's frames may take to fold at the coordinator, GiB (default: half
+    /// of this machine's memory); a larger job is refused with its figures.
+    #[arg(long)]
+    pub max_job_memory_gib: Option<f64>,
     /// Largest scene bundle upload, MiB.
     #[arg(long, default_value_t = 512)]
     pub max_upload_mib: usize,
@@ -121,6 +125,13 @@ pub async fn serve(args: ServeArgs) -> anyhow::Result<()> {
     config.limits.max_resolution = args.max_resolution;
     config.limits.max_spp = args.max_spp;
     config.limits.max_frames = args.max_frames;
+    if let Some(gib) = args.max_job_memory_gib {
+        anyhow::ensure!(
+            gib > 0.0 && gib.is_finite(),
+            "--max-job-memory-gib: expected a positive size in GiB, got {gib}"
+        );
+        config.limits.max_memory = (gib * (1u64 << 30) as f64) as u64;
+    }
     config.max_upload = args.max_upload_mib << 20;
     config.max_result = args.max_result_mib << 20;
     anyhow::ensure!(
@@ -295,7 +306,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         last: desc.frame_count(),
     });
     let mut check = desc.clone();
-    job::plan(&mut check, &settings, frames, &job::Limits::default())
+    job::plan(&mut check, &settings, frames, &job::Limits::none())
         .map_err(|e| crate::render::setting_error(&args.scene, e))?;
 
     let client = args.remote.client()?;

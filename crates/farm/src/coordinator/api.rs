@@ -79,8 +79,38 @@ impl utoipa::Modify for MethodNames {
 /// JSON bodies (jobs, leases, heartbeats) are small.
 pub(super) const JSON_LIMIT: usize = 1 << 20;
 
+/// Middleware: a request whose `Content-Length` claims more than `limit` bytes is refused
+/// (413) before any of its body is read; `flag` names the setting that raises the limit.
+async fn claimed_length(
+    State((limit, flag)): State<(u64, &'static str)>,
+    request: axum::extract::Request,
+    next: middleware::Next,
+) -> Response {
+    let claimed = request
+        .headers()
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    match claimed {
+        Some(n) if n > limit => AppError::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!(
+                "the request claims a body of {}; this endpoint takes at most {}{flag}",
+                human_size(n),
+                human_size(limit)
+            ),
+        )
+        .into_response(),
+        _ => next.run(request).await,
+    }
+}
+
 pub fn router(app: Arc<App>) -> axum::Router {
     let auth = |who: Who| middleware::from_fn_with_state((app.clone(), who), require_token);
+    let claimed = |limit: u64, flag: &'static str| {
+        middleware::from_fn_with_state((limit, flag), claimed_length)
+    };
+    let json = || claimed(JSON_LIMIT as u64, "");
     let clients = OpenApiRouter::new()
         .routes(routes!(submit_job, ops::list_jobs))
         .routes(routes!(job_status, delete_job, ops::patch_job))
@@ -100,10 +130,15 @@ pub fn router(app: Arc<App>) -> axum::Router {
         .routes(routes!(events::events))
         .routes(routes!(web::session))
         .layer(DefaultBodyLimit::max(JSON_LIMIT))
+        .layer(json())
         .route_layer(auth(Who::Client));
     let upload = OpenApiRouter::new()
         .routes(routes!(upload_bundle))
         .layer(DefaultBodyLimit::max(app.config.max_upload))
+        .layer(claimed(
+            app.config.max_upload as u64,
+            " (this coordinator's upload limit for a scene bundle; raise it with `tessera serve --max-upload-mib`)",
+        ))
         .route_layer(auth(Who::Client));
     let download = OpenApiRouter::new()
         .routes(routes!(download_bundle))
@@ -115,11 +150,16 @@ pub fn router(app: Arc<App>) -> axum::Router {
         .routes(routes!(heartbeat))
         .routes(routes!(fail_task))
         .layer(DefaultBodyLimit::max(JSON_LIMIT))
+        .layer(json())
         .route_layer(auth(Who::Worker));
     // Results stream to disk under their own limit (`--max-result-mib`).
     let results = OpenApiRouter::new()
         .routes(routes!(upload_result))
         .layer(DefaultBodyLimit::disable())
+        .layer(claimed(
+            app.config.max_result,
+            " (this coordinator's limit for a task result; raise it with `tessera serve --max-result-mib`)",
+        ))
         .route_layer(auth(Who::Worker));
     let open = OpenApiRouter::new()
         .routes(routes!(healthz))
@@ -138,6 +178,10 @@ pub fn router(app: Arc<App>) -> axum::Router {
         .merge(web::routes(app.clone(), api))
         .fallback(|| async { AppError::not_found("no such endpoint; see /v1/openapi.json") })
         .layer(middleware::map_response(json_errors))
+        .layer(middleware::from_fn_with_state(
+            app.config.timeouts,
+            super::timeouts::idle_body,
+        ))
         .with_state(app)
 }
 

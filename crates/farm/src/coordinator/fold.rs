@@ -24,8 +24,7 @@ use crate::job;
 use crate::protocol::Event;
 use crate::store::{Artifact, CacheEntry, Claim, StepKey};
 
-/// Frames folded in memory at once (each may hold a few bytes per pixel × 100).
-const FRAMES_IN_MEMORY: usize = 2;
+use crate::job::FRAMES_IN_MEMORY;
 /// Tasks looked at per query while folding.
 const BATCH: usize = 64;
 
@@ -347,7 +346,7 @@ impl App {
                         state: job.plan.new_frame(frame),
                     },
                 };
-                if inner.frames.len() >= FRAMES_IN_MEMORY {
+                if inner.frames.len() >= FRAMES_IN_MEMORY as usize {
                     // Rebuilt from its checkpoint when next folded, here or elsewhere.
                     let ((j, f), _) = inner.frames.remove(0);
                     let evicted = StepKey {

@@ -19,6 +19,7 @@ mod metrics;
 mod ops;
 mod supervisor;
 mod tasks;
+pub mod timeouts;
 mod web;
 
 use std::collections::HashMap;
@@ -76,6 +77,8 @@ pub struct Config {
     pub retain: Option<Duration>,
     /// Serve HTTPS with this certificate chain and key (PEM files).
     pub tls: Option<(PathBuf, PathBuf)>,
+    /// How long the server waits on a client's headers and body.
+    pub timeouts: timeouts::Timeouts,
 }
 
 impl Config {
@@ -103,6 +106,7 @@ impl Config {
             cache_max: 8 << 30,
             retain: None,
             tls: None,
+            timeouts: timeouts::Timeouts::default(),
         }
     }
 
@@ -219,8 +223,8 @@ impl App {
             .with_context(|| format!("bundle {hash} of job {job} is not in the object store"))?;
         let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
         let mut desc = bundle.load(&scene)?;
-        let plan = job::plan(&mut desc, &settings, frames, &Limits::default())
-            .map_err(anyhow::Error::msg)?;
+        let plan =
+            job::plan(&mut desc, &settings, frames, &Limits::none()).map_err(anyhow::Error::msg)?;
         let p = Arc::new(JobPlan {
             desc,
             settings,
@@ -278,6 +282,15 @@ impl App {
                 tracing::error!(error = %e, "expiring leases");
                 return;
             }
+        }
+        match self.store.fail_stranded(now, &self.config.retry_policy()) {
+            Ok(failed) => {
+                for (job, error) in failed {
+                    tracing::warn!(job, error = %error, "job failed");
+                    self.emit(Event::Job { id: job });
+                }
+            }
+            Err(e) => tracing::error!(error = %e, "failing jobs no worker can run"),
         }
         self.tend_claims();
     }
@@ -389,13 +402,17 @@ pub fn use_ring_for_tls() {
 /// Opens the store, resumes unfinished work, binds and starts serving.
 pub async fn start(config: Config) -> anyhow::Result<Running> {
     use_ring_for_tls();
-    std::fs::create_dir_all(&config.data)
+    private_dir(&config.data)
         .with_context(|| format!("creating the data directory {}", config.data.display()))?;
     let store = match &config.store {
         Some(url) => Store::open_at(crate::store::Location::Postgres(url))
             .context("opening the job store (--store)")?,
         None => {
+            // Sessions and CSRF tokens live in it: readable by this user alone (SQLite
+            // gives its journal files the database's mode).
             let db = config.data.join("tessera.db");
+            private_file(&db)
+                .with_context(|| format!("creating the job store {}", db.display()))?;
             Store::open(&db).with_context(|| format!("opening the job store {}", db.display()))?
         }
     };
@@ -418,6 +435,13 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
     tracing::info!(coordinator = %id, shared = store.is_shared(), "job store open");
     let objects = open_objects(&config, &id)?;
     objects.probe(&id)?;
+    let identity = objects.identity(random_token)?;
+    if let Some((recorded, location)) = store.check_objects(&identity, &objects.location)? {
+        anyhow::bail!(
+            "the object store {} (id {identity}) is not the one this farm's job store records: {location} (id {recorded}); coordinators sharing a job store must share its object store (--objects)",
+            objects.location
+        );
+    }
     tracing::info!(objects = %objects.location, "object store writable");
     let app = Arc::new(App {
         stopping: shutdown.subscribe(),
@@ -482,14 +506,22 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
         supervisor::spawn(&app, addr, shutdown.subscribe());
     }
     let router = api::router(app.clone());
+    let handle = axum_server::Handle::new();
+    {
+        let handle = handle.clone();
+        tokio::spawn(async move {
+            let _ = stop.changed().await;
+            handle.graceful_shutdown(Some(Duration::from_secs(10)));
+        });
+    }
+    let listener = listener.into_std()?;
+    let timeouts = app.config.timeouts;
     let server = match app.config.tls.clone() {
-        None => tokio::spawn(async move {
-            axum::serve(listener, router)
-                .with_graceful_shutdown(async move {
-                    let _ = stop.changed().await;
-                })
-                .await
-        }),
+        None => {
+            let mut server = axum_server::from_tcp(listener)?.handle(handle);
+            timeouts::configure(server.http_builder(), timeouts);
+            tokio::spawn(async move { server.serve(router.into_make_service()).await })
+        }
         Some((cert, key)) => {
             let tls = axum_server::tls_rustls::RustlsConfig::from_pem_file(&cert, &key)
                 .await
@@ -500,16 +532,8 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
                         key.display()
                     )
                 })?;
-            let handle = axum_server::Handle::new();
-            {
-                let handle = handle.clone();
-                tokio::spawn(async move {
-                    let _ = stop.changed().await;
-                    handle.graceful_shutdown(Some(Duration::from_secs(10)));
-                });
-            }
-            let listener = listener.into_std()?;
-            let server = axum_server::from_tcp_rustls(listener, tls)?.handle(handle);
+            let mut server = axum_server::from_tcp_rustls(listener, tls)?.handle(handle);
+            timeouts::configure(server.http_builder(), timeouts);
             tokio::spawn(async move { server.serve(router.into_make_service()).await })
         }
     };
@@ -584,6 +608,29 @@ pub fn tokens(
         worker.unwrap_or(saved.worker),
         true,
     ))
+}
+
+/// Creates `dir` (and its parents) if need be; a directory this creates is readable by this
+/// user alone.
+fn private_dir(dir: &Path) -> std::io::Result<()> {
+    let mut builder = std::fs::DirBuilder::new();
+    builder.recursive(true);
+    #[cfg(unix)]
+    std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
+    builder.create(dir)
+}
+
+/// Creates `file` empty if it does not exist, and makes it readable and writable by this
+/// user alone.
+fn private_file(file: &Path) -> std::io::Result<()> {
+    let mut options = std::fs::OpenOptions::new();
+    options.create(true).append(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o600);
+    options.open(file)?;
+    #[cfg(unix)]
+    std::fs::set_permissions(file, std::os::unix::fs::PermissionsExt::from_mode(0o600))?;
+    Ok(())
 }
 
 /// 128 random bits from the OS, in hex.

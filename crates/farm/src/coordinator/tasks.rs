@@ -109,8 +109,20 @@ pub(super) async fn heartbeat(
     )? {
         Ok(Json(hb))
     } else {
-        Err(stale(id, hb.lease))
+        Err(not_holder(&app, id, hb.lease, &hb.worker)?)
     }
+}
+
+/// Why a lease is not `worker`'s to renew, fail or complete: it is not current (409), or it
+/// is another worker's (403).
+fn not_holder(app: &App, task: i64, lease: i64, worker: &str) -> AppResult<AppError> {
+    Ok(match app.store.lease_holder(task, lease)? {
+        Some(holder) if holder != worker => AppError::new(
+            StatusCode::FORBIDDEN,
+            format!("lease {lease} of task {task} is held by worker {holder}, not {worker}"),
+        ),
+        _ => stale(task, lease),
+    })
 }
 
 #[derive(Deserialize, utoipa::IntoParams)]
@@ -123,25 +135,29 @@ pub(super) struct ResultQuery {
 }
 
 /// Checks a result written to `path` against the task it is of: a whole wire stream (length
-/// and CRC), of the task's schema, naming the task. Returns the payload's length.
+/// and CRC) and nothing after it, of the task's schema, naming the task, whose value decodes
+/// and fits the task (its pixels, samples, lengths: what the fold will take). Returns the
+/// payload's length.
 fn check_result(
     app: &App,
     job: i64,
     spec: &TaskSpec,
     path: &std::path::Path,
 ) -> anyhow::Result<u64> {
+    use std::io::Read;
     let plan = app.job_plan(job)?;
-    let schema = if spec.is_pass() {
-        let passes = plan.plan.passes();
-        let pass = passes
-            .get(spec.step as usize)
-            .ok_or_else(|| anyhow::anyhow!("job {job} has no pass {}", spec.step))?;
-        pass.schema()
-    } else {
-        plan.plan.schema()
+    let passes = plan.plan.passes();
+    let pass = match spec.is_pass() {
+        true => Some(
+            *passes
+                .get(spec.step as usize)
+                .ok_or_else(|| anyhow::anyhow!("job {job} has no pass {}", spec.step))?,
+        ),
+        false => None,
     };
+    let schema = pass.map_or_else(|| plan.plan.schema(), |p| p.schema());
     let file = std::fs::File::open(path)?;
-    let (reader, header) = tessera_render::wire::Reader::new(std::io::BufReader::new(file))?;
+    let (mut reader, header) = tessera_render::wire::Reader::new(std::io::BufReader::new(file))?;
     if header.what != "result" || header.schema != schema {
         anyhow::bail!(
             "expected a result of schema {schema}, got a {} of schema {}",
@@ -155,7 +171,19 @@ fn check_result(
             header.task
         );
     }
-    Ok(reader.verify()?)
+    let value = match pass {
+        Some(p) => p.decode(&mut reader),
+        None => plan.plan.decode(&mut reader),
+    }?;
+    plan.plan
+        .fits(spec, value.as_ref())
+        .map_err(|e| anyhow::anyhow!("does not fit its task: {e}"))?;
+    let payload = reader.payload_len();
+    let mut rest = reader.finish()?;
+    if rest.read(&mut [0u8; 1])? != 0 {
+        anyhow::bail!("bytes follow the end of the result's wire stream");
+    }
+    Ok(payload)
 }
 
 /// Upload a task's result: a wire stream (versioned, chunked, zstd-compressed, CRC-checked)
@@ -275,7 +303,7 @@ pub(super) async fn upload_result(
 }
 
 /// Report that a task could not be rendered. It is retried a bounded number of times, then
-/// its job fails with this error.
+/// its job fails with this error; at once where the failure is `permanent`.
 #[utoipa::path(post, path = "/v1/tasks/{id}/fail", tag = "workers",
     params(("id" = i64, Path)), request_body = Failure,
     responses((status = 200, description = "recorded"), (status = 409, body = ErrorBody)), security(("token" = [])))]
@@ -285,11 +313,20 @@ pub(super) async fn fail_task(
     body: Result<Json<Failure>, JsonRejection>,
 ) -> AppResult<StatusCode> {
     let Json(f) = body?;
+    if let Some(holder) = app.store.lease_holder(id, f.lease)?
+        && holder != f.worker
+    {
+        return Err(not_holder(&app, id, f.lease, &f.worker)?);
+    }
     app.metrics.failed.fetch_add(1, Relaxed);
     let job = app.store.current_lease(id, f.lease)?.map(|(job, _)| job);
-    let outcome = app
-        .store
-        .fail(id, f.lease, &f.error, now_ms(), &app.config.retry_policy())?;
+    let outcome = if f.permanent {
+        app.store
+            .fail_permanently(id, f.lease, &f.error, now_ms())?
+    } else {
+        app.store
+            .fail(id, f.lease, &f.error, now_ms(), &app.config.retry_policy())?
+    };
     if let Some(job) = job {
         app.emit(Event::Job { id: job });
     }

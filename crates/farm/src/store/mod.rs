@@ -135,6 +135,13 @@ CREATE TABLE IF NOT EXISTS claims (
     expires_ms INTEGER NOT NULL
 );
 "#,
+    // 5: facts of the farm as a whole (the identity of its object store).
+    r#"
+CREATE TABLE IF NOT EXISTS farm (
+    key TEXT PRIMARY KEY,
+    value TEXT NOT NULL
+);
+"#,
 ];
 
 const SCHEMA: &str = r#"
@@ -430,6 +437,37 @@ impl Store {
             }
         }
         Ok(())
+    }
+
+    /// Records the identity of the object store (`id`, found at `location`) the first
+    /// coordinator used, and checks every later one's against it: coordinators sharing a job
+    /// store must share its objects (bundles, results, frames). Returns the recorded id and
+    /// location where they differ.
+    pub fn check_objects(&self, id: &str, location: &str) -> Result<Option<(String, String)>> {
+        self.db.write(|tx| {
+            let get = |key: &str| -> Result<Option<String>> {
+                tx.query_row("SELECT value FROM farm WHERE key = ?1", params![key], |r| {
+                    r.get(0)
+                })
+                .optional()
+            };
+            match get("objects_id")? {
+                Some(recorded) if recorded != id => Ok(Some((
+                    recorded,
+                    get("objects_location")?.unwrap_or_default(),
+                ))),
+                Some(_) => Ok(None),
+                None => {
+                    for (key, value) in [("objects_id", id), ("objects_location", location)] {
+                        tx.execute(
+                            "INSERT INTO farm (key, value) VALUES (?1, ?2)",
+                            params![key, value],
+                        )?;
+                    }
+                    Ok(None)
+                }
+            }
+        })
     }
 
     /// Calls `on` when any coordinator sharing the store queues work ([`Store::announce_work`]).

@@ -212,16 +212,32 @@ impl Store {
         lease_ms: u64,
     ) -> Result<bool> {
         let conn = self.conn()?;
-        conn.execute(
-            "UPDATE workers SET last_seen_ms = ?2, cpu = COALESCE(?3, cpu) WHERE id = ?1",
-            params![worker, now, cpu],
-        )?;
+        // Only the worker holding the lease renews it (and is seen by renewing it).
         let n = conn.execute(
             "UPDATE tasks SET lease_expires_ms = ?3
-             WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
-            params![task, lease, now + lease_ms as i64],
+             WHERE id = ?1 AND lease = ?2 AND state = 'leased' AND worker = ?4",
+            params![task, lease, now + lease_ms as i64, worker],
         )?;
+        if n == 1 {
+            conn.execute(
+                "UPDATE workers SET last_seen_ms = ?2, cpu = COALESCE(?3, cpu) WHERE id = ?1",
+                params![worker, now, cpu],
+            )?;
+        }
         Ok(n == 1)
+    }
+
+    /// The worker holding a current lease.
+    pub fn lease_holder(&self, task: i64, lease: i64) -> Result<Option<String>> {
+        Ok(self
+            .conn()?
+            .query_row(
+                "SELECT worker FROM tasks WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
+                params![task, lease],
+                |r| r.get(0),
+            )
+            .optional()?
+            .flatten())
     }
 
     /// The task a lease is for, if the lease is current: (job, spec).
@@ -348,23 +364,12 @@ impl Store {
         } else {
             format!("frame {}, step {}", spec.frame, spec.step)
         };
-        let message = if blocked && !Self::has_eligible_worker(tx, job, now, policy.alive_ms)? {
-            let list = Self::blocklist_of(tx, job)?
-                .iter()
-                .map(|b| {
-                    format!(
-                        "{} ({} failures; last: {})",
-                        b.worker,
-                        b.failures,
-                        b.last_error.as_deref().unwrap_or("")
-                    )
-                })
-                .collect::<Vec<_>>()
-                .join(", ");
-            Some(format!(
-                "every worker that could run the job is blocklisted for it after failing its tasks {} times: {list}",
-                policy.blocklist_after
-            ))
+        // Once a worker is blocklisted, its later failures no longer count toward attempts:
+        // whether anyone is left to run the job is asked at every failure, not only the one
+        // that blocklisted (a task failing the same way on every worker fails its job).
+        let stranded = outcome == "failed" && (blocked || Self::is_blocked(tx, job, &worker)?);
+        let message = if stranded && !Self::has_eligible_worker(tx, job, now, policy.alive_ms)? {
+            Some(Self::stranded_message(tx, job, policy)?)
         } else if failures >= policy.max_attempts {
             Some(format!(
                 "task {task} ({} {} of {place}) failed {failures} times; last attempt on worker {worker}: {error}",
@@ -387,6 +392,106 @@ impl Store {
         )?;
         Self::end_job(tx, job, "failed", Some(&message), now)?;
         Ok(Retry::JobFailed(message))
+    }
+
+    /// Why `job` fails when every worker that could run it is blocklisted for it.
+    fn stranded_message(tx: &Conn, job: i64, policy: &RetryPolicy) -> Result<String> {
+        let list = Self::blocklist_of(tx, job)?
+            .iter()
+            .map(|b| {
+                format!(
+                    "{} ({} failures; last: {})",
+                    b.worker,
+                    b.failures,
+                    b.last_error.as_deref().unwrap_or("")
+                )
+            })
+            .collect::<Vec<_>>()
+            .join(", ");
+        Ok(format!(
+            "every worker that could run the job is blocklisted for it after failing its tasks {} times: {list}",
+            policy.blocklist_after
+        ))
+    }
+
+    /// Whether `worker` is blocklisted for `job`.
+    fn is_blocked(tx: &Conn, job: i64, worker: &str) -> Result<bool> {
+        Ok(tx
+            .query_row(
+                "SELECT 1 FROM blocklist WHERE job_id = ?1 AND worker = ?2 AND blocked_ms IS NOT NULL",
+                params![job, worker],
+                |_| Ok(()),
+            )
+            .optional()?
+            .is_some())
+    }
+
+    /// Fails the open jobs that have queued tasks, a blocklist, and no worker left that could
+    /// run them while workers are there (the last eligible one went quiet after the
+    /// blocklisting). A farm with no live worker at all fails nothing: it is the farm that
+    /// is down, not the job. Returns the jobs failed, with the reason.
+    pub fn fail_stranded(&self, now: i64, policy: &RetryPolicy) -> Result<Vec<(i64, String)>> {
+        self.db.write(|tx| Self::stranded(tx, now, policy))
+    }
+
+    fn stranded(tx: &Conn, now: i64, policy: &RetryPolicy) -> Result<Vec<(i64, String)>> {
+        let live: Option<i64> = tx
+            .query_row(
+                "SELECT 1 FROM workers WHERE last_seen_ms >= ?1 LIMIT 1",
+                params![now - policy.alive_ms],
+                |r| r.get(0),
+            )
+            .optional()?;
+        if live.is_none() {
+            return Ok(Vec::new());
+        }
+        // The blocklist is short; queued tasks are many (and indexed).
+        let jobs: Vec<i64> = tx.query_map(
+            "SELECT DISTINCT b.job_id FROM blocklist b
+             WHERE b.blocked_ms IS NOT NULL
+               AND EXISTS (SELECT 1 FROM tasks t WHERE t.job_id = b.job_id AND t.state = 'queued')",
+            params![],
+            |r| r.get(0),
+        )?;
+        let mut out = Vec::new();
+        for job in jobs {
+            if Self::job_open(tx, job)?
+                && !Self::has_eligible_worker(tx, job, now, policy.alive_ms)?
+            {
+                let message = Self::stranded_message(tx, job, policy)?;
+                Self::end_job(tx, job, "failed", Some(&message), now)?;
+                out.push((job, message));
+            }
+        }
+        Ok(out)
+    }
+
+    /// A worker reports that a task cannot be rendered by anyone (see
+    /// [`crate::protocol::Failure::permanent`]): the job fails at once with the error.
+    pub fn fail_permanently(&self, task: i64, lease: i64, error: &str, now: i64) -> Result<Retry> {
+        self.db.write(|tx| {
+            let job: Option<i64> = tx
+                .query_row(
+                    "SELECT job_id FROM tasks WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
+                    params![task, lease],
+                    |r| r.get(0),
+                )
+                .optional()?;
+            let Some(job) = job else {
+                return Ok(Retry::Stale);
+            };
+            tx.execute(
+                "UPDATE attempts SET ended_ms = ?2, outcome = 'failed', error = ?3 WHERE id = ?1",
+                params![lease, now, error],
+            )?;
+            tx.execute(
+                "UPDATE tasks SET state = 'failed', lease_expires_ms = NULL, error = ?2 WHERE id = ?1",
+                params![task, error],
+            )?;
+            let message = format!("task {task} cannot be run by any worker (no retry can mend it): {error}");
+            Self::end_job(tx, job, "failed", Some(&message), now)?;
+            Ok(Retry::JobFailed(message))
+        })
     }
 
     /// A worker reports that it could not render a task.

@@ -2,7 +2,7 @@
 //! Rid of Packets", 2008, at width eight): eight children's bounds per node, stored plane by
 //! plane, tested with one eight-lane slab test where the CPU has AVX (chosen at run time) and
 //! as two four-lane tests where it has only SSE — the same operations lane by lane, so the
-//! same hits. Built from `obvhs`'s binary BVH (PLOC and reinsertion, one primitive per leaf):
+//! same hits. Built from a binary BVH of one primitive per leaf (`build`, top-down SAH):
 //! each node opens the largest inner children until it has eight, and small subtrees become
 //! leaves by the surface area heuristic with the cost of a four-wide leaf test
 //! ([`Collapse`]). Leaves are ranges of primitive *blocks* whose meaning belongs to the caller
@@ -18,6 +18,8 @@ use std::mem::MaybeUninit;
 use glam::{Vec3A, Vec4};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
+
+use super::depth;
 
 /// A reference to a child: an inner node, or a leaf (first block and block count).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,6 +51,10 @@ impl Ref {
 
 /// Children per node.
 pub(super) const WIDTH: usize = 8;
+/// Entries of a traversal stack: a level pushes at most seven children, and a tree is at
+/// most [`depth::MAX_DEPTH`] levels deep ([`Bvh8::from_bvh2`] bounds it).
+pub(super) const STACK: usize = (WIDTH - 1) * depth::MAX_DEPTH as usize + 1;
+
 /// Four-wide SIMD groups per node.
 const GROUPS: usize = WIDTH / 4;
 
@@ -265,12 +271,16 @@ impl Bvh8 {
     /// most `max_leaf` primitives becomes one leaf where the surface area heuristic prefers
     /// it (see [`Collapse`]); `leaf` appends a leaf's primitives (indices into the binary
     /// BVH's input) to the caller's storage and returns the range of blocks they take.
+    /// Subtrees deeper than the traversal stack holds are first rebuilt balanced
+    /// ([`depth::bound_depth`]), so no input can overflow it.
     pub fn from_bvh2(
-        bvh2: &Bvh2,
+        bvh2: &mut Bvh2,
         max_leaf: u32,
         mut leaf: impl FnMut(&[u32]) -> (u32, u32),
     ) -> Bvh8 {
         let mut out = Bvh8::default();
+        depth::bound_depth(bvh2, depth::MAX_DEPTH);
+        let bvh2 = &*bvh2;
         if !bvh2.nodes.is_empty() {
             let collapse = Collapse::new(bvh2, max_leaf);
             let root = out.convert(bvh2, &collapse, 0, &mut leaf, &mut Vec::new());
@@ -353,9 +363,9 @@ impl Bvh8 {
         t_max: &mut f32,
         mut leaf: impl FnMut(u32, u32, &mut f32) -> Visit,
     ) {
-        // Each level pushes at most seven entries; 512 covers 73 levels. Left uninitialised:
-        // zeroing it would cost more than a whole traversal of a small scene.
-        let mut stack = [MaybeUninit::<(Ref, f32)>::uninit(); 512];
+        // Left uninitialised: zeroing it would cost more than a whole traversal of a small
+        // scene.
+        let mut stack = [MaybeUninit::<(Ref, f32)>::uninit(); STACK];
         let mut top = 0usize;
         let mut cur = root;
         loop {
@@ -444,7 +454,7 @@ impl Bvh8 {
         t_max: f32,
         mut leaf: impl FnMut(u32, u32) -> bool,
     ) -> bool {
-        let mut stack = [MaybeUninit::<Ref>::uninit(); 512];
+        let mut stack = [MaybeUninit::<Ref>::uninit(); STACK];
         let mut top = 0usize;
         let mut cur = root;
         loop {

@@ -1,7 +1,9 @@
 //! Geometry: primitive intersection and the acceleration structure.
 
 pub mod accel;
+pub mod build;
 pub mod bvh8;
+pub mod depth;
 #[cfg(target_arch = "x86_64")]
 mod packet;
 pub mod sphere;

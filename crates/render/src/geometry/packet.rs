@@ -20,7 +20,7 @@ use std::arch::x86_64::*;
 use std::mem::MaybeUninit;
 
 use super::accel::{Accel, LANES, PrimHit, TriangleBest};
-use super::bvh8::{BoxRay, Bvh8, Node, Ref, safe_inverse};
+use super::bvh8::{BoxRay, Bvh8, Node, Ref, STACK, safe_inverse};
 use super::triangle::{self, Triangle4, TriangleRay};
 use crate::math::gamma;
 use crate::ray::Ray;
@@ -344,8 +344,7 @@ impl Bvh8 {
     ) {
         // SAFETY: the CPU has AVX (the caller's contract).
         unsafe {
-            // Each level pushes at most seven entries; 512 covers 73 levels.
-            let mut stack = [MaybeUninit::<(Ref, u32, F8)>::uninit(); 512];
+            let mut stack = [MaybeUninit::<(Ref, u32, F8)>::uninit(); STACK];
             let mut top = 0usize;
             let (mut cur, mut mask) = (root, active);
             loop {
@@ -426,7 +425,7 @@ impl Bvh8 {
     ) -> u32 {
         // SAFETY: the CPU has AVX (the caller's contract).
         unsafe {
-            let mut stack = [MaybeUninit::<(Ref, u32)>::uninit(); 512];
+            let mut stack = [MaybeUninit::<(Ref, u32)>::uninit(); STACK];
             let mut top = 0usize;
             let (mut cur, mut mask) = (root, active);
             let mut occluded = 0;

@@ -53,6 +53,10 @@ impl Method for BdptMethod {
         self.ranges.more(frame, state, spp)
     }
 
+    fn frame_bytes(&self) -> u64 {
+        self.ranges.frame_bytes()
+    }
+
     fn new_frame(&self, frame: u32) -> RangeFrame {
         self.ranges.new_frame(frame)
     }
@@ -77,6 +81,10 @@ impl Method for BdptMethod {
             }
             other => Err(format!("bdpt has no {other} tasks")),
         }
+    }
+
+    fn fits(&self, task: &TaskSpec, p: &RangePartial) -> Result<(), String> {
+        self.ranges.fits(task, p)
     }
 
     fn fold(&self, state: &mut RangeFrame, task: &TaskSpec, p: RangePartial) -> Result<(), String> {

@@ -11,6 +11,8 @@
 //! The frame folds in the plan's order, in f64 where sums grow (Chan et al.'s pairwise update
 //! for the second moment), so a frame is the same bits however its tasks were spread.
 
+use std::mem::size_of;
+
 use half::f16;
 use serde::{Deserialize, Serialize};
 
@@ -25,6 +27,56 @@ fn check_rect(rect: Rect, len: usize, width: u32, height: u32, what: &str) -> Re
     if x0 > x1 || y0 > y1 || x1 > width || y1 > height || len != pixels {
         return Err(format!(
             "{what} over {rect:?} with {len} values does not fit a {width}×{height} film"
+        ));
+    }
+    Ok(())
+}
+
+/// Checks a task's film sums: over `rect`, of `samples` samples a pixel, on a
+/// `width`×`height` film, every column as long as the rectangle has pixels.
+pub fn check_sums(
+    s: &FilmSums,
+    rect: Rect,
+    samples: u32,
+    width: u32,
+    height: u32,
+) -> Result<(), String> {
+    if s.rect != rect || s.samples != samples {
+        return Err(format!(
+            "film sums over {:?} of {} samples, the task is {rect:?} of {samples}",
+            s.rect, s.samples
+        ));
+    }
+    check_rect(s.rect, s.sum.len(), width, height, "film sums")?;
+    if s.weight.len() != s.sum.len() || (!s.m2.is_empty() && s.m2.len() != s.sum.len()) {
+        return Err("film sums with columns of different lengths".into());
+    }
+    Ok(())
+}
+
+/// Checks a task's AOVs: over `rect` on a `width`×`height` film, every column as long as the
+/// rectangle has pixels.
+pub fn check_aov(a: &AovSums, rect: Rect, width: u32, height: u32) -> Result<(), String> {
+    if a.rect != rect {
+        return Err(format!("AOVs over {:?}, the task is {rect:?}", a.rect));
+    }
+    let len = a.weight.len();
+    check_rect(a.rect, len, width, height, "AOVs")?;
+    if [a.hit.len(), a.albedo.len(), a.normal.len(), a.depth.len()]
+        .iter()
+        .any(|&l| l != len)
+    {
+        return Err("AOVs with columns of different lengths".into());
+    }
+    Ok(())
+}
+
+/// Checks splats for a film of `pixels` pixels.
+pub fn check_splats(splats: &[[f32; 3]], pixels: usize) -> Result<(), String> {
+    if splats.len() != pixels {
+        return Err(format!(
+            "splats for {} pixels on a film of {pixels}",
+            splats.len()
         ));
     }
     Ok(())
@@ -49,6 +101,11 @@ pub struct FilmAcc {
 }
 
 impl FilmAcc {
+    /// Bytes it holds per pixel.
+    pub const PIXEL_BYTES: u64 =
+        (size_of::<u32>() + size_of::<[f64; 3]>() + size_of::<f64>() + size_of::<[f32; 3]>())
+            as u64;
+
     pub fn new(width: u32, height: u32) -> Self {
         let n = width as usize * height as usize;
         FilmAcc {
@@ -64,11 +121,8 @@ impl FilmAcc {
     /// Folds a task's sums in: sums added, second moments merged by Chan et al.'s update
     /// M₂ = M₂ₐ + M₂ᵦ + δ² nₐ nᵦ / (nₐ + nᵦ), δ the difference of the two means of w·L.
     pub fn fold(&mut self, s: &FilmSums) -> Result<(), String> {
-        check_rect(s.rect, s.sum.len(), self.width, self.height, "film sums")?;
+        check_sums(s, s.rect, s.samples, self.width, self.height)?;
         let variance = !s.m2.is_empty();
-        if s.weight.len() != s.sum.len() || (variance && s.m2.len() != s.sum.len()) {
-            return Err("film sums with columns of different lengths".into());
-        }
         let nb = s.samples as f64;
         for (k, i) in indices(s.rect, self.width).enumerate() {
             let na = self.samples[i] as f64;
@@ -150,6 +204,9 @@ pub struct AovAcc {
 }
 
 impl AovAcc {
+    /// Bytes it holds per pixel.
+    pub const PIXEL_BYTES: u64 = (2 * size_of::<f32>() + 2 * size_of::<[f32; 3]>()) as u64;
+
     pub fn new(width: u32, height: u32) -> Self {
         let n = width as usize * height as usize;
         AovAcc {
@@ -163,14 +220,7 @@ impl AovAcc {
     }
 
     pub fn fold(&mut self, a: &AovSums) -> Result<(), String> {
-        let len = a.weight.len();
-        check_rect(a.rect, len, self.width, self.height, "AOVs")?;
-        if [a.hit.len(), a.albedo.len(), a.normal.len(), a.depth.len()]
-            .iter()
-            .any(|&l| l != len)
-        {
-            return Err("AOVs with columns of different lengths".into());
-        }
+        check_aov(a, a.rect, self.width, self.height)?;
         for (k, i) in indices(a.rect, self.width).enumerate() {
             self.alpha[i] = if a.weight[k] != 0.0 {
                 a.hit[k] / a.weight[k]
@@ -208,13 +258,7 @@ pub type Splats = Vec<[f32; 3]>;
 
 /// Adds a task's splats to a frame's.
 pub fn add_splats(to: &mut [[f32; 3]], from: &[[f32; 3]]) -> Result<(), String> {
-    if to.len() != from.len() {
-        return Err(format!(
-            "splats for {} pixels on a film of {}",
-            from.len(),
-            to.len()
-        ));
-    }
+    check_splats(from, to.len())?;
     for (a, b) in to.iter_mut().zip(from) {
         for c in 0..3 {
             a[c] += b[c];
@@ -257,6 +301,9 @@ pub struct Ratios {
 }
 
 impl Ratios {
+    /// Bytes it holds per pixel.
+    pub const PIXEL_BYTES: u64 = (3 * size_of::<[f32; 3]>() + 2 * size_of::<f32>()) as u64;
+
     pub fn new(pixels: usize) -> Self {
         Ratios {
             batches: 0,
@@ -309,6 +356,9 @@ impl Ratios {
 }
 
 impl Batches {
+    /// Bytes it holds per pixel.
+    pub const PIXEL_BYTES: u64 = 2 * Ratios::PIXEL_BYTES;
+
     pub fn new(pixels: usize) -> Self {
         Batches {
             camera: Ratios::new(pixels),

@@ -9,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::film::{Ratios, Splats, add_splats, splats_from_fixed};
+use super::film::{Ratios, Splats, add_splats, check_splats, splats_from_fixed};
 use super::ranges::{RangeFrame, RangePartial, Ranges};
 use std::time::Duration;
 
@@ -139,6 +139,13 @@ impl Method for MetropolisMethod {
         Ok(step)
     }
 
+    /// The direct light's frame, the chains' splats and their groups' batches.
+    fn frame_bytes(&self) -> u64 {
+        let pixels = self.ranges.film().pixel_count() as u64;
+        self.ranges.frame_bytes()
+            + pixels * (std::mem::size_of::<[f32; 3]>() as u64 + Ratios::PIXEL_BYTES)
+    }
+
     fn new_frame(&self, frame: u32) -> MetroFrame {
         let direct = self.ranges.new_frame(frame);
         let pixels = self.ranges.film().pixel_count();
@@ -191,7 +198,25 @@ impl Method for MetropolisMethod {
         }
     }
 
+    fn fits(&self, task: &TaskSpec, p: &MetroPartial) -> Result<(), String> {
+        match p {
+            MetroPartial::Direct(d) => self.ranges.fits(task, d),
+            MetroPartial::Chains {
+                splats, brightness, ..
+            } => {
+                check_splats(splats, self.ranges.film().pixel_count())?;
+                if !(brightness.is_finite() && *brightness >= 0.0) {
+                    return Err(format!(
+                        "chains of brightness {brightness}: expected a finite, non-negative sum"
+                    ));
+                }
+                Ok(())
+            }
+        }
+    }
+
     fn fold(&self, f: &mut MetroFrame, task: &TaskSpec, p: MetroPartial) -> Result<(), String> {
+        Method::fits(self, task, &p)?;
         match p {
             MetroPartial::Direct(d) => self.ranges.fold(&mut f.direct, task, d),
             MetroPartial::Chains {

@@ -49,7 +49,7 @@ pub use crate::wire::TaskSpec;
 use crate::wire::{self, Header, Sizes, WireError};
 
 pub use registry::{METHODS, MethodInfo, lookup, names, plan};
-pub use tiles::Adaptive;
+pub use tiles::{Adaptive, TilePartial};
 
 /// A job as methods see it: the scene with the job's settings applied, the frames to render,
 /// and how the job wants its work cut.
@@ -321,7 +321,16 @@ pub trait Method: Send + Sync + 'static {
         None
     }
     fn new_frame(&self, frame: u32) -> Self::Frame;
+    /// Bytes one frame's state holds in memory: what a process folding the frame keeps of
+    /// it (for admitting a job by its memory before anything is allocated).
+    fn frame_bytes(&self) -> u64;
     fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Self::Partial, String>;
+    /// Whether a task's result has the shape its task gives it (pixels, samples, lengths),
+    /// checked when it arrives, before it is accepted: a result that fits is one [`fold`]
+    /// takes, whatever came before it.
+    ///
+    /// [`fold`]: Method::fold
+    fn fits(&self, task: &TaskSpec, p: &Self::Partial) -> Result<(), String>;
     /// Folds a task's result into its frame; called in the step's task order.
     fn fold(
         &self,
@@ -358,6 +367,9 @@ pub trait Pass: Send + Sync + 'static {
     /// Its tasks, for a pass at position `step` among the job's.
     fn tasks(&self, step: u32) -> Vec<TaskSpec>;
     fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Self::Partial, String>;
+    /// Whether a task's result has the shape its task gives it, before it is accepted (see
+    /// [`Method::fits`]).
+    fn fits(&self, task: &TaskSpec, p: &Self::Partial) -> Result<(), String>;
     fn start(&self) -> Self::State;
     fn fold(
         &self,
@@ -404,6 +416,8 @@ pub trait DynPass: Send + Sync {
     fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Box<dyn Payload>, String>;
     /// Reads a task's result from the payload of its stream.
     fn decode(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError>;
+    /// See [`Pass::fits`].
+    fn fits(&self, task: &TaskSpec, p: &dyn Payload) -> Result<(), String>;
     fn start(&self) -> Box<dyn Any + Send + Sync>;
     fn fold(
         &self,
@@ -437,6 +451,13 @@ impl<P: Pass> DynPass for P {
     }
     fn decode(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError> {
         Ok(Box::new(wire::decode_from::<P::Partial>(payload)?))
+    }
+    fn fits(&self, task: &TaskSpec, p: &dyn Payload) -> Result<(), String> {
+        let p = p
+            .as_any()
+            .downcast_ref::<P::Partial>()
+            .ok_or("a result of another pass")?;
+        Pass::fits(self, task, p)
     }
     fn start(&self) -> Box<dyn Any + Send + Sync> {
         Box::new(Pass::start(self))
@@ -490,7 +511,12 @@ pub trait Plan: Send + Sync {
     fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Box<dyn Payload>, String>;
     /// Reads a frame task's result from the payload of its stream.
     fn decode(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError>;
+    /// Whether a decoded result of a frame's or a pass's task fits the task (see
+    /// [`Method::fits`]).
+    fn fits(&self, task: &TaskSpec, p: &dyn Payload) -> Result<(), String>;
     fn new_frame(&self, frame: u32) -> Box<dyn Payload>;
+    /// See [`Method::frame_bytes`].
+    fn frame_bytes(&self) -> u64;
     /// Reads a frame's checkpoint from the payload of its stream.
     fn decode_frame(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError>;
     fn fold(
@@ -506,6 +532,14 @@ pub trait Plan: Send + Sync {
         elapsed: Duration,
     ) -> Result<Next, String>;
     fn preview(&self, frame: u32, state: &dyn Payload) -> Image;
+}
+
+/// The pass a pass's task is of.
+fn pass_of<'a, M: Method>(m: &'a M, task: &TaskSpec) -> Result<&'a dyn DynPass, String> {
+    Method::passes(m)
+        .get(task.step as usize)
+        .copied()
+        .ok_or_else(|| format!("the job has no pass {}", task.step))
 }
 
 fn frame_state<M: Method>(state: &dyn Payload) -> Result<&M::Frame, String> {
@@ -542,19 +576,28 @@ impl<M: Method> Plan for M {
     }
     fn execute(&self, ctx: &TaskCtx, task: &TaskSpec) -> Result<Box<dyn Payload>, String> {
         if task.is_pass() {
-            let passes = Method::passes(self);
-            let pass = passes
-                .get(task.step as usize)
-                .ok_or_else(|| format!("the job has no pass {}", task.step))?;
-            return pass.execute(ctx, task);
+            return pass_of(self, task)?.execute(ctx, task);
         }
         Ok(Box::new(Method::execute(self, ctx, task)?))
     }
     fn decode(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError> {
         Ok(Box::new(wire::decode_from::<M::Partial>(payload)?))
     }
+    fn fits(&self, task: &TaskSpec, p: &dyn Payload) -> Result<(), String> {
+        if task.is_pass() {
+            return pass_of(self, task)?.fits(task, p);
+        }
+        let p = p
+            .as_any()
+            .downcast_ref::<M::Partial>()
+            .ok_or("a result of another method")?;
+        Method::fits(self, task, p)
+    }
     fn new_frame(&self, frame: u32) -> Box<dyn Payload> {
         Box::new(Method::new_frame(self, frame))
+    }
+    fn frame_bytes(&self) -> u64 {
+        Method::frame_bytes(self)
     }
     fn decode_frame(&self, payload: &mut dyn Read) -> Result<Box<dyn Payload>, WireError> {
         Ok(Box::new(wire::decode_from::<M::Frame>(payload)?))

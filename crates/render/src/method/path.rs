@@ -87,6 +87,10 @@ impl Method for PathMethod {
         self.tiles.more(frame, state, spp)
     }
 
+    fn frame_bytes(&self) -> u64 {
+        self.tiles.frame_bytes()
+    }
+
     fn new_frame(&self, _frame: u32) -> TileFrame {
         self.tiles.new_frame()
     }
@@ -112,6 +116,10 @@ impl Method for PathMethod {
         };
         ctx.progress(task.pixels() * task.samples().len() as u64);
         Ok(partial)
+    }
+
+    fn fits(&self, task: &TaskSpec, p: &TilePartial) -> Result<(), String> {
+        self.tiles.fits(task, p)
     }
 
     fn fold(&self, state: &mut TileFrame, task: &TaskSpec, p: TilePartial) -> Result<(), String> {

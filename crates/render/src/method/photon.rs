@@ -110,6 +110,10 @@ impl Method for PhotonMethod {
         self.tiles.more(frame, state, spp)
     }
 
+    fn frame_bytes(&self) -> u64 {
+        self.tiles.frame_bytes()
+    }
+
     fn new_frame(&self, _frame: u32) -> TileFrame {
         self.tiles.new_frame()
     }
@@ -128,6 +132,10 @@ impl Method for PhotonMethod {
         };
         ctx.progress(task.pixels() * task.samples().len() as u64);
         Ok(partial)
+    }
+
+    fn fits(&self, task: &TaskSpec, p: &TilePartial) -> Result<(), String> {
+        self.tiles.fits(task, p)
     }
 
     fn fold(&self, state: &mut TileFrame, task: &TaskSpec, p: TilePartial) -> Result<(), String> {

@@ -7,7 +7,10 @@
 use serde::{Deserialize, Serialize};
 use tessera_scene::SceneDesc;
 
-use super::film::{AovAcc, AovSums, Batches, FilmAcc, FilmSums, Splats, add_splats};
+use super::film::{
+    AovAcc, AovSums, Batches, FilmAcc, FilmSums, Splats, add_splats, check_aov, check_splats,
+    check_sums,
+};
 use super::{Finished, Job, Next, Step, TaskSpec, aov};
 use crate::camera::Camera;
 use crate::film::{Image, Tile};
@@ -152,6 +155,17 @@ impl Ranges {
         )))
     }
 
+    /// Bytes of a frame's state: the film's and the AOVs' accumulators, the splats and the
+    /// batches.
+    pub fn frame_bytes(&self) -> u64 {
+        let pixels = self.film().pixel_count() as u64;
+        pixels
+            * (FilmAcc::PIXEL_BYTES
+                + std::mem::size_of::<[f32; 3]>() as u64
+                + Batches::PIXEL_BYTES
+                + AovAcc::PIXEL_BYTES)
+    }
+
     pub fn new_frame(&self, frame: u32) -> RangeFrame {
         let f = &self.desc.film;
         let pixels = f.width as usize * f.height as usize;
@@ -184,7 +198,22 @@ impl Ranges {
         Ok(())
     }
 
+    /// Whether a result fits its task: AOVs over the task's rectangle, or the whole film's
+    /// sums of the task's samples and a splat per pixel (see [`super::Method::fits`]).
+    pub fn fits(&self, task: &TaskSpec, p: &RangePartial) -> Result<(), String> {
+        let (w, h) = (self.desc.film.width, self.desc.film.height);
+        match p {
+            RangePartial::Aov(a) => check_aov(a, [task.x0, task.y0, task.x1, task.y1], w, h),
+            RangePartial::Samples { camera, splats, .. } => {
+                self.check(task)?;
+                check_sums(camera, [0, 0, w, h], task.samples().len(), w, h)?;
+                check_splats(splats, w as usize * h as usize)
+            }
+        }
+    }
+
     pub fn fold(&self, f: &mut RangeFrame, task: &TaskSpec, p: RangePartial) -> Result<(), String> {
+        self.fits(task, &p)?;
         match p {
             RangePartial::Aov(a) => f.aov.fold(&a),
             RangePartial::Samples {
@@ -193,13 +222,6 @@ impl Ranges {
                 stats,
             } => {
                 let n = task.samples().len();
-                if camera.samples != n || splats.len() != f.splats.len() {
-                    return Err(format!(
-                        "sums of {} samples and {} splats for task {task:?}",
-                        camera.samples,
-                        splats.len()
-                    ));
-                }
                 let exposure = f.exposure as f64;
                 f.batches.fold(n, |i| {
                     (

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use serde::{Deserialize, Serialize};
 use tessera_scene::SceneDesc;
 
-use super::film::AovAcc;
+use super::film::{AovAcc, check_aov};
 use super::refuse_translucent;
 use super::registry::MethodInfo;
 use super::{Finished, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
@@ -217,6 +217,15 @@ impl Method for SppmMethod {
         (f.state.iterations < spp).then(|| self.next_step(frame, f))
     }
 
+    /// Every pixel's statistics across iterations (six f64 columns, four of them vectors),
+    /// the direct light, the photons' sums and the AOVs.
+    fn frame_bytes(&self) -> u64 {
+        use std::mem::size_of;
+        let state = 4 * size_of::<[f64; 3]>() + 2 * size_of::<f64>();
+        let sums = size_of::<[f32; 3]>() + size_of::<[f64; 3]>() + size_of::<u64>();
+        self.pixels() as u64 * ((state + sums) as u64 + AovAcc::PIXEL_BYTES)
+    }
+
     fn new_frame(&self, frame: u32) -> SppmFrame {
         let f = &self.desc.film;
         SppmFrame {
@@ -299,7 +308,39 @@ impl Method for SppmMethod {
         }
     }
 
-    fn fold(&self, f: &mut SppmFrame, _task: &TaskSpec, p: SppmPartial) -> Result<(), String> {
+    fn fits(&self, task: &TaskSpec, p: &SppmPartial) -> Result<(), String> {
+        let n = self.pixels();
+        let film = &self.desc.film;
+        match p {
+            SppmPartial::Aov(a) => check_aov(
+                a,
+                [task.x0, task.y0, task.x1, task.y1],
+                film.width,
+                film.height,
+            ),
+            SppmPartial::Camera { ld, .. } if ld.len() != n => Err(format!(
+                "sppm camera paths for {} pixels, the film has {n}",
+                ld.len()
+            )),
+            SppmPartial::Camera { .. } => Ok(()),
+            SppmPartial::Photons { pixels, m, phi, .. } => {
+                if m.len() != pixels.len() || phi.len() != pixels.len() {
+                    return Err("sppm sums with columns of different lengths".into());
+                }
+                // Strictly increasing pixel indices on the film.
+                let ordered = pixels.windows(2).all(|w| w[0] < w[1]);
+                if !ordered || pixels.last().is_some_and(|&p| p as usize >= n) {
+                    return Err(format!(
+                        "sppm sums: pixels out of order or off the {n}-pixel film"
+                    ));
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn fold(&self, f: &mut SppmFrame, task: &TaskSpec, p: SppmPartial) -> Result<(), String> {
+        Method::fits(self, task, &p)?;
         let n = self.pixels();
         match p {
             SppmPartial::Aov(a) => f.aov.fold(&a),

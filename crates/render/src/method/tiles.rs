@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use serde::{Deserialize, Serialize};
 
-use super::film::{AovAcc, AovSums, FilmAcc, FilmSums};
+use super::film::{AovAcc, AovSums, FilmAcc, FilmSums, check_aov, check_sums};
 use super::{Finished, Job, Next, Step, TaskSpec, aov};
 use crate::camera::Camera;
 use crate::film::{Image, Tile, tiles};
@@ -155,6 +155,12 @@ impl Tiles {
         Some(Step::tasks(tasks))
     }
 
+    /// Bytes of a frame's state: the film's and the AOVs' accumulators, the tiles' counts.
+    pub fn frame_bytes(&self) -> u64 {
+        let pixels = self.width as u64 * self.height as u64;
+        pixels * (FilmAcc::PIXEL_BYTES + AovAcc::PIXEL_BYTES) + 4 * self.tiles.len() as u64
+    }
+
     pub fn new_frame(&self) -> TileFrame {
         TileFrame {
             film: FilmAcc::new(self.width, self.height),
@@ -166,23 +172,32 @@ impl Tiles {
         }
     }
 
+    /// Whether a result fits its task: AOVs over the task's rectangle, or sums over one of
+    /// the frame's tiles with the task's samples (see [`super::Method::fits`]).
+    pub fn fits(&self, task: &TaskSpec, p: &TilePartial) -> Result<(), String> {
+        let rect = [task.x0, task.y0, task.x1, task.y1];
+        match p {
+            TilePartial::Aov(a) => check_aov(a, rect, self.width, self.height),
+            TilePartial::Tile { sums, .. } => {
+                self.tile_index(task)?;
+                check_sums(sums, rect, task.samples().len(), self.width, self.height)
+            }
+        }
+    }
+
+    fn tile_index(&self, task: &TaskSpec) -> Result<usize, String> {
+        self.tiles
+            .iter()
+            .position(|t| *t == task.tile())
+            .ok_or_else(|| format!("task {task:?} is not one of the frame's tiles"))
+    }
+
     pub fn fold(&self, f: &mut TileFrame, task: &TaskSpec, p: TilePartial) -> Result<(), String> {
+        self.fits(task, &p)?;
         match p {
             TilePartial::Aov(a) => f.aov.fold(&a),
             TilePartial::Tile { sums, stats } => {
-                let i = self
-                    .tiles
-                    .iter()
-                    .position(|t| *t == task.tile())
-                    .ok_or_else(|| format!("task {task:?} is not one of the frame's tiles"))?;
-                if sums.rect != [task.x0, task.y0, task.x1, task.y1]
-                    || sums.samples != task.samples().len()
-                {
-                    return Err(format!(
-                        "sums of {:?} × {} samples for task {task:?}",
-                        sums.rect, sums.samples
-                    ));
-                }
+                let i = self.tile_index(task)?;
                 f.film.fold(&sums)?;
                 f.stats.add(&stats);
                 f.tile_samples[i] = f.tile_samples[i].max(task.end);

@@ -52,6 +52,10 @@ impl Method for VcmMethod {
         self.ranges.more(frame, state, spp)
     }
 
+    fn frame_bytes(&self) -> u64 {
+        self.ranges.frame_bytes()
+    }
+
     fn new_frame(&self, frame: u32) -> RangeFrame {
         self.ranges.new_frame(frame)
     }
@@ -74,6 +78,10 @@ impl Method for VcmMethod {
             }
             other => Err(format!("vcm has no {other} tasks")),
         }
+    }
+
+    fn fits(&self, task: &TaskSpec, p: &RangePartial) -> Result<(), String> {
+        self.ranges.fits(task, p)
     }
 
     fn fold(&self, state: &mut RangeFrame, task: &TaskSpec, p: RangePartial) -> Result<(), String> {

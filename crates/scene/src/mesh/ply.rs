@@ -94,6 +94,45 @@ impl PropertyAccess for Face {
     }
 }
 
+/// Checks each element's stated count against the bytes after the header: an element takes
+/// at least its scalars' and list counts' sizes in binary, and a line in ASCII. A parser
+/// would otherwise read a count of empty elements from no bytes at all.
+fn check_counts(header: &ply_rs_bw::ply::Header, bytes: &[u8]) -> Result<(), MeshError> {
+    use ply_rs_bw::ply::{Encoding, PropertyType, ScalarType};
+    let size = |t: &ScalarType| match t {
+        ScalarType::Char | ScalarType::UChar => 1u64,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    };
+    let end = b"end_header";
+    let body = bytes
+        .windows(end.len())
+        .position(|w| w == end)
+        .map_or(0, |at| bytes.len() - at - end.len()) as u64;
+    for (name, element) in &header.elements {
+        let min_bytes = match header.encoding {
+            Encoding::Ascii => 1,
+            _ => element
+                .properties
+                .values()
+                .map(|p| match &p.data_type {
+                    PropertyType::Scalar(t) => size(t),
+                    PropertyType::List(count, _) => size(count),
+                })
+                .sum(),
+        };
+        crate::budget::check_count(
+            &format!("{name} elements"),
+            element.count as u64,
+            min_bytes,
+            body,
+        )
+        .map_err(|e| MeshError::new("header", e))?;
+    }
+    Ok(())
+}
+
 pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
     let mut reader = Reader::new(std::io::BufReader::new(bytes));
     let vertex_parser = Parser::<Vertex>::new();
@@ -106,6 +145,7 @@ pub(super) fn parse(bytes: &[u8]) -> Result<RawMesh, MeshError> {
         .read_header(&mut reader)
         .map_err(|e| bad("header", e))?;
 
+    check_counts(&header, bytes)?;
     let mut vertices = Vec::new();
     let mut faces = Vec::new();
     for (name, element) in &header.elements {
@@ -200,5 +240,22 @@ property double y\nproperty double z\nelement face 1\nproperty list uchar uint v
         let e = parse(src.as_bytes()).unwrap_err();
         assert_eq!(e.location, "face 0");
         assert!(e.message.contains("out of range"));
+    }
+
+    #[test]
+    fn a_claimed_count_is_checked_against_the_bytes() {
+        // Four billion elements of nothing, from a header alone.
+        let src = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+property float z\nelement junk 4000000000\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+        let e = parse(src.as_bytes()).unwrap_err().message;
+        assert!(e.contains("4000000000 junk elements"), "{e}");
+        let binary =
+            b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000\nproperty float x\n\
+property float y\nproperty float z\nend_header\n";
+        let e = parse(binary).unwrap_err().message;
+        assert!(
+            e.contains("1000000 vertex elements of at least 12 bytes"),
+            "{e}"
+        );
     }
 }

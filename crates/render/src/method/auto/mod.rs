@@ -53,6 +53,25 @@ pub struct Choice {
 }
 
 impl Choice {
+    /// Checks what the choice sets besides its samples and target: a method of the registry
+    /// other than `auto`, and photons within the scene format's limit. The error begins with
+    /// the field.
+    pub fn check(&self) -> Result<(), String> {
+        if self.method == "auto" {
+            return Err("method: expected the method auto chose, got auto".into());
+        }
+        lookup(&self.method).map_err(|e| format!("method: {e}"))?;
+        if let Some(n) = self.photons
+            && !(1..=tessera_scene::MAX_PHOTONS).contains(&n)
+        {
+            return Err(format!(
+                "photons: expected 1 to {} photons, got {n}",
+                tessera_scene::MAX_PHOTONS
+            ));
+        }
+        Ok(())
+    }
+
     /// Sets in `desc` what the choice renders with besides its samples: the method, how
     /// translucent materials are rendered, the photon map's photons.
     pub fn apply(&self, desc: &mut SceneDesc) {
@@ -165,6 +184,12 @@ impl Plan for Auto {
     }
     fn decode(&self, payload: &mut dyn std::io::Read) -> Result<Box<dyn Payload>, WireError> {
         self.inner.decode(payload)
+    }
+    fn fits(&self, task: &TaskSpec, p: &dyn Payload) -> Result<(), String> {
+        self.inner.fits(task, p)
+    }
+    fn frame_bytes(&self) -> u64 {
+        self.inner.frame_bytes()
     }
     fn new_frame(&self, frame: u32) -> Box<dyn Payload> {
         self.inner.new_frame(frame)

@@ -173,12 +173,17 @@ impl Pass for PhotonsPass {
         (Vec::new(), Vec::new())
     }
 
-    fn fold(&self, state: &mut Self::State, task: &TaskSpec, p: Vec<Photon>) -> Result<(), String> {
-        // One stored photon per bounce at most, bounded by the depth.
-        let shot = (task.end - task.start) as usize;
+    /// One stored photon per bounce at most, bounded by the depth.
+    fn fits(&self, task: &TaskSpec, p: &Vec<Photon>) -> Result<(), String> {
+        let shot = task.end.saturating_sub(task.start) as usize;
         if p.len() > shot * (self.settings.max_depth as usize + 1) {
             return Err(format!("{} photons stored from {shot} shot", p.len()));
         }
+        Ok(())
+    }
+
+    fn fold(&self, state: &mut Self::State, task: &TaskSpec, p: Vec<Photon>) -> Result<(), String> {
+        Pass::fits(self, task, &p)?;
         match task.kind.as_str() {
             GLOBAL => state.0.extend(p),
             _ => state.1.extend(p),

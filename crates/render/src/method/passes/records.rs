@@ -121,6 +121,15 @@ impl Pass for RecordsPass {
         Vec::new()
     }
 
+    /// A task's keyframe pixels make as many records as the cache's error bound asks for:
+    /// any count fits; each record must be finite to be looked up.
+    fn fits(&self, _: &TaskSpec, p: &Vec<Record>) -> Result<(), String> {
+        match p.iter().position(|r| !r.is_finite()) {
+            Some(i) => Err(format!("irradiance record {i} has a non-finite value")),
+            None => Ok(()),
+        }
+    }
+
     fn fold(&self, state: &mut Self::State, _: &TaskSpec, p: Vec<Record>) -> Result<(), String> {
         state.extend(p);
         Ok(())

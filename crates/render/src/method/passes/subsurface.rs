@@ -96,6 +96,18 @@ impl Pass for SubsurfacePass {
         Vec::with_capacity(self.points as usize)
     }
 
+    fn fits(&self, task: &TaskSpec, p: &Self::Partial) -> Result<(), String> {
+        if p.len() != task.end.saturating_sub(task.start) as usize {
+            return Err(format!(
+                "irradiance of {} points for points {}..{}",
+                p.len(),
+                task.start,
+                task.end
+            ));
+        }
+        Ok(())
+    }
+
     fn fold(
         &self,
         state: &mut Self::State,
