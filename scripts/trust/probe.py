@@ -120,7 +120,26 @@ def lying_exr(binary, work, side):
     key = b"dataWindow\0box2i\0"
     at = data.index(key) + len(key) + 4
     data[at + 8:at + 16] = struct.pack("<ii", side - 1, side - 1)
-    return bytes(data)
+    # The offset table after the header gets as many entries as the claimed lines need
+    # (each pointing at the one real chunk), so the file is consistent but for its pixels.
+    pos, attrs = 8, {}
+    while data[pos] != 0:
+        name_end = data.index(b"\0", pos)
+        type_end = data.index(b"\0", name_end + 1)
+        size = struct.unpack_from("<i", data, type_end + 1)[0]
+        attrs[bytes(data[pos:name_end])] = (type_end + 5, bytes(data[type_end + 5:type_end + 5 + size]))
+        pos = type_end + 5 + size
+    header_end = pos + 1
+    lines = {0: 1, 1: 1, 2: 1, 3: 16, 4: 32, 5: 16, 6: 32, 7: 32}[attrs[b"compression"][1][0]]
+    old_chunks = -(-4 // lines)
+    new_chunks = -(-side // lines)
+    if b"chunkCount" in attrs:
+        at = attrs[b"chunkCount"][0]
+        data[at:at + 4] = struct.pack("<i", new_chunks)
+    first = struct.unpack_from("<Q", data, header_end)[0]
+    moved = first + 8 * (new_chunks - old_chunks)
+    table = struct.pack("<Q", moved) * new_chunks
+    return bytes(data[:header_end]) + table + bytes(data[header_end + 8 * old_chunks:])
 
 
 def upload(c, files):
@@ -165,13 +184,23 @@ def main():
         if not c.alive():
             print("the coordinator did not start; see", data + ".log")
             return 2
+        def revive(c):
+            """A coordinator that died on a probe is started again for the next one."""
+            if c.alive():
+                return c
+            print("         (the coordinator died; starting it again)")
+            c.stop()
+            return Coordinator(binary, data)
+
         try:
             # 1. A tar header's claimed size.
             status, body = http("POST", c.url + "/v1/bundles", lying_tar(64 << 30), "application/x-tar")
             results.append(verdict("tar entry claiming 64 GiB (2 KB upload)",
                                    status == 400 and c.alive(), f"{status} {body[:150]}"))
+            c = revive(c)
             status, body = http("POST", c.url + "/v1/bundles", b"", "application/x-tar")
             results.append(verdict("empty body as a bundle", status == 400, f"{status} {body[:120]}"))
+            c = revive(c)
             # 2. An image header's claimed size, on the coordinator and in `tessera render`.
             exr = lying_exr(binary, work, 60000)
             scene = dict(SCENE, environment={"image": "sky.exr"})
@@ -186,6 +215,7 @@ def main():
             code, last = render(binary, d)
             results.append(verdict("EXR claiming 60000x60000 (tessera render)", clean_error(code),
                                    f"exit {code}: {last[:150]}"))
+            c = revive(c)
             # 3. One triangle 2,000 times.
             d = os.path.join(work, "copies")
             os.makedirs(d)
@@ -194,12 +224,15 @@ def main():
             open(os.path.join(d, "scene.json"), "w").write(json.dumps(s))
             code, last = render(binary, d)
             results.append(verdict("OBJ of one triangle 2,000 times (tessera render)", code == 0, f"exit {code} {last[:150]}"))
+            c = revive(c)
             # 4. A recorded choice past the limits.
             h = upload(c, {"scene.json": json.dumps(SCENE).encode()})
+            c = revive(c)
             for what, choice in [("spp 3,000,000", {"method": "path", "spp": 3000000, "report": []}),
                                  ("photons 4294967295", {"method": "photon", "spp": 4, "photons": 4294967295, "report": []})]:
                 status, body = submit(c, h, {"integrator": "auto", "choice": choice})
                 results.append(verdict(f"settings.choice {what}", status == 400, f"{status} {body[:150]}"))
+            c = revive(c)
             # 5. A link out of the scene folder.
             d = os.path.join(work, "leak")
             os.makedirs(d)
@@ -211,9 +244,11 @@ def main():
             code, last = render(binary, d)
             results.append(verdict("mesh linked from outside the scene folder (tessera render)", clean_error(code),
                                    f"exit {code}: {last[:150]}"))
+            c = revive(c)
             # 7. A frame too large to fold.
             status, body = submit(c, h, {"size": [16384, 16384]})
             results.append(verdict("a 16384x16384 frame", status == 400, f"{status} {body[:200]}"))
+            c = revive(c)
             # 9. Half-sent headers; the job store's mode.
             s = socket.create_connection(("127.0.0.1", c.port))
             s.sendall(b"GET /healthz HTTP/1.1\r\nHost: x\r\n")
