@@ -124,11 +124,8 @@ impl Bundle {
     /// Bundles the scene at `path` (a scene.json) with exactly the files it reads, after
     /// validating it as the coordinator will. Returns the bundle and the scene's file name.
     pub fn pack_scene(path: &Path) -> Result<(Bundle, SceneDesc, String), SceneError> {
-        let dir = path.parent().unwrap_or(Path::new("."));
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "scene.json".into());
+        let (dir, name) = tessera_scene::source::scene_folder(path);
+        let name = name.to_string_lossy().into_owned();
         let recording = Recording {
             inner: DirSource::new(dir),
             files: Mutex::new(BTreeMap::new()),

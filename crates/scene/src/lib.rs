@@ -30,9 +30,8 @@ pub use source::{DirSource, SceneSource};
 /// Loads and validates the scene file at `path` (a `scene.json`); referenced files are
 /// resolved relative to its folder and may not leave it.
 pub fn load(path: &Path) -> Result<SceneDesc, SceneError> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let name = path.file_name().map(Path::new).unwrap_or(path);
-    resolve::load(&DirSource::new(dir), name)
+    let (dir, name) = source::scene_folder(path);
+    resolve::load(&DirSource::new(dir), &name)
 }
 
 /// Loads and validates the scene file `name` from any [`SceneSource`] (e.g. an uploaded bundle).

@@ -53,6 +53,18 @@ impl SceneSource for DirSource {
     }
 }
 
+/// The folder and file name of the scene file at `path`, its own link followed (the scene
+/// file names its folder; the files it references must lie inside that folder). A path that
+/// cannot be resolved is split as given, for the loader to report.
+pub fn scene_folder(path: &Path) -> (PathBuf, PathBuf) {
+    let real = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
+    let dir = real
+        .parent()
+        .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
+    let name = real.file_name().map_or_else(|| real.clone(), PathBuf::from);
+    (dir, name)
+}
+
 /// Normalises a path given in a scene file and checks that it stays inside the scene folder:
 /// no absolute paths, no drive prefixes, no `..` that climbs above the folder.
 /// Returns the normalised relative path, or what was expected.
@@ -138,5 +150,13 @@ mod tests {
         );
         std::os::unix::fs::symlink("/dev/zero", scene.path().join("zero.obj")).expect("link");
         assert!(source.read(Path::new("zero.obj")).is_err());
+        // The scene file's own link names its folder: the real one.
+        let elsewhere = tempfile::tempdir().expect("dir");
+        std::fs::write(scene.path().join("scene.json"), "{}").expect("write");
+        let link = elsewhere.path().join("linked.json");
+        std::os::unix::fs::symlink(scene.path().join("scene.json"), &link).expect("link");
+        let (dir, name) = scene_folder(&link);
+        assert_eq!(dir, scene.path().canonicalize().expect("real"));
+        assert_eq!(name, Path::new("scene.json"));
     }
 }
