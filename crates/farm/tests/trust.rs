@@ -215,7 +215,7 @@ async fn uploads_whose_headers_claim_more_than_they_hold_are_refused() {
         assert!(e.contains("no file"), "{e}");
     }
 
-    // An environment image of 30 KB whose header claims 60000×60000 pixels: refused when the
+    // A small environment image whose header claims 60000×60000 pixels: refused when the
     // job is validated, naming the file, the claim and the limit.
     let scene = SCENE.replace(
         r#""units": "m","#,

@@ -117,7 +117,7 @@ pub(super) async fn heartbeat(
 /// is another worker's (403).
 fn not_holder(app: &App, task: i64, lease: i64, worker: &str) -> AppResult<AppError> {
     Ok(match app.store.lease_holder(task, lease)? {
-        Some(holder) if holder != worker => AppError::new(
+        Some((_, holder)) if holder != worker => AppError::new(
             StatusCode::FORBIDDEN,
             format!("lease {lease} of task {task} is held by worker {holder}, not {worker}"),
         ),
@@ -313,13 +313,12 @@ pub(super) async fn fail_task(
     body: Result<Json<Failure>, JsonRejection>,
 ) -> AppResult<StatusCode> {
     let Json(f) = body?;
-    if let Some(holder) = app.store.lease_holder(id, f.lease)?
-        && holder != f.worker
-    {
+    let holder = app.store.lease_holder(id, f.lease)?;
+    if holder.as_ref().is_some_and(|(_, w)| *w != f.worker) {
         return Err(not_holder(&app, id, f.lease, &f.worker)?);
     }
     app.metrics.failed.fetch_add(1, Relaxed);
-    let job = app.store.current_lease(id, f.lease)?.map(|(job, _)| job);
+    let job = holder.map(|(job, _)| job);
     let outcome = if f.permanent {
         app.store
             .fail_permanently(id, f.lease, &f.error, now_ms())?

@@ -227,17 +227,16 @@ impl Store {
         Ok(n == 1)
     }
 
-    /// The worker holding a current lease.
-    pub fn lease_holder(&self, task: i64, lease: i64) -> Result<Option<String>> {
-        Ok(self
-            .conn()?
+    /// The job and the worker of a current lease.
+    pub fn lease_holder(&self, task: i64, lease: i64) -> Result<Option<(i64, String)>> {
+        self.conn()?
             .query_row(
-                "SELECT worker FROM tasks WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
+                "SELECT job_id, COALESCE(worker, '') FROM tasks
+                 WHERE id = ?1 AND lease = ?2 AND state = 'leased'",
                 params![task, lease],
-                |r| r.get(0),
+                |r| Ok((r.get(0)?, r.get(1)?)),
             )
-            .optional()?
-            .flatten())
+            .optional()
     }
 
     /// The task a lease is for, if the lease is current: (job, spec).

@@ -216,8 +216,11 @@ impl Method for MetropolisMethod {
     }
 
     fn fold(&self, f: &mut MetroFrame, task: &TaskSpec, p: MetroPartial) -> Result<(), String> {
-        Method::fits(self, task, &p)?;
+        if let MetroPartial::Chains { .. } = p {
+            Method::fits(self, task, &p)?;
+        }
         match p {
+            // The ranges' fold checks its own result.
             MetroPartial::Direct(d) => self.ranges.fold(&mut f.direct, task, d),
             MetroPartial::Chains {
                 splats,
