@@ -170,16 +170,16 @@ fn lying_exr(side: i32) -> Vec<u8> {
         pos = type_end + 5 + size as usize;
     }
     let header_end = pos + 1;
-    let window = attrs[&b"dataWindow".to_vec()];
+    let window = attrs[b"dataWindow".as_slice()];
     data[window + 8..window + 12].copy_from_slice(&(side - 1).to_le_bytes());
     data[window + 12..window + 16].copy_from_slice(&(side - 1).to_le_bytes());
-    let lines = match data[attrs[&b"compression".to_vec()]] {
+    let lines = match data[attrs[b"compression".as_slice()]] {
         3 | 5 => 16,
         4 | 6 | 7 => 32,
         _ => 1,
     };
     let (old_chunks, new_chunks) = (4usize.div_ceil(lines), (side as usize).div_ceil(lines));
-    if let Some(&at) = attrs.get(&b"chunkCount".to_vec()) {
+    if let Some(&at) = attrs.get(b"chunkCount".as_slice()) {
         data[at..at + 4].copy_from_slice(&(new_chunks as i32).to_le_bytes());
     }
     let first = u64::from_le_bytes(data[header_end..header_end + 8].try_into().expect("offset"));
