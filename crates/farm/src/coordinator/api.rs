@@ -80,7 +80,12 @@ impl utoipa::Modify for MethodNames {
 pub(super) const JSON_LIMIT: usize = 1 << 20;
 
 /// Middleware: a request whose `Content-Length` claims more than `limit` bytes is refused
-/// (413) before any of its body is read; `flag` names the setting that raises the limit.
+/// (413) before its body is believed; `flag` names the setting that raises the limit.
+///
+/// The refusal lingers as nginx's `lingering_close` does: up to [`LINGER_BYTES`] of the body
+/// are read and dropped, for at most [`LINGER`], before the response and the close. A client
+/// that sent a little too much then reads the 413 and its message; closing at once with its
+/// body unread resets the connection, and the client sees a broken pipe instead.
 async fn claimed_length(
     State((limit, flag)): State<(u64, &'static str)>,
     request: axum::extract::Request,
@@ -92,17 +97,41 @@ async fn claimed_length(
         .and_then(|v| v.to_str().ok())
         .and_then(|v| v.parse::<u64>().ok());
     match claimed {
-        Some(n) if n > limit => AppError::new(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            format!(
-                "the request claims a body of {}; this endpoint takes at most {}{flag}",
-                human_size(n),
-                human_size(limit)
-            ),
-        )
-        .into_response(),
+        Some(n) if n > limit => {
+            if n <= LINGER_BYTES {
+                linger(request.into_body()).await;
+            }
+            let mut response = AppError::new(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!(
+                    "the request claims a body of {}; this endpoint takes at most {}{flag}",
+                    human_size(n),
+                    human_size(limit)
+                ),
+            )
+            .into_response();
+            response
+                .headers_mut()
+                .insert(header::CONNECTION, header::HeaderValue::from_static("close"));
+            response
+        }
         _ => next.run(request).await,
     }
+}
+
+/// The most of a refused body read before answering (bodies claiming more are answered at once).
+const LINGER_BYTES: u64 = 16 << 20;
+/// The longest a refused body is read before answering.
+const LINGER: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// Reads and drops `body` until it ends, fails or [`LINGER`] passes; one frame at a time.
+async fn linger(body: axum::body::Body) {
+    use futures_util::StreamExt;
+    let mut chunks = body.into_data_stream();
+    let _ = tokio::time::timeout(LINGER, async {
+        while let Some(Ok(_)) = chunks.next().await {}
+    })
+    .await;
 }
 
 pub fn router(app: Arc<App>) -> axum::Router {
