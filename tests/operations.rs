@@ -274,4 +274,42 @@ fn every_farm_command_works_over_tls_with_a_self_signed_certificate() {
     let w = &workers[0].id;
     assert!(ok(cli(&config, &["drain", w])).contains("draining"));
     assert!(ok(cli(&config, &["undrain", w])).contains("takes work"));
+
+    // Users: an artist's token reads the farm but may not steer the admin's job; revoked, it
+    // is refused.
+    let out = ok(cli(&config, &["users", "add", "ana", "--role", "artist"]));
+    let ana = out
+        .lines()
+        .last()
+        .expect("the token line")
+        .trim()
+        .to_string();
+    assert!(
+        out.contains("added ana (artist)") && ana.len() >= 32,
+        "{out}"
+    );
+    let listing = ok(cli(&config, &["users", "list"]));
+    assert!(
+        listing
+            .lines()
+            .any(|l| l.starts_with("ana ") && l.contains("artist")),
+        "{listing}"
+    );
+    let as_ana = |args: &[&str]| cli(&config, &[args, &["--token", &ana]].concat());
+    assert!(ok(as_ana(&["jobs"])).contains(&format!("{first} ")));
+    let refused = as_ana(&["delete", &first.to_string()]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && err.contains("403"), "{err}");
+    assert!(ok(cli(&config, &["users", "revoke", "ana"])).contains("revoked ana"));
+    let refused = as_ana(&["jobs"]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success() && err.contains("401"), "{err}");
+    let unknown = cli(&config, &["users", "add", "bob", "--role", "boss"]);
+    assert!(
+        !unknown.status.success()
+            && String::from_utf8_lossy(&unknown.stderr)
+                .contains("expected admin, artist, viewer or worker"),
+        "{}",
+        String::from_utf8_lossy(&unknown.stderr)
+    );
 }

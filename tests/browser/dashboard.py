@@ -140,12 +140,13 @@ def run(farm, page, out):
     page.screenshot(path=str(out / "login.png"))
     page.fill("#token", "not-the-token")
     page.click("button[type=submit]")
-    expect(page.locator(".error")).to_contain_text("not this coordinator's client token")
+    expect(page.locator(".error")).to_contain_text("not a person's token of this coordinator")
     page.screenshot(path=str(out / "login-failed.png"))
     page.fill("#token", CLIENT)
     page.click("button[type=submit]")
     expect(page).to_have_url(re.compile(r"/$"))
     expect(page.locator("#live")).to_have_text("live")
+    expect(page.locator("#whoami")).to_have_text("admin (admin)")
 
     # A long job to watch, two to reorder, one to cancel, one to finish and delete.
     step("submit jobs")
@@ -156,6 +157,8 @@ def run(farm, page, out):
     rows = page.locator("#jobs tbody tr")
     expect(rows).to_have_count(4)
     expect(page.locator(f"tr[data-job='{watched}'] .badge")).to_have_text(re.compile("running|queued"))
+    # Who submitted each job: the client token's user.
+    expect(page.locator(f"tr[data-job='{watched}'] td.submitter")).to_have_text("admin")
     page.screenshot(path=str(out / "jobs.png"), full_page=True)
 
     # The queue order: raising the second job's priority puts it before the first.

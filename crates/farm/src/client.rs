@@ -190,6 +190,27 @@ impl Client {
         Ok(r.bytes().await?.to_vec())
     }
 
+    /// Every user (admins only).
+    pub async fn users(&self) -> anyhow::Result<Vec<User>> {
+        self.json(self.request(reqwest::Method::GET, "/v1/users"))
+            .await
+    }
+
+    /// Adds a user; the answer holds its token, shown only this once.
+    pub async fn add_user(&self, user: &NewUser) -> anyhow::Result<AddedUser> {
+        self.json(self.request(reqwest::Method::POST, "/v1/users").json(user))
+            .await
+    }
+
+    /// Revokes a user's token.
+    pub async fn revoke_user(&self, name: &str) -> anyhow::Result<User> {
+        self.json(self.request(
+            reqwest::Method::DELETE,
+            &format!("/v1/users/{}", urlencoding::encode(name)),
+        ))
+        .await
+    }
+
     pub async fn submit(&self, job: &JobRequest) -> anyhow::Result<JobStatus> {
         self.json(self.request(reqwest::Method::POST, "/v1/jobs").json(job))
             .await

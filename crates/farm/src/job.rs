@@ -3,6 +3,7 @@
 //! so a frame is the same file wherever it was made. Nothing here knows one rendering method
 //! from another: they are the core's registry's ([`tessera_render::method`]).
 
+use std::io::Read;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -542,4 +543,46 @@ pub(crate) mod tests {
         on_path.integrator = Some("path".into());
         assert!(run(on_path).unwrap_err().contains("replays `auto`"));
     }
+}
+
+/// Checks a task's result stream before it is kept: a whole wire stream of the task's step
+/// schema, naming `spec`, whose value fits the task (its tile's size, its pass's shape) and
+/// after which nothing follows. Returns the payload's length in bytes.
+pub fn check_result(plan: &dyn Plan, spec: &TaskSpec, stream: impl Read) -> anyhow::Result<u64> {
+    let passes = plan.passes();
+    let pass = match spec.is_pass() {
+        true => Some(
+            *passes
+                .get(spec.step as usize)
+                .ok_or_else(|| anyhow::anyhow!("the job has no pass {}", spec.step))?,
+        ),
+        false => None,
+    };
+    let schema = pass.map_or_else(|| plan.schema(), |p| p.schema());
+    let (mut reader, header) = tessera_render::wire::Reader::new(stream)?;
+    if header.what != "result" || header.schema != schema {
+        anyhow::bail!(
+            "expected a result of schema {schema}, got a {} of schema {}",
+            header.what,
+            header.schema
+        );
+    }
+    if header.task.as_ref() != Some(spec) {
+        anyhow::bail!(
+            "the result names task {:?}, the lease is for {spec:?}",
+            header.task
+        );
+    }
+    let value = match pass {
+        Some(p) => p.decode(&mut reader),
+        None => plan.decode(&mut reader),
+    }?;
+    plan.fits(spec, value.as_ref())
+        .map_err(|e| anyhow::anyhow!("does not fit its task: {e}"))?;
+    let payload = reader.payload_len();
+    let mut rest = reader.finish()?;
+    if rest.read(&mut [0u8; 1])? != 0 {
+        anyhow::bail!("bytes follow the end of the result's wire stream");
+    }
+    Ok(payload)
 }

@@ -176,6 +176,10 @@ pub struct JobStatus {
     /// Workers that may not run its tasks any more, having failed them too often.
     #[serde(default)]
     pub blocklist: Vec<Blocklisted>,
+    /// Who submitted it (the name of the token's user; `admin` for the coordinator's own
+    /// client token).
+    #[serde(default)]
+    pub submitter: Option<String>,
 }
 
 /// A worker blocklisted for a job.
@@ -455,4 +459,100 @@ pub struct MethodStatus {
     pub spp: String,
     /// Scene settings (`integrator.…`) it reads besides spp, depth and seed.
     pub params: Vec<String>,
+}
+
+/// Checks a list of worker tags: at most 32, each 1 to 64 letters, digits, `-`, `_` or `.`.
+pub fn check_tags(tags: &[String], field: &str) -> Result<(), String> {
+    if tags.len() > 32 {
+        return Err(format!(
+            "{field}: expected at most 32 tags, got {}",
+            tags.len()
+        ));
+    }
+    for t in tags {
+        let ok = !t.is_empty()
+            && t.len() <= 64
+            && t.chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'));
+        if !ok {
+            return Err(format!(
+                "{field}: expected tags of 1 to 64 letters, digits, '-', '_' or '.', got \"{t}\""
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// What a token may do (see docs/roles.md, the route-by-role table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    /// Everything a person does: every job, the farm's workers, its users.
+    Admin,
+    /// Submits jobs; steers and downloads its own; reads everything.
+    Artist,
+    /// Reads: jobs, their progress and previews, workers.
+    Viewer,
+    /// A worker: leases tasks and uploads their results.
+    Worker,
+}
+
+impl Role {
+    pub const ALL: [Role; 4] = [Role::Admin, Role::Artist, Role::Viewer, Role::Worker];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Role::Admin => "admin",
+            Role::Artist => "artist",
+            Role::Viewer => "viewer",
+            Role::Worker => "worker",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Role> {
+        Role::ALL.into_iter().find(|r| r.as_str() == s)
+    }
+}
+
+/// A user (or a worker) with a token of its own.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct User {
+    pub name: String,
+    pub role: Role,
+    /// Milliseconds since the Unix epoch.
+    pub created_ms: i64,
+    /// When its token was revoked; it is refused from then on.
+    pub revoked_ms: Option<i64>,
+}
+
+/// A user to add (`POST /v1/users`).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct NewUser {
+    /// 1 to 64 letters, digits, `-`, `_` or `.`; for a worker, the name it runs under
+    /// (`tessera worker --name`).
+    pub name: String,
+    pub role: Role,
+}
+
+/// A user just added, with its token: shown once, kept only as a hash.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct AddedUser {
+    pub user: User,
+    pub token: String,
+}
+
+/// Checks a user's name: 1 to 64 letters, digits, `-`, `_` or `.`.
+pub fn check_user_name(name: &str) -> Result<(), String> {
+    let ok = !name.is_empty()
+        && name.len() <= 64
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'));
+    match ok {
+        true => Ok(()),
+        false => Err(format!(
+            "name: expected 1 to 64 letters, digits, '-', '_' or '.', got \"{name}\""
+        )),
+    }
 }

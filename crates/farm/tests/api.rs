@@ -240,7 +240,7 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
     let unauthorized = StatusCode::UNAUTHORIZED;
     let bad = StatusCode::BAD_REQUEST;
 
-    // Tokens: none, wrong, and the worker's token on a client endpoint.
+    // Tokens: none, wrong (401), and the other role's (403, saying who may).
     api.expect(c.get(api.url("/v1/jobs")), unauthorized, &["missing token"])
         .await;
     api.expect(
@@ -251,16 +251,16 @@ async fn bad_requests_get_4xx_json_errors_and_the_server_keeps_serving() {
     .await;
     api.expect(
         c.get(api.url("/v1/jobs")).bearer_auth(WORKER),
-        unauthorized,
-        &["client token"],
+        StatusCode::FORBIDDEN,
+        &["is a worker", "admins, artists and viewers may"],
     )
     .await;
     api.expect(
         c.post(api.url("/v1/tasks/lease"))
             .bearer_auth(CLIENT)
             .body("{}"),
-        unauthorized,
-        &["worker token"],
+        StatusCode::FORBIDDEN,
+        &["admin is an admin", "workers may"],
     )
     .await;
 

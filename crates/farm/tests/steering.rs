@@ -330,7 +330,7 @@ async fn the_dashboard_logs_in_with_a_cookie_checks_csrf_and_logs_out() {
         r.text()
             .await
             .expect("html")
-            .contains("not this coordinator")
+            .contains("token of this coordinator")
     );
     // The right one: an HttpOnly, SameSite=Strict session cookie, never the token itself.
     let r = http

@@ -212,6 +212,7 @@ class JobsView {
       return h("tr", { dataset: { job: j.id } },
         h("td", { class: "num mono" }, j.id),
         h("td", {}, h("a", { href: `/jobs/${j.id}`, "data-link": true }, j.name)),
+        h("td", { class: "submitter" }, j.submitter || "—"),
         h("td", {}, badge(j.state)),
         h("td", {}, progress(j.progress, j.state)),
         h("td", {}, h("div", { class: "priority" }, h("span", { class: "mono", dataset: { priority: j.priority } }, j.priority), up, down)),
@@ -223,7 +224,7 @@ class JobsView {
         h("td", { class: "actions" }, jobActions(j, true)));
     });
     this.body.replaceChildren(h("div", { class: "table-wrap" }, h("table", { id: "jobs" },
-      h("thead", {}, h("tr", {}, ["ID", "Name", "State", "Progress", "Priority", "Method", "Frames", "Size", "Elapsed", "ETA", ""].map((t) => h("th", {}, t)))),
+      h("thead", {}, h("tr", {}, ["ID", "Name", "Submitter", "State", "Progress", "Priority", "Method", "Frames", "Size", "Elapsed", "ETA", ""].map((t) => h("th", {}, t)))),
       h("tbody", {}, rows))));
     const from = this.offset + 1, to = this.offset + list.jobs.length;
     this.pager.replaceChildren(
@@ -403,7 +404,7 @@ class JobView {
       h("dt", {}, "Bundle"), h("dd", { class: "mono" }, j.bundle.slice(0, 16) + "…"),
       h("dt", {}, "Frames"), h("dd", {}, `${j.frames.first}–${j.frames.last}`),
       h("dt", {}, "Requires"), h("dd", {}, j.require_tags.length ? j.require_tags.map((t) => h("span", { class: "tag" }, t)) : "any worker"),
-      h("dt", {}, "Submitted"), h("dd", {}, when(j.created_ms)),
+      h("dt", {}, "Submitted"), h("dd", {}, when(j.created_ms), j.submitter ? ` by ${j.submitter}` : ""),
       h("dt", {}, "Finished"), h("dd", {}, when(j.finished_ms)));
     this.details.replaceChildren(
       h("div", { class: "panel" }, h("h2", {}, "Decisions"), h("ul", { class: "plain", id: "decisions" }, j.decisions.map((d) => h("li", {}, d)))),
@@ -527,6 +528,7 @@ document.addEventListener("DOMContentLoaded", async () => {
     const s = await api("/v1/session");
     app.csrf = s.csrf;
     document.getElementById("logout-csrf").value = s.csrf;
+    document.getElementById("whoami").textContent = `${s.user} (${s.role})`;
   } catch (e) {
     location.href = "/login";
     return;

@@ -7,6 +7,7 @@ mod farm;
 mod reference;
 mod remote;
 mod render;
+mod users;
 
 use std::process::ExitCode;
 
@@ -65,6 +66,8 @@ enum Command {
     Drain(remote::DrainArgs),
     /// Let a drained worker take work again.
     Undrain(remote::DrainArgs),
+    /// A coordinator's users and their tokens: add, list, revoke (an admin's token).
+    Users(users::UsersArgs),
     /// List the rendering methods (`--integrator`, `integrator.type`).
     Methods,
     /// Measure: speed against error for a scene (or `bench farm`, `bench leases`).
@@ -122,6 +125,7 @@ fn main() -> ExitCode {
         Command::Delete(args) => block_on(remote::act(remote::Action::Delete, args)),
         Command::Download(args) => block_on(remote::download(args)),
         Command::Workers(args) => block_on(remote::workers(args)),
+        Command::Users(args) => block_on(users::run(args)),
         Command::Drain(args) => block_on(remote::drain(args, true)),
         Command::Undrain(args) => block_on(remote::drain(args, false)),
         Command::Methods => farm::methods(),

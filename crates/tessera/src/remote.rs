@@ -18,7 +18,8 @@ pub struct Remote {
     /// (the next is used when one cannot be reached).
     #[arg(long, env = "TESSERA_COORDINATOR")]
     pub coordinator: Option<String>,
-    /// The client token.
+    /// A person's token: the coordinator's client token (an admin) or a user's (`tessera
+    /// users add`).
     #[arg(long, env = "TESSERA_CLIENT_TOKEN", hide_env_values = true)]
     pub token: Option<String>,
     /// A private certificate authority to trust (PEM), for an https:// coordinator whose
@@ -172,7 +173,7 @@ fn width() -> usize {
 }
 
 /// A table whose column `flex` (the name) is cut to fit the terminal.
-fn table(header: &[&str], rows: Vec<Vec<String>>, flex: usize) -> String {
+pub(crate) fn table(header: &[&str], rows: Vec<Vec<String>>, flex: usize) -> String {
     let n = header.len();
     let mut widths: Vec<usize> = header.iter().map(|h| h.chars().count()).collect();
     for r in &rows {
@@ -212,7 +213,7 @@ fn table(header: &[&str], rows: Vec<Vec<String>>, flex: usize) -> String {
 }
 
 /// A duration in the unit that reads best.
-fn duration(ms: i64) -> String {
+pub(crate) fn duration(ms: i64) -> String {
     let s = ms.max(0) / 1000;
     match s {
         s if s < 60 => format!("{s}s"),

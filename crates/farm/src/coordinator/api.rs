@@ -3,22 +3,22 @@
 
 use std::sync::Arc;
 
-use axum::Json;
 use axum::body::Bytes;
 use axum::extract::rejection::{BytesRejection, JsonRejection};
 use axum::extract::{DefaultBodyLimit, Path, Query, State};
 use axum::http::{StatusCode, header};
 use axum::middleware;
 use axum::response::{IntoResponse, Response};
+use axum::{Extension, Json};
 use utoipa::OpenApi;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_axum::routes;
 
-use super::auth::{Who, require_token};
+use super::auth::{Access, Caller, authorize};
 use super::error::json_errors;
 use super::tasks::*;
 use super::{App, AppError, AppResult, now_ms};
-use super::{events, ops, web};
+use super::{events, ops, users, web};
 use crate::bundle::{self, Bundle};
 use crate::job::{self, FrameRange};
 use crate::protocol::*;
@@ -110,9 +110,10 @@ async fn claimed_length(
                 ),
             )
             .into_response();
-            response
-                .headers_mut()
-                .insert(header::CONNECTION, header::HeaderValue::from_static("close"));
+            response.headers_mut().insert(
+                header::CONNECTION,
+                header::HeaderValue::from_static("close"),
+            );
             response
         }
         _ => next.run(request).await,
@@ -135,12 +136,12 @@ async fn linger(body: axum::body::Body) {
 }
 
 pub fn router(app: Arc<App>) -> axum::Router {
-    let auth = |who: Who| middleware::from_fn_with_state((app.clone(), who), require_token);
+    let auth = |access: Access| middleware::from_fn_with_state((app.clone(), access), authorize);
     let claimed = |limit: u64, flag: &'static str| {
         middleware::from_fn_with_state((limit, flag), claimed_length)
     };
     let json = || claimed(JSON_LIMIT as u64, "");
-    let clients = OpenApiRouter::new()
+    let jobs = OpenApiRouter::new()
         .routes(routes!(submit_job, ops::list_jobs))
         .routes(routes!(job_status, delete_job, ops::patch_job))
         .routes(routes!(job_tasks))
@@ -149,8 +150,14 @@ pub fn router(app: Arc<App>) -> axum::Router {
         .routes(routes!(ops::pause_job))
         .routes(routes!(ops::resume_job))
         .routes(routes!(ops::requeue_job))
-        .routes(routes!(frame_exr))
         .routes(routes!(frame_preview))
+        .layer(DefaultBodyLimit::max(JSON_LIMIT))
+        .layer(json())
+        .route_layer(auth(Access::Jobs));
+    let frames = OpenApiRouter::new()
+        .routes(routes!(frame_exr))
+        .route_layer(auth(Access::OwnFrames));
+    let farm = OpenApiRouter::new()
         .routes(routes!(list_workers))
         .routes(routes!(ops::drain_worker))
         .routes(routes!(ops::undrain_worker))
@@ -160,7 +167,13 @@ pub fn router(app: Arc<App>) -> axum::Router {
         .routes(routes!(web::session))
         .layer(DefaultBodyLimit::max(JSON_LIMIT))
         .layer(json())
-        .route_layer(auth(Who::Client));
+        .route_layer(auth(Access::Farm));
+    let users = OpenApiRouter::new()
+        .routes(routes!(users::list_users, users::add_user))
+        .routes(routes!(users::revoke_user))
+        .layer(DefaultBodyLimit::max(JSON_LIMIT))
+        .layer(json())
+        .route_layer(auth(Access::Admin));
     let upload = OpenApiRouter::new()
         .routes(routes!(upload_bundle))
         .layer(DefaultBodyLimit::max(app.config.max_upload))
@@ -168,19 +181,19 @@ pub fn router(app: Arc<App>) -> axum::Router {
             app.config.max_upload as u64,
             " (this coordinator's upload limit for a scene bundle; raise it with `tessera serve --max-upload-mib`)",
         ))
-        .route_layer(auth(Who::Client));
+        .route_layer(auth(Access::Submit));
     let download = OpenApiRouter::new()
         .routes(routes!(download_bundle))
         .routes(routes!(download_artifact))
         .routes(routes!(step_input))
-        .route_layer(auth(Who::Either));
+        .route_layer(auth(Access::Fetch));
     let workers = OpenApiRouter::new()
         .routes(routes!(lease_task))
         .routes(routes!(heartbeat))
         .routes(routes!(fail_task))
         .layer(DefaultBodyLimit::max(JSON_LIMIT))
         .layer(json())
-        .route_layer(auth(Who::Worker));
+        .route_layer(auth(Access::Work));
     // Results stream to disk under their own limit (`--max-result-mib`).
     let results = OpenApiRouter::new()
         .routes(routes!(upload_result))
@@ -189,12 +202,15 @@ pub fn router(app: Arc<App>) -> axum::Router {
             app.config.max_result,
             " (this coordinator's limit for a task result; raise it with `tessera serve --max-result-mib`)",
         ))
-        .route_layer(auth(Who::Worker));
+        .route_layer(auth(Access::Work));
     let open = OpenApiRouter::new()
         .routes(routes!(healthz))
         .routes(routes!(metrics));
     let (router, api) = OpenApiRouter::with_openapi(ApiDoc::openapi())
-        .merge(clients)
+        .merge(jobs)
+        .merge(frames)
+        .merge(farm)
+        .merge(users)
         .merge(upload)
         .merge(download)
         .merge(workers)
@@ -285,10 +301,11 @@ async fn download_bundle(
     security(("token" = [])))]
 async fn submit_job(
     State(app): State<Arc<App>>,
+    Extension(caller): Extension<Caller>,
     body: Result<Json<JobRequest>, JsonRejection>,
 ) -> AppResult<(StatusCode, Json<JobStatus>)> {
     let Json(req) = body?;
-    ops::check_tags(&req.require_tags, "require_tags").map_err(AppError::bad_request)?;
+    check_tags(&req.require_tags, "require_tags").map_err(AppError::bad_request)?;
     if !bundle::is_hash(&req.bundle) || !app.store.bundle_exists(&req.bundle)? {
         return Err(AppError::bad_request(format!(
             "bundle: expected the hash of an uploaded bundle (POST /v1/bundles), got \"{}\"",
@@ -390,12 +407,13 @@ async fn submit_job(
             tasks,
             passes: new_passes,
             require_tags: req.require_tags.clone(),
+            submitter: Some(caller.name),
         })
     })
     .await??;
     let id = app.store.insert_job(&new, now_ms())?;
     let tasks: usize = new.tasks.iter().map(Vec::len).sum();
-    tracing::info!(job = id, name = %new.name, method = %new.method, frames = %new.frames, tasks, "job queued");
+    tracing::info!(job = id, name = %new.name, method = %new.method, frames = %new.frames, tasks, submitter = new.submitter.as_deref().unwrap_or(""), "job queued");
     app.wake_workers();
     app.emit(Event::Job { id });
     let status = app

@@ -20,6 +20,7 @@ mod ops;
 mod supervisor;
 mod tasks;
 pub mod timeouts;
+mod users;
 mod web;
 
 use std::collections::HashMap;

@@ -17,28 +17,6 @@ use crate::store::JobFilter;
 /// Most jobs one page of the list holds.
 const MAX_PAGE: u64 = 1000;
 
-/// Checks a list of worker tags: at most 32, each 1 to 64 letters, digits, `-`, `_` or `.`.
-pub fn check_tags(tags: &[String], field: &str) -> Result<(), String> {
-    if tags.len() > 32 {
-        return Err(format!(
-            "{field}: expected at most 32 tags, got {}",
-            tags.len()
-        ));
-    }
-    for t in tags {
-        let ok = !t.is_empty()
-            && t.len() <= 64
-            && t.chars()
-                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'));
-        if !ok {
-            return Err(format!(
-                "{field}: expected tags of 1 to 64 letters, digits, '-', '_' or '.', got \"{t}\""
-            ));
-        }
-    }
-    Ok(())
-}
-
 #[derive(Deserialize, utoipa::IntoParams)]
 pub(super) struct JobsQuery {
     /// Only jobs in these states, comma-separated (queued, running, paused, done, failed,

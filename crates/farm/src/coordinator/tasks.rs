@@ -5,17 +5,18 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::{Duration, Instant};
 
-use axum::Json;
 use axum::body::Body;
 use axum::extract::rejection::{JsonRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
+use axum::{Extension, Json};
 use futures_util::StreamExt;
 use serde::Deserialize;
 use tokio::io::AsyncWriteExt;
 
 use super::api::send_object;
+use super::auth::Caller;
 use super::{App, AppError, AppResult, now_ms};
 use crate::bundle;
 use crate::job::TaskSpec;
@@ -29,10 +30,20 @@ use crate::store::{Completion, Retry};
     security(("token" = [])))]
 pub(super) async fn lease_task(
     State(app): State<Arc<App>>,
+    Extension(caller): Extension<Caller>,
     body: Result<Json<LeaseRequest>, JsonRejection>,
 ) -> AppResult<Response> {
     let Json(req) = body?;
-    super::ops::check_tags(&req.worker.tags, "worker.tags").map_err(AppError::bad_request)?;
+    if !caller.may_act_as(&req.worker.name) {
+        return Err(AppError::new(
+            StatusCode::FORBIDDEN,
+            format!(
+                "worker.name: this token is worker {}'s, and the request names worker {}",
+                caller.name, req.worker.name
+            ),
+        ));
+    }
+    check_tags(&req.worker.tags, "worker.tags").map_err(AppError::bad_request)?;
     // Its results would not decode here (or, with a layout of the same shape, decode wrong).
     let wire = tessera_render::wire::VERSION;
     if req.worker.wire != wire {
@@ -95,10 +106,12 @@ fn stale(task: i64, lease: i64) -> AppError {
     responses((status = 200, body = Heartbeat), (status = 409, body = ErrorBody)), security(("token" = [])))]
 pub(super) async fn heartbeat(
     State(app): State<Arc<App>>,
+    Extension(caller): Extension<Caller>,
     Path(id): Path<i64>,
     body: Result<Json<Heartbeat>, JsonRejection>,
 ) -> AppResult<Json<Heartbeat>> {
     let Json(hb) = body?;
+    acts_as(&app, &caller, &hb.worker)?;
     if app.store.heartbeat(
         id,
         hb.lease,
@@ -110,6 +123,26 @@ pub(super) async fn heartbeat(
         Ok(Json(hb))
     } else {
         Err(not_holder(&app, id, hb.lease, &hb.worker)?)
+    }
+}
+
+/// Refuses a worker's own token acting for a worker process registered under another name
+/// (the coordinator's shared worker token acts for any).
+fn acts_as(app: &App, caller: &Caller, worker_id: &str) -> AppResult<()> {
+    if !caller.bound {
+        return Ok(());
+    }
+    match app.store.worker_name(worker_id)? {
+        Some(name) if caller.may_act_as(&name) => Ok(()),
+        name => Err(AppError::new(
+            StatusCode::FORBIDDEN,
+            format!(
+                "this token is worker {}'s, and worker {worker_id} runs as {}",
+                caller.name,
+                name.as_deref()
+                    .unwrap_or("no worker this coordinator knows")
+            ),
+        )),
     }
 }
 
@@ -144,46 +177,9 @@ fn check_result(
     spec: &TaskSpec,
     path: &std::path::Path,
 ) -> anyhow::Result<u64> {
-    use std::io::Read;
     let plan = app.job_plan(job)?;
-    let passes = plan.plan.passes();
-    let pass = match spec.is_pass() {
-        true => Some(
-            *passes
-                .get(spec.step as usize)
-                .ok_or_else(|| anyhow::anyhow!("job {job} has no pass {}", spec.step))?,
-        ),
-        false => None,
-    };
-    let schema = pass.map_or_else(|| plan.plan.schema(), |p| p.schema());
     let file = std::fs::File::open(path)?;
-    let (mut reader, header) = tessera_render::wire::Reader::new(std::io::BufReader::new(file))?;
-    if header.what != "result" || header.schema != schema {
-        anyhow::bail!(
-            "expected a result of schema {schema}, got a {} of schema {}",
-            header.what,
-            header.schema
-        );
-    }
-    if header.task.as_ref() != Some(spec) {
-        anyhow::bail!(
-            "the result names task {:?}, the lease is for {spec:?}",
-            header.task
-        );
-    }
-    let value = match pass {
-        Some(p) => p.decode(&mut reader),
-        None => plan.plan.decode(&mut reader),
-    }?;
-    plan.plan
-        .fits(spec, value.as_ref())
-        .map_err(|e| anyhow::anyhow!("does not fit its task: {e}"))?;
-    let payload = reader.payload_len();
-    let mut rest = reader.finish()?;
-    if rest.read(&mut [0u8; 1])? != 0 {
-        anyhow::bail!("bytes follow the end of the result's wire stream");
-    }
-    Ok(payload)
+    crate::job::check_result(plan.plan.as_ref(), spec, std::io::BufReader::new(file))
 }
 
 /// Upload a task's result: a wire stream (versioned, chunked, zstd-compressed, CRC-checked)
@@ -196,11 +192,15 @@ fn check_result(
     security(("token" = [])))]
 pub(super) async fn upload_result(
     State(app): State<Arc<App>>,
+    Extension(caller): Extension<Caller>,
     Path(id): Path<i64>,
     query: Result<Query<ResultQuery>, QueryRejection>,
     body: Body,
 ) -> AppResult<StatusCode> {
     let Query(q) = query?;
+    if let Some((_, holder)) = app.store.lease_holder(id, q.lease)? {
+        acts_as(&app, &caller, &holder)?;
+    }
     let Some((job_id, spec)) = app.store.current_lease(id, q.lease)? else {
         app.metrics.stale_results.fetch_add(1, Relaxed);
         tracing::warn!(task = id, lease = q.lease, "stale result dropped");
@@ -309,10 +309,12 @@ pub(super) async fn upload_result(
     responses((status = 200, description = "recorded"), (status = 409, body = ErrorBody)), security(("token" = [])))]
 pub(super) async fn fail_task(
     State(app): State<Arc<App>>,
+    Extension(caller): Extension<Caller>,
     Path(id): Path<i64>,
     body: Result<Json<Failure>, JsonRejection>,
 ) -> AppResult<StatusCode> {
     let Json(f) = body?;
+    acts_as(&app, &caller, &f.worker)?;
     let holder = app.store.lease_holder(id, f.lease)?;
     if holder.as_ref().is_some_and(|(_, w)| *w != f.worker) {
         return Err(not_holder(&app, id, f.lease, &f.worker)?);

@@ -17,9 +17,9 @@ use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::{get, post};
 use serde::{Deserialize, Serialize};
 
-use super::auth::{SESSION_COOKIE, SESSION_MS, same, session_cookie, session_of};
+use super::auth::{SESSION_COOKIE, SESSION_MS, caller_of_token, same, session_cookie, session_of};
 use super::{App, AppError, AppResult, now_ms, random_token};
-use crate::protocol::ErrorBody;
+use crate::protocol::{ErrorBody, Role};
 use crate::store::Session;
 
 const INDEX: &str = include_str!("../../web/index.html");
@@ -153,17 +153,23 @@ async fn login(
             StatusCode::BAD_REQUEST,
         );
     };
-    if !same(form.token.trim(), &app.config.client_token) {
+    // A person's token: the coordinator's own client token or a user's (not a worker's).
+    let caller = match caller_of_token(&app, form.token.trim()) {
+        Ok(c) => c.filter(|c| c.role != Role::Worker),
+        Err(e) => return e.into_response(),
+    };
+    let Some(caller) = caller else {
         tracing::warn!("dashboard login with a wrong token");
         // The form again with the reason (a page, not an error: browsers log failed loads).
         return html(
             login_html(Some(
-                "That is not this coordinator's client token. It is printed when `tessera serve` \
-                 starts, and kept in DIR/tokens.json.",
+                "That is not a person's token of this coordinator: its client token (printed \
+                 when `tessera serve` starts, kept in DIR/tokens.json) or a user's (`tessera \
+                 users add`).",
             )),
             StatusCode::OK,
         );
-    }
+    };
     let (Ok(id), Ok(csrf)) = (random_token(), random_token()) else {
         return AppError::internal("no OS randomness for a session").into_response();
     };
@@ -172,6 +178,8 @@ async fn login(
         id,
         csrf,
         expires_ms: now + SESSION_MS,
+        user: caller.name,
+        role: caller.role,
     };
     if let Err(e) = app.store.insert_session(&session, now) {
         return AppError::from(e).into_response();
@@ -221,6 +229,9 @@ pub struct SessionInfo {
     /// Send it in the `X-CSRF-Token` header with every request that changes something.
     pub csrf: String,
     pub expires_ms: i64,
+    /// Whose session it is.
+    pub user: String,
+    pub role: Role,
 }
 
 /// The dashboard session of the request's cookie: its CSRF token (for the page's script).
@@ -238,5 +249,7 @@ pub(super) async fn session(
     Ok(Json(SessionInfo {
         csrf: s.csrf,
         expires_ms: s.expires_ms,
+        user: s.user,
+        role: s.role,
     }))
 }

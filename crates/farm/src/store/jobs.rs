@@ -34,6 +34,8 @@ pub struct NewJob {
     pub planned_tasks: u64,
     /// Tags a worker must have to run its tasks.
     pub require_tags: Vec<String>,
+    /// Who submitted it (the token's user).
+    pub submitter: Option<String>,
 }
 
 /// Jobs by state: (state, count).
@@ -70,8 +72,8 @@ impl Store {
             let id: i64 = tx.query_row(
                 "INSERT INTO jobs (name, state, priority, created_ms, bundle, scene, settings,
                 first_frame, last_frame, width, height, spp, method, decisions, planned_tasks,
-                require_tags)
-             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)
+                require_tags, submitter)
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)
              RETURNING id",
                 params![
                     job.name,
@@ -89,6 +91,7 @@ impl Store {
                     json(&job.decisions),
                     job.planned_tasks as i64,
                     Self::tags_json(&job.require_tags),
+                    job.submitter,
                 ],
                 |r| r.get(0),
             )?;
@@ -243,7 +246,7 @@ impl Store {
                 "SELECT j.id, j.name, j.state, j.priority, j.created_ms, j.finished_ms, j.bundle, j.scene,
                     j.settings, j.first_frame, j.last_frame, j.width, j.height, j.spp, j.decisions, j.error,
                     t.total, t.queued, t.leased, t.done, t.failed, t.cancelled, t.attempts,
-                    j.planned_tasks, j.method, j.require_tags, j.started_ms
+                    j.planned_tasks, j.method, j.require_tags, j.started_ms, j.submitter
                  FROM (SELECT * FROM jobs {filter}) j
                  LEFT JOIN (SELECT job_id, COUNT(*) AS total, {} AS queued, {} AS leased,
                                 {} AS done, {} AS failed, {} AS cancelled, SUM(attempts) AS attempts
@@ -303,6 +306,7 @@ impl Store {
                     require_tags: Vec::new(),
                     started_ms: r.get(26)?,
                     blocklist: Vec::new(),
+                    submitter: r.get(27)?,
                 };
                 Ok((status, r.get(8)?, r.get(14)?, r.get(25)?))
             },

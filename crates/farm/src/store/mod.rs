@@ -16,6 +16,7 @@ mod ops;
 mod passes;
 mod sessions;
 mod tasks;
+mod users;
 
 use std::path::Path;
 
@@ -27,6 +28,7 @@ pub use ops::Blocklisting;
 pub use passes::{CacheEntry, NewPass, PassStart};
 pub use sessions::Session;
 pub use tasks::{Completion, Gauges, Retry, RetryPolicy, StepKey};
+pub use users::token_hash;
 
 use crate::job::TaskSpec;
 
@@ -141,6 +143,20 @@ CREATE TABLE IF NOT EXISTS farm (
     key TEXT PRIMARY KEY,
     value TEXT NOT NULL
 );
+"#,
+    // 6: users and their roles, per-worker tokens (kept as hashes), who submitted each job,
+    // whose each dashboard session is.
+    r#"
+CREATE TABLE IF NOT EXISTS users (
+    name TEXT PRIMARY KEY,
+    role TEXT NOT NULL,
+    token_hash TEXT NOT NULL UNIQUE,
+    created_ms INTEGER NOT NULL,
+    revoked_ms INTEGER
+);
+ALTER TABLE jobs ADD COLUMN submitter TEXT;
+ALTER TABLE sessions ADD COLUMN user_name TEXT NOT NULL DEFAULT 'admin';
+ALTER TABLE sessions ADD COLUMN role TEXT NOT NULL DEFAULT 'admin';
 "#,
 ];
 
@@ -590,6 +606,7 @@ pub(crate) mod tests {
                         passes: vec![],
                         planned_tasks: tasks as u64,
                         require_tags: vec![],
+                        submitter: None,
                     },
                     0,
                 )

@@ -292,6 +292,7 @@ mod tests {
                     }],
                     planned_tasks: 4,
                     require_tags: vec![],
+                    submitter: None,
                 },
                 0,
             )

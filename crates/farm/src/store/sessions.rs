@@ -4,7 +4,8 @@
 
 use super::db::{Optional, params};
 
-use super::{Result, Store};
+use super::{Result, Store, StoreError};
+use crate::protocol::Role;
 
 /// A browser session.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -12,6 +13,9 @@ pub struct Session {
     pub id: String,
     pub csrf: String,
     pub expires_ms: i64,
+    /// Whose it is: the name and role of the token it logged in with.
+    pub user: String,
+    pub role: Role,
 }
 
 impl Store {
@@ -20,28 +24,39 @@ impl Store {
         let conn = self.conn()?;
         conn.execute("DELETE FROM sessions WHERE expires_ms < ?1", params![now])?;
         conn.execute(
-            "INSERT INTO sessions (id, csrf, created_ms, expires_ms) VALUES (?1, ?2, ?3, ?4)",
-            params![s.id, s.csrf, now, s.expires_ms],
+            "INSERT INTO sessions (id, csrf, created_ms, expires_ms, user_name, role)
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+            params![s.id, s.csrf, now, s.expires_ms, s.user, s.role.as_str()],
         )?;
         Ok(())
     }
 
-    /// The session with this id, if it has not expired.
+    /// The session with this id, if it has not expired and its user's token is still the
+    /// live one it logged in with (a user revoked or given a new token since ends it).
+    /// `admin` is the coordinator's own client token, which is not a user of the table.
     pub fn session(&self, id: &str, now: i64) -> Result<Option<Session>> {
-        Ok(self
-            .conn()?
+        self.conn()?
             .query_row(
-                "SELECT id, csrf, expires_ms FROM sessions WHERE id = ?1 AND expires_ms >= ?2",
+                "SELECT s.id, s.csrf, s.expires_ms, s.user_name, s.role FROM sessions s
+                 WHERE s.id = ?1 AND s.expires_ms >= ?2
+                   AND (s.user_name = 'admin' OR EXISTS (SELECT 1 FROM users u
+                        WHERE u.name = s.user_name AND u.revoked_ms IS NULL
+                          AND u.created_ms <= s.created_ms))",
                 params![id, now],
                 |r| {
+                    let role: String = r.get(4)?;
                     Ok(Session {
                         id: r.get(0)?,
                         csrf: r.get(1)?,
                         expires_ms: r.get(2)?,
+                        user: r.get(3)?,
+                        role: Role::parse(&role).ok_or_else(|| {
+                            StoreError::Corrupt(format!("a session of role {role:?}"))
+                        })?,
                     })
                 },
             )
-            .optional()?)
+            .optional()
     }
 
     /// Ends a session (logout).

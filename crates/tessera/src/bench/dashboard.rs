@@ -64,6 +64,7 @@ fn fill(store: &Store, jobs: u32, tasks: u32) -> anyhow::Result<i64> {
         passes: vec![],
         planned_tasks: tasks as u64,
         require_tags: vec![],
+        submitter: None,
     };
     let policy = RetryPolicy {
         max_attempts: 1,
