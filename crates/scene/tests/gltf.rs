@@ -1078,3 +1078,18 @@ fn transmission_is_thin_walled_or_solid_partial_or_diffuse_as_the_file_says() {
         "{msg}"
     );
 }
+
+/// Found by the `gltf` fuzz target: a primitive whose POSITION names an accessor the file
+/// does not have made the gltf crate's own validation index out of bounds (a panic).
+#[test]
+fn a_primitive_naming_a_missing_accessor_is_refused() {
+    let mut doc = document(json!({}));
+    doc["accessors"] = json!([]);
+    let msg = error_of(&[("bad.gltf", doc.to_string().into_bytes())], "bad.gltf");
+    assert!(
+        msg.contains("meshes[0].primitives[0].attributes")
+            && msg.contains("accessor")
+            && msg.contains("expected an index below 0"),
+        "{msg}"
+    );
+}
