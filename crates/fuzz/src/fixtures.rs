@@ -117,3 +117,58 @@ fn base64(bytes: &[u8]) -> String {
     }
     out
 }
+
+/// `json` (a glTF document) as a GLB container: its buffers' data URIs moved into the binary
+/// chunk (glTF 2.0 §4.4: a 12-byte header, a JSON chunk padded with spaces, a BIN chunk padded
+/// with zeros).
+pub fn glb(json: &[u8]) -> Vec<u8> {
+    let mut doc: serde_json::Value = serde_json::from_slice(json).expect("a glTF document");
+    let mut bin = Vec::new();
+    if let Some(buffer) = doc["buffers"].get_mut(0) {
+        let uri = buffer["uri"].as_str().unwrap_or("").to_string();
+        if let Some((_, data)) = uri.split_once("base64,") {
+            bin = unbase64(data);
+            buffer.as_object_mut().expect("an object").remove("uri");
+        }
+    }
+    let mut text = doc.to_string().into_bytes();
+    while text.len() % 4 != 0 {
+        text.push(b' ');
+    }
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let total = 12 + 8 + text.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&text);
+    if !bin.is_empty() {
+        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&bin);
+    }
+    out
+}
+
+fn unbase64(text: &str) -> Vec<u8> {
+    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let values: Vec<u32> = text
+        .bytes()
+        .filter_map(|c| A.iter().position(|&a| a == c).map(|v| v as u32))
+        .collect();
+    let mut out = Vec::new();
+    for group in values.chunks(4) {
+        let n = group
+            .iter()
+            .enumerate()
+            .fold(0u32, |n, (i, v)| n | v << (18 - 6 * i));
+        for i in 0..group.len().saturating_sub(1) {
+            out.push((n >> (16 - 8 * i)) as u8);
+        }
+    }
+    out
+}

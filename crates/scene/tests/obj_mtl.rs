@@ -154,6 +154,13 @@ fn what_cannot_be_read_is_an_error_naming_the_file_material_and_statement() {
         msg.contains("\"plastic\" map_Kd") && msg.contains("missing wood.png"),
         "{msg}"
     );
+    // Found by the `obj` fuzz target: a colour of two values made tobj panic.
+    let mtl = "newmtl plastic\nKd 0.7 0.25\n";
+    let msg = error(&[("a.obj", obj.as_bytes()), ("lib.mtl", mtl.as_bytes())]);
+    assert!(
+        msg.contains("lib.mtl") && msg.contains("line 2") && msg.contains("`Kd r g b`"),
+        "{msg}"
+    );
 }
 
 /// The textured Blender scene through Blender's OBJ exporter (`scripts/blender/diffuse_shot.py

@@ -47,9 +47,15 @@ fn run(data: &[u8]) -> bool {
     load_plan_build(&source, name)
 }
 
-/// A one-triangle glTF, and the repository's GLB files (Blender's exports).
+/// A one-triangle glTF as JSON and as GLB, and the repository's GLB files (Blender's exports).
 fn seeds() -> Vec<(String, Vec<u8>)> {
-    let mut out = vec![("triangle.gltf".to_string(), fixtures::gltf_triangle())];
+    let mut out = vec![
+        ("triangle.gltf".to_string(), fixtures::gltf_triangle()),
+        (
+            "triangle.glb".to_string(),
+            fixtures::glb(&fixtures::gltf_triangle()),
+        ),
+    ];
     out.extend(find(&repo().join("scenes"), &[".glb", ".gltf"]));
     out
 }

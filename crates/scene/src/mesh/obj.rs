@@ -28,12 +28,16 @@ pub(super) fn parse(
     let library_problem: RefCell<Option<String>> = RefCell::new(None);
     let loaded = tobj::load_obj_buf(&mut Cursor::new(bytes), &options, |p: &Path| {
         let name = p.to_string_lossy();
-        match side(&name) {
+        match side(&name).and_then(|b| check_mtl(&b).map(|()| b)) {
             Ok(b) => tobj::load_mtl_buf(&mut Cursor::new(b)).inspect_err(|e| {
                 *library_problem.borrow_mut() = Some(format!(
                     "material library {name}: {e} (expected MTL statements)"
                 ));
             }),
+            Err(e) if e.starts_with("line ") => {
+                *library_problem.borrow_mut() = Some(format!("material library {name}: {e}"));
+                Err(tobj::LoadError::MaterialParseError)
+            }
             Err(e) => {
                 *library_problem.borrow_mut() =
                     Some(format!("cannot read material library {name}: {e}"));
@@ -133,6 +137,25 @@ pub(super) fn parse(
         }
     }
     Ok(mesh)
+}
+
+/// What tobj's MTL reader assumes without checking: a colour statement (`Ka`, `Kd`, `Ks`,
+/// `Ke`) has three values (with fewer, tobj panics).
+fn check_mtl(bytes: &[u8]) -> Result<(), String> {
+    for (i, line) in String::from_utf8_lossy(bytes).lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("");
+        let mut words = line.split_whitespace();
+        if let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next() {
+            let n = words.count();
+            if n < 3 {
+                return Err(format!(
+                    "line {}: expected `{key} r g b` with three numbers, got {n}",
+                    i + 1
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// tobj's error, with the line it comes from.
