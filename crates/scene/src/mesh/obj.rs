@@ -25,6 +25,7 @@ pub(super) fn parse(
         ignore_points: true,
         ignore_lines: true,
     };
+    check_face_indices(text)?;
     let library_problem: RefCell<Option<String>> = RefCell::new(None);
     let loaded = tobj::load_obj_buf(&mut Cursor::new(bytes), &options, |p: &Path| {
         let name = p.to_string_lossy();
@@ -211,12 +212,7 @@ fn first_bad_line(text: &str, record: &str) -> Option<usize> {
             }
             Some("f") if record == "f" => {
                 let corners: Vec<&str> = tokens.collect();
-                corners.len() < 3
-                    || corners.iter().any(|c| {
-                        c.split('/').enumerate().any(|(k, s)| {
-                            !(index_ok(s, defined[k.min(2)]) || s.is_empty() && k > 0)
-                        })
-                    })
+                corners.len() < 3 || !corners.iter().all(|c| corner_in_range(c, &defined))
             }
             _ => false,
         };
@@ -225,6 +221,39 @@ fn first_bad_line(text: &str, record: &str) -> Option<usize> {
         }
     }
     None
+}
+
+/// Every index of every face corner refers to a record defined before it. tobj's own check
+/// multiplies an index before comparing it, which overflows for a huge one (a panic, or in a
+/// release build a wrong record), so the indices are checked here first.
+fn check_face_indices(text: &str) -> Result<(), MeshError> {
+    let mut defined = [0usize; 3]; // v, vt, vn
+    for (i, raw) in text.lines().enumerate() {
+        let line = raw.split('#').next().unwrap_or("").trim();
+        let mut tokens = line.split_whitespace();
+        match tokens.next() {
+            Some("v") => defined[0] += 1,
+            Some("vt") => defined[1] += 1,
+            Some("vn") => defined[2] += 1,
+            Some("f") if !tokens.all(|c| corner_in_range(c, &defined)) => {
+                return Err(MeshError::new(
+                    format!("line {}", i + 1),
+                    "expected a face's indices to refer to records defined before it \
+                     (1-based, or negative counting back), but one is out of range",
+                ));
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// A corner `v`, `v/vt`, `v//vn` or `v/vt/vn` whose indices are in range.
+fn corner_in_range(corner: &str, defined: &[usize; 3]) -> bool {
+    corner
+        .split('/')
+        .enumerate()
+        .all(|(k, s)| index_ok(s, defined[k.min(2)]) || s.is_empty() && k > 0)
 }
 
 fn index_ok(token: &str, defined: usize) -> bool {
@@ -309,5 +338,15 @@ mod tests {
         let e = read(b"v 0 0 0\nv 1 0 x\n").unwrap_err();
         assert_eq!(e.location, "line 2");
         assert!(e.message.contains("three finite numbers"), "{}", e.message);
+        // Found by the `obj` fuzz target: indices so large that tobj's own check overflowed.
+        for face in [
+            "f 1/9223372036854775807 2/1 3/1",
+            "f 1//4611686018427387904 2//1 3//1",
+        ] {
+            let src = format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n{face}\n");
+            let e = read(src.as_bytes()).unwrap_err();
+            assert_eq!(e.location, "line 6", "{face}");
+            assert!(e.message.contains("out of range"), "{}", e.message);
+        }
     }
 }
