@@ -189,7 +189,8 @@ impl Objects {
         }
         let id = fresh()?;
         self.put(KEY, Bytes::from(id.clone()))?;
-        // Two first coordinators at once: whoever wrote last is the store's identity.
+        // Two first coordinators at once write the same id (`fresh` agrees through the job
+        // store); what the store holds is its identity.
         Ok(read()?.unwrap_or(id))
     }
 

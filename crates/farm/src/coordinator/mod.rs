@@ -436,7 +436,10 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
     tracing::info!(coordinator = %id, shared = store.is_shared(), "job store open");
     let objects = open_objects(&config, &id)?;
     objects.probe(&id)?;
-    let identity = objects.identity(random_token)?;
+    // A store without an id takes the one the job store records for its location, if another
+    // coordinator is making it now, so that two first coordinators agree.
+    let identity =
+        objects.identity(|| Ok(store.adopt_objects(&random_token()?, &objects.location)?))?;
     if let Some((recorded, location)) = store.check_objects(&identity, &objects.location)? {
         anyhow::bail!(
             "the object store {} (id {identity}) is not the one this farm's job store records: {location} (id {recorded}); coordinators sharing a job store must share its object store (--objects)",

@@ -486,6 +486,34 @@ impl Store {
         })
     }
 
+    /// The id for an object store at `location` that holds none yet: the one this job store
+    /// records for that location (another coordinator made it first), else `candidate`,
+    /// recorded now. One transaction, so coordinators starting together agree.
+    pub fn adopt_objects(&self, candidate: &str, location: &str) -> Result<String> {
+        self.db.write(|tx| {
+            let get = |key: &str| -> Result<Option<String>> {
+                tx.query_row("SELECT value FROM farm WHERE key = ?1", params![key], |r| {
+                    r.get(0)
+                })
+                .optional()
+            };
+            match (get("objects_id")?, get("objects_location")?) {
+                (Some(id), Some(at)) if at == location => Ok(id),
+                (Some(_), _) => Ok(candidate.to_string()),
+                (None, _) => {
+                    for (key, value) in [("objects_id", candidate), ("objects_location", location)]
+                    {
+                        tx.execute(
+                            "INSERT INTO farm (key, value) VALUES (?1, ?2)",
+                            params![key, value],
+                        )?;
+                    }
+                    Ok(candidate.to_string())
+                }
+            }
+        })
+    }
+
     /// Calls `on` when any coordinator sharing the store queues work ([`Store::announce_work`]).
     pub fn on_work(&self, on: std::sync::Arc<dyn Fn() + Send + Sync>) {
         self.db.listen(WORK_CHANNEL, on);

@@ -148,4 +148,30 @@ mod tests {
             Some(("ana".into(), Role::Viewer))
         );
     }
+
+    #[test]
+    fn coordinators_starting_together_agree_on_a_new_object_store_id() {
+        let dir = tempfile::tempdir().expect("dir");
+        let store = crate::store::tests::open_test(dir.path());
+        let first = store.adopt_objects("aaaa", "s3://b/farm").expect("adopt");
+        let second = store.adopt_objects("bbbb", "s3://b/farm").expect("adopt");
+        assert_eq!((first.as_str(), second.as_str()), ("aaaa", "aaaa"));
+        // Another store (another location) is not given this one's id: the check refuses it.
+        let other = store
+            .adopt_objects("cccc", "/srv/elsewhere")
+            .expect("adopt");
+        assert_eq!(other, "cccc");
+        assert!(
+            store
+                .check_objects("aaaa", "s3://b/farm")
+                .expect("check")
+                .is_none()
+        );
+        assert!(
+            store
+                .check_objects(&other, "/srv/elsewhere")
+                .expect("check")
+                .is_some()
+        );
+    }
 }
