@@ -3,6 +3,9 @@
 
 use std::io::Cursor;
 
+use base64::Engine;
+use base64::engine::general_purpose::STANDARD;
+
 use crate::{Mem, files_of, repo};
 
 /// A PNG of `w`×`h` (8-bit RGBA, a gradient).
@@ -71,7 +74,10 @@ pub fn gltf_triangle() -> Vec<u8> {
     for i in [0u16, 1, 2, 0] {
         buffer.extend_from_slice(&i.to_le_bytes());
     }
-    let uri = format!("data:application/octet-stream;base64,{}", base64(&buffer));
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        STANDARD.encode(&buffer)
+    );
     serde_json::json!({
         "asset": {"version": "2.0"},
         "scene": 0,
@@ -100,24 +106,6 @@ pub fn gltf_triangle() -> Vec<u8> {
     .into_bytes()
 }
 
-fn base64(bytes: &[u8]) -> String {
-    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for c in bytes.chunks(3) {
-        let n = (c[0] as u32) << 16
-            | (*c.get(1).unwrap_or(&0) as u32) << 8
-            | *c.get(2).unwrap_or(&0) as u32;
-        for i in 0..4 {
-            if i <= c.len() {
-                out.push(A[(n >> (18 - 6 * i) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
-}
-
 /// `json` (a glTF document) as a GLB container: its buffers' data URIs moved into the binary
 /// chunk (glTF 2.0 §4.4: a 12-byte header, a JSON chunk padded with spaces, a BIN chunk padded
 /// with zeros).
@@ -127,7 +115,7 @@ pub fn glb(json: &[u8]) -> Vec<u8> {
     if let Some(buffer) = doc["buffers"].get_mut(0) {
         let uri = buffer["uri"].as_str().unwrap_or("").to_string();
         if let Some((_, data)) = uri.split_once("base64,") {
-            bin = unbase64(data);
+            bin = STANDARD.decode(data).expect("the fixture's own base64");
             buffer.as_object_mut().expect("an object").remove("uri");
         }
     }
@@ -150,25 +138,6 @@ pub fn glb(json: &[u8]) -> Vec<u8> {
         out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
         out.extend_from_slice(b"BIN\0");
         out.extend_from_slice(&bin);
-    }
-    out
-}
-
-fn unbase64(text: &str) -> Vec<u8> {
-    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let values: Vec<u32> = text
-        .bytes()
-        .filter_map(|c| A.iter().position(|&a| a == c).map(|v| v as u32))
-        .collect();
-    let mut out = Vec::new();
-    for group in values.chunks(4) {
-        let n = group
-            .iter()
-            .enumerate()
-            .fold(0u32, |n, (i, v)| n | v << (18 - 6 * i));
-        for i in 0..group.len().saturating_sub(1) {
-            out.push((n >> (16 - 8 * i)) as u8);
-        }
     }
     out
 }

@@ -108,29 +108,31 @@ fn refusal(
     let read = matches!(*method, Method::GET | Method::HEAD);
     // A job that does not exist is the handler's to report (404).
     let own = owner.is_none_or(|o| o.unwrap_or(ADMIN) == caller.name);
-    let (ok, what) = match access {
-        Access::Jobs if read => (person, "read jobs"),
-        Access::Jobs if names_job => (admin || artist && own, "change another's job"),
-        Access::Jobs | Access::Submit => (admin || artist, "submit jobs"),
-        Access::OwnFrames => (admin || artist && own, "download another's frames"),
-        Access::Farm if read => (person, "read the farm's state"),
-        Access::Farm => (admin, "change the farm's workers"),
-        Access::Admin => (admin, "manage users"),
-        Access::Fetch => (admin || role == Role::Worker, "fetch what tasks read"),
-        Access::Work => (role == Role::Worker, "lease tasks or send their results"),
+    // One row per rule: whether the caller may, what it would do, who may.
+    const PEOPLE: &str = "admins, artists and viewers";
+    const OWNER: &str = "admins and the artist who submitted the job";
+    let (ok, what, who) = match access {
+        Access::Jobs if read => (person, "read jobs", PEOPLE),
+        Access::Jobs if names_job => (admin || artist && own, "change another's job", OWNER),
+        Access::Jobs | Access::Submit => (admin || artist, "submit jobs", "admins and artists"),
+        Access::OwnFrames => (admin || artist && own, "download another's frames", OWNER),
+        Access::Farm if read => (person, "read the farm's state", PEOPLE),
+        Access::Farm => (admin, "change the farm's workers", "admins"),
+        Access::Admin => (admin, "manage users", "admins"),
+        Access::Fetch => (
+            admin || role == Role::Worker,
+            "fetch what tasks read",
+            "workers and admins",
+        ),
+        Access::Work => (
+            role == Role::Worker,
+            "lease tasks or send their results",
+            "workers",
+        ),
     };
     if ok {
         return None;
     }
-    let who = match access {
-        Access::Jobs | Access::Farm if read => "admins, artists and viewers",
-        Access::Jobs if names_job => "admins and the artist who submitted the job",
-        Access::OwnFrames => "admins and the artist who submitted the job",
-        Access::Jobs | Access::Submit => "admins and artists",
-        Access::Farm | Access::Admin => "admins",
-        Access::Fetch => "workers and admins",
-        Access::Work => "workers",
-    };
     Some(format!(
         "forbidden: {} is a{} {}, which may not {what}; {who} may",
         caller.name,

@@ -198,7 +198,9 @@ pub(super) async fn upload_result(
     body: Body,
 ) -> AppResult<StatusCode> {
     let Query(q) = query?;
-    if let Some((_, holder)) = app.store.lease_holder(id, q.lease)? {
+    if caller.bound
+        && let Some((_, holder)) = app.store.lease_holder(id, q.lease)?
+    {
         acts_as(&app, &caller, &holder)?;
     }
     let Some((job_id, spec)) = app.store.current_lease(id, q.lease)? else {

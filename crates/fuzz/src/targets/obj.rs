@@ -61,7 +61,7 @@ fn run(data: &[u8]) -> bool {
     load_plan_build(&source, "scene.json")
 }
 
-/// The repository's OBJ files (those under 32 KiB: mutations of large seeds run slowly), each
+/// The repository's OBJ files (small ones only: a large seed makes every mutation slow), each
 /// with the MTL of the same name beside it when there is one.
 fn seeds() -> Vec<(String, Vec<u8>)> {
     let scenes = repo().join("scenes");

@@ -35,7 +35,7 @@ fn jobs() -> &'static Jobs {
     JOBS.get_or_init(|| {
         let path = repo().join("scenes/cornell-box/scene.json");
         let mut base = tessera_scene::load(&path).expect("the Cornell box loads");
-        // Photon passes of a few thousand photons: results of some kilobytes.
+        // Photon passes of few photons: small results, fast mutations.
         base.integrator.photon.photons = Some(4096);
         let mut desc = base.clone();
         let jobs = tessera_render::method::names()
