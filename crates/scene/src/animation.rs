@@ -38,7 +38,8 @@ impl CameraPath {
         };
         let span = f64::from(last.time - first.time) * f64::from(self.fps);
         // A tolerance so that 2 s at 24 fps is 49 frames despite rounding in f32 times.
-        (span + 1e-4).floor() as u32 + 1
+        // Saturates: a span past u32::MAX frames is refused by the caller, not wrapped.
+        ((span + 1e-4).floor() as u32).saturating_add(1)
     }
 
     /// Time of frame `frame` (1-based), seconds.
@@ -159,5 +160,14 @@ mod tests {
             let t = line.time(f);
             assert!((line.at(t).position.x - t).abs() < 1e-5);
         }
+    }
+
+    #[test]
+    fn a_span_of_more_frames_than_u32_holds_saturates() {
+        let path = CameraPath {
+            fps: 1e4,
+            keyframes: vec![key(0.0, 0.0), key(3e38, 1.0)],
+        };
+        assert_eq!(path.frame_count(), u32::MAX);
     }
 }

@@ -138,6 +138,7 @@ impl Ctx<'_> {
         p: &CameraPathFile,
         film: &FilmDesc,
     ) -> Option<CameraPath> {
+        let before = self.problems.len();
         let fps = self.range(
             "camera.path.fps",
             p.fps,
@@ -149,7 +150,6 @@ impl Ctx<'_> {
             self.problem("camera.path.keyframes", "expected at least one keyframe");
             return None;
         }
-        let before = self.problems.len();
         let mut keyframes = Vec::with_capacity(p.keyframes.len());
         for (i, k) in p.keyframes.iter().enumerate() {
             let at = format!("camera.path.keyframes[{i}]");
