@@ -7,6 +7,29 @@
 /// 2²⁷, a 16384 × 8192 environment map. As float RGB that is 1.5 GiB.
 pub const MAX_IMAGE_PIXELS: u64 = 1 << 27;
 
+/// Most bytes one image's channels may take decoded, all of them: 4 GiB, a 16384 × 8192
+/// image in eight float channels. An OpenEXR decoder unpacks every channel of a block,
+/// whether it is read or not, so a header listing thousands of channels over a large data
+/// window claims that much memory.
+pub const MAX_IMAGE_BYTES: u64 = 1 << 32;
+
+/// Checks the bytes an image's `channels` channels of `bytes_per_pixel` bytes a pixel in all
+/// take decoded, at `width`×`height`, against [`MAX_IMAGE_BYTES`].
+pub fn check_image_bytes(
+    width: u64,
+    height: u64,
+    channels: usize,
+    bytes_per_pixel: u64,
+) -> Result<(), String> {
+    let bytes = width.saturating_mul(height).saturating_mul(bytes_per_pixel);
+    if bytes > MAX_IMAGE_BYTES {
+        return Err(format!(
+            "its header claims {width}×{height} pixels in {channels} channels of {bytes_per_pixel} bytes a pixel in all ({bytes} bytes decoded), over the limit of {MAX_IMAGE_BYTES} bytes an image"
+        ));
+    }
+    Ok(())
+}
+
 /// Checks an image's stated size: at least one pixel, at most [`MAX_IMAGE_PIXELS`].
 /// The error says what the header claims and the limit; the caller names the file.
 pub fn check_image_size(width: u64, height: u64) -> Result<(), String> {
@@ -51,5 +74,9 @@ mod tests {
         let e = check_count("vertices", 11, 12, 120).unwrap_err();
         assert!(e.contains("11 vertices") && e.contains("120 bytes"), "{e}");
         assert!(check_count("faces", u64::MAX, 0, 1 << 40).is_err());
+        assert!(check_image_bytes(16384, 8192, 8, 32).is_ok());
+        let e = check_image_bytes(16384, 8192, 9, 36).unwrap_err();
+        assert!(e.contains("9 channels") && e.contains("4831838208"), "{e}");
+        assert!(check_image_bytes(u64::MAX, u64::MAX, 1, u64::MAX).is_err());
     }
 }

@@ -17,13 +17,21 @@ impl RgbImage {
 }
 
 /// Reads an OpenEXR file's headers alone and checks every layer's stated size against
-/// [`crate::budget::MAX_IMAGE_PIXELS`], before any pixel is allocated.
+/// [`crate::budget::MAX_IMAGE_PIXELS`], and the bytes all its channels take decoded against
+/// [`crate::budget::MAX_IMAGE_BYTES`] (the decoder unpacks every channel of a block, read or
+/// not), before any pixel is allocated.
 fn check_exr_size(bytes: &[u8]) -> Result<(), String> {
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
         .map_err(|e| format!("expected an OpenEXR image: {e}"))?;
     for header in &meta.headers {
-        let size = header.layer_size;
-        crate::budget::check_image_size(size.width() as u64, size.height() as u64)?;
+        let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
+        crate::budget::check_image_size(w, h)?;
+        crate::budget::check_image_bytes(
+            w,
+            h,
+            header.channels.list.len(),
+            header.channels.bytes_per_pixel as u64,
+        )?;
     }
     Ok(())
 }
@@ -114,6 +122,59 @@ mod tests {
         bytes[at + 8..at + 12].copy_from_slice(&(claim - 1).to_le_bytes());
         bytes[at + 12..at + 16].copy_from_slice(&(claim - 1).to_le_bytes());
         bytes
+    }
+
+    /// An OpenEXR file of 8×8 pixels in `channels` half-float channels, its data window then
+    /// rewritten to claim `claim`×`claim`.
+    fn many_channel_exr(channels: usize, claim: i32) -> Vec<u8> {
+        use exr::prelude::*;
+        let list: Vec<AnyChannel<FlatSamples>> = (0..channels)
+            .map(|i| {
+                AnyChannel::new(
+                    format!("c{i}").as_str(),
+                    FlatSamples::F16(vec![f16::ZERO; 64]),
+                )
+            })
+            .collect();
+        let layer = Layer::new(
+            (8, 8),
+            LayerAttributes::default(),
+            Encoding::UNCOMPRESSED,
+            AnyChannels::sort(list.into()),
+        );
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        Image::from_layer(layer)
+            .write()
+            .to_buffered(&mut bytes)
+            .expect("write");
+        let mut bytes = bytes.into_inner();
+        let key = b"dataWindow\0box2i\0";
+        let at = bytes
+            .windows(key.len())
+            .position(|w| w == key)
+            .expect("dataWindow")
+            + key.len()
+            + 4;
+        bytes[at + 8..at + 12].copy_from_slice(&(claim - 1).to_le_bytes());
+        bytes[at + 12..at + 16].copy_from_slice(&(claim - 1).to_le_bytes());
+        bytes
+    }
+
+    #[test]
+    fn channels_that_would_decode_past_the_byte_limit_are_refused_before_decoding() {
+        // 11000² pixels is within the pixel limit; 3000 half-float channels of them are 726 GB.
+        let lying = many_channel_exr(3000, 11000);
+        assert!(lying.len() < 1 << 20, "{}", lying.len());
+        for e in [
+            read_exr_rgb(&lying).unwrap_err(),
+            read_exr_channels(&lying, &["c0"]).unwrap_err(),
+        ] {
+            assert!(e.contains("3000 channels") && e.contains("limit"), "{e}");
+        }
+        // The same channels at their honest size decode.
+        let honest = many_channel_exr(3000, 8);
+        let (w, h, c) = read_exr_channels(&honest, &["c7"]).expect("decodes");
+        assert_eq!((w, h, c[0].len()), (8, 8, 64));
     }
 
     #[test]
