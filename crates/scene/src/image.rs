@@ -24,7 +24,10 @@ fn check_exr_size(bytes: &[u8]) -> Result<(), String> {
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
         .map_err(|e| format!("expected an OpenEXR image: {e}"))?;
     for header in &meta.headers {
-        let (w, h) = (header.layer_size.width() as u64, header.layer_size.height() as u64);
+        let (w, h) = (
+            header.layer_size.width() as u64,
+            header.layer_size.height() as u64,
+        );
         crate::budget::check_image_size(w, h)?;
         crate::budget::check_image_bytes(
             w,

@@ -525,6 +525,30 @@ fn bad_input_is_refused_naming_the_file_the_object_and_what_was_expected() {
             )),
             &["buffers[0]", "expected byteLength 200"],
         ),
+        (
+            gltf({
+                let mut d = document(json!({}));
+                d["accessors"][1]["count"] = json!(0);
+                d
+            }),
+            &["primitives[0]", "NORMAL (accessors[1])", "0 elements"],
+        ),
+        (
+            gltf({
+                let mut d = document(json!({}));
+                d["accessors"][2]["count"] = json!((1u64 << 63) + 1);
+                d
+            }),
+            &["indices", "more than 2^64", "bufferView 2"],
+        ),
+        (
+            gltf(document(json!({"images": [{"bufferView": 0}]}))),
+            &["images[0].mimeType", "expected a MIME type"],
+        ),
+        (
+            gltf(document(json!({"images": [{"name": "nothing"}]}))),
+            &["images[0]", "expected a uri or a bufferView"],
+        ),
     ];
     for (files, expected) in cases {
         let msg = error_of(&files, "bad.gltf");

@@ -149,12 +149,17 @@ fn check(
     let elem = accessor.size();
     let stride = view.stride().unwrap_or(elem);
     let count = accessor.count();
-    let need = if count == 0 {
-        0
-    } else {
-        accessor.offset() + stride * (count - 1) + elem
-    };
-    if need > view.length() {
+    // glTF 2.0 requires count ≥ 1; the gltf crate's readers compute count − 1 unchecked.
+    if count == 0 {
+        return Err(GltfError::new(here, "has 0 elements: expected at least 1"));
+    }
+    // offset + stride·(count − 1) + size, in sums that cannot wrap.
+    let need = (count - 1)
+        .checked_mul(stride)
+        .and_then(|n| n.checked_add(elem))
+        .and_then(|n| n.checked_add(accessor.offset()));
+    if need.is_none_or(|need| need > view.length()) {
+        let need = need.map_or("more than 2^64".to_string(), |n| n.to_string());
         return Err(GltfError::new(
             here,
             format!(
@@ -167,13 +172,14 @@ fn check(
     }
     let buffer = view.buffer().index();
     let have = data.get(buffer).map_or(0, Vec::len);
-    if view.offset() + view.length() > have {
+    let end = view.offset().checked_add(view.length());
+    if end.is_none_or(|end| end > have) {
+        let end = end.map_or("past 2^64".to_string(), |n| n.to_string());
         return Err(GltfError::new(
             here,
             format!(
-                "bufferView {} ends at byte {} of buffer {buffer}, which has {have}",
+                "bufferView {} ends at byte {end} of buffer {buffer}, which has {have}",
                 view.index(),
-                view.offset() + view.length()
             ),
         ));
     }

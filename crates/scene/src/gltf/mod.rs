@@ -10,6 +10,7 @@
 //! naming the object; what we read but do not model yet is a warning.
 
 mod buffers;
+mod checks;
 mod materials;
 mod tangents;
 
@@ -121,33 +122,6 @@ fn named(array: &str, index: usize, name: Option<&str>) -> String {
     }
 }
 
-/// Every accessor a mesh primitive's attributes name exists (gltf-json's validation reads the
-/// POSITION accessor's bounds before checking that it does, and panics on a file that names a
-/// missing one).
-fn check_primitive_accessors(root: &gltf::json::Root) -> Result<(), GltfError> {
-    let count = root.accessors.len();
-    for (m, mesh) in root.meshes.iter().enumerate() {
-        for (p, primitive) in mesh.primitives.iter().enumerate() {
-            for (semantic, accessor) in &primitive.attributes {
-                if accessor.value() >= count {
-                    let name = match semantic {
-                        gltf::json::validation::Checked::Valid(s) => s.to_string(),
-                        gltf::json::validation::Checked::Invalid => "?".into(),
-                    };
-                    return Err(GltfError::new(
-                        format!("meshes[{m}].primitives[{p}].attributes.{name}"),
-                        format!(
-                            "accessor {} does not exist: expected an index below {count}, the file's accessors",
-                            accessor.value()
-                        ),
-                    ));
-                }
-            }
-        }
-    }
-    Ok(())
-}
-
 /// Reads the glTF file `name` from `source` (its buffers relative to it).
 pub fn load(source: &dyn SceneSource, name: &Path) -> Result<GltfScene, GltfError> {
     let bytes = source
@@ -159,7 +133,7 @@ pub fn load(source: &dyn SceneSource, name: &Path) -> Result<GltfScene, GltfErro
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice_without_validation(&bytes).map_err(invalid)?;
     let root = document.into_json();
-    check_primitive_accessors(&root)?;
+    checks::check(&root)?;
     let document = gltf::Document::from_json(root).map_err(invalid)?;
     let doc = &document;
     let mut warnings = Vec::new();
