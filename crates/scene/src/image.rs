@@ -101,6 +101,22 @@ pub fn read_exr_rgb(bytes: &[u8]) -> Result<RgbImage, String> {
 mod tests {
     use super::*;
 
+    /// `bytes`, an OpenEXR file, with its header's data window rewritten to claim
+    /// `claim`×`claim` pixels (the pixels stay as they were).
+    fn claim_data_window(mut bytes: Vec<u8>, claim: i32) -> Vec<u8> {
+        // dataWindow: box2i, four i32 after its name, type and size.
+        let key = b"dataWindow\0box2i\0";
+        let at = bytes
+            .windows(key.len())
+            .position(|w| w == key)
+            .expect("dataWindow")
+            + key.len()
+            + 4;
+        bytes[at + 8..at + 12].copy_from_slice(&(claim - 1).to_le_bytes());
+        bytes[at + 12..at + 16].copy_from_slice(&(claim - 1).to_le_bytes());
+        bytes
+    }
+
     /// A small, valid OpenEXR file of `w`×`h` pixels, then its header's data window
     /// rewritten to claim `claim`×`claim` (the pixels stay as they were).
     pub(crate) fn lying_exr(w: usize, h: usize, claim: i32) -> Vec<u8> {
@@ -113,18 +129,7 @@ mod tests {
         .write()
         .to_buffered(&mut bytes)
         .expect("write");
-        let mut bytes = bytes.into_inner();
-        // dataWindow: box2i, four i32 after its name, type and size.
-        let key = b"dataWindow\0box2i\0";
-        let at = bytes
-            .windows(key.len())
-            .position(|w| w == key)
-            .expect("dataWindow")
-            + key.len()
-            + 4;
-        bytes[at + 8..at + 12].copy_from_slice(&(claim - 1).to_le_bytes());
-        bytes[at + 12..at + 16].copy_from_slice(&(claim - 1).to_le_bytes());
-        bytes
+        claim_data_window(bytes.into_inner(), claim)
     }
 
     /// An OpenEXR file of 8×8 pixels in `channels` half-float channels, its data window then
@@ -150,22 +155,13 @@ mod tests {
             .write()
             .to_buffered(&mut bytes)
             .expect("write");
-        let mut bytes = bytes.into_inner();
-        let key = b"dataWindow\0box2i\0";
-        let at = bytes
-            .windows(key.len())
-            .position(|w| w == key)
-            .expect("dataWindow")
-            + key.len()
-            + 4;
-        bytes[at + 8..at + 12].copy_from_slice(&(claim - 1).to_le_bytes());
-        bytes[at + 12..at + 16].copy_from_slice(&(claim - 1).to_le_bytes());
-        bytes
+        claim_data_window(bytes.into_inner(), claim)
     }
 
     #[test]
     fn channels_that_would_decode_past_the_byte_limit_are_refused_before_decoding() {
-        // 11000² pixels is within the pixel limit; 3000 half-float channels of them are 726 GB.
+        // 11000² pixels is within the pixel limit; 3000 half-float channels of them are far
+        // past the byte limit.
         let lying = many_channel_exr(3000, 11000);
         assert!(lying.len() < 1 << 20, "{}", lying.len());
         for e in [
