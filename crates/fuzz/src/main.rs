@@ -1,7 +1,8 @@
 //! `tessera-fuzz`: the fuzz targets' command line.
 //!
 //! - `tessera-fuzz list`: the targets.
-//! - `tessera-fuzz seeds DIR`: each target's starting inputs, as `DIR/NAME/*`.
+//! - `tessera-fuzz seeds DIR`: each target's starting inputs, as `DIR/NAME/*`, those of at
+//!   most [`MAX_SEED_BYTES`].
 //! - `tessera-fuzz replay NAME FILE...`: feeds files to a target here (a crash to reproduce).
 //! - `tessera-fuzz afl NAME`: the target under AFL++ (built with `cargo afl build --features
 //!   afl`; `scripts/fuzz` runs it).
@@ -9,6 +10,11 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+
+/// The largest seed AFL++ starts from. It mutates and trims byte by byte, so one seed of
+/// 200 KB slows every later execution of the queue it grows; the suite still replays the
+/// larger ones (`tests/regressions.rs`).
+const MAX_SEED_BYTES: usize = 64 << 10;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -37,7 +43,10 @@ fn main() -> anyhow::Result<()> {
                 let folder = PathBuf::from(dir).join(t.name);
                 std::fs::create_dir_all(&folder)
                     .with_context(|| format!("cannot create {}", folder.display()))?;
-                let seeds = (t.seeds)();
+                let seeds: Vec<_> = (t.seeds)()
+                    .into_iter()
+                    .filter(|(_, bytes)| bytes.len() <= MAX_SEED_BYTES)
+                    .collect();
                 for (name, bytes) in &seeds {
                     std::fs::write(folder.join(name), bytes)
                         .with_context(|| format!("cannot write {}/{name}", folder.display()))?;

@@ -57,5 +57,7 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
         ),
     ];
     out.extend(find(&repo().join("scenes"), &[".glb", ".gltf"]));
+    // The same scenes made small by glTF-Transform (seeds/README.md): fast to mutate.
+    out.extend(find(&repo().join("crates/fuzz/seeds/gltf"), &[".glb"]));
     out
 }
