@@ -549,9 +549,40 @@ fn bad_input_is_refused_naming_the_file_the_object_and_what_was_expected() {
             gltf(document(json!({"images": [{"name": "nothing"}]}))),
             &["images[0]", "expected a uri or a bufferView"],
         ),
+        (
+            gltf({
+                let mut d = document(json!({}));
+                d["bufferViews"][0]["byteStride"] = json!(4);
+                d
+            }),
+            &[
+                "bufferViews[0].byteStride",
+                "accessors[0] reads elements of 12 bytes",
+                "at least 12",
+            ],
+        ),
+        (
+            // A GLB whose header gives a length shorter than the header.
+            vec![(
+                "bad.glb",
+                [
+                    &b"glTF"[..],
+                    &2u32.to_le_bytes(),
+                    &4u32.to_le_bytes(),
+                    &[0; 20],
+                ]
+                .concat(),
+            )],
+            &[
+                "bad.glb",
+                "GLB header",
+                "given as 4 bytes",
+                "at least the header's 12",
+            ],
+        ),
     ];
     for (files, expected) in cases {
-        let msg = error_of(&files, "bad.gltf");
+        let msg = error_of(&files, files[0].0);
         for e in expected {
             assert!(msg.contains(e), "expected {e:?} in: {msg}");
         }

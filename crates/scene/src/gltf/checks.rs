@@ -1,15 +1,36 @@
 //! What a glTF file must satisfy before the gltf crate reads it: the rules of glTF 2.0 that
 //! the crate's validation does not check but its readers assume, and panic on when broken.
 
-use gltf::json::Root;
 use gltf::json::validation::Checked;
+use gltf::json::{Index, Root, buffer};
 
 use super::GltfError;
 
 /// Every rule below, in file order.
 pub(super) fn check(root: &Root) -> Result<(), GltfError> {
     primitive_accessors(root)?;
+    strides(root)?;
     images(root)
+}
+
+/// A GLB's header states a length no shorter than the header itself (the gltf crate
+/// subtracts the header's 12 bytes from it unchecked). Bytes that are not a GLB pass.
+pub(super) fn glb_header(bytes: &[u8]) -> Result<(), GltfError> {
+    const HEADER: u32 = 12;
+    if let Some(length) = bytes
+        .strip_prefix(b"glTF")
+        .and_then(|rest| rest.get(4..8))
+        .map(|l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]))
+        && length < HEADER
+    {
+        return Err(GltfError::new(
+            "GLB header",
+            format!(
+                "the file's length is given as {length} bytes: expected at least the header's {HEADER}"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Every accessor a mesh primitive's attributes name exists (gltf-json's validation reads the
@@ -56,6 +77,57 @@ fn images(root: &Root) -> Result<(), GltfError> {
                 ));
             }
             _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// A buffer view's `byteStride`, where given, is at least the size of each element read
+/// through it (glTF 2.0 §3.6.2.4; the gltf crate's readers assert it): an accessor's element,
+/// a sparse accessor's indices and values.
+fn strides(root: &Root) -> Result<(), GltfError> {
+    let check = |view: Index<buffer::View>, element: usize, at: &str| {
+        let Some(stride) = root
+            .buffer_views
+            .get(view.value())
+            .and_then(|v| v.byte_stride)
+        else {
+            return Ok(());
+        };
+        if stride.0 < element {
+            return Err(GltfError::new(
+                format!("bufferViews[{}].byteStride", view.value()),
+                format!(
+                    "{} bytes between elements, but {at} reads elements of {element} bytes through it: expected a stride of at least {element}",
+                    stride.0
+                ),
+            ));
+        }
+        Ok(())
+    };
+    for (i, a) in root.accessors.iter().enumerate() {
+        let (Checked::Valid(component), Checked::Valid(kind)) = (&a.component_type, &a.type_)
+        else {
+            continue;
+        };
+        let element = component.0.size() * kind.multiplicity();
+        let at = format!("accessors[{i}]");
+        if let Some(view) = a.buffer_view {
+            check(view, element, &at)?;
+        }
+        if let Some(sparse) = &a.sparse {
+            if let Checked::Valid(indices) = &sparse.indices.component_type {
+                check(
+                    sparse.indices.buffer_view,
+                    indices.0.size(),
+                    &format!("{at}.sparse.indices"),
+                )?;
+            }
+            check(
+                sparse.values.buffer_view,
+                element,
+                &format!("{at}.sparse.values"),
+            )?;
         }
     }
     Ok(())

@@ -128,8 +128,10 @@ pub fn load(source: &dyn SceneSource, name: &Path) -> Result<GltfScene, GltfErro
         .read(name)
         .map_err(|e| GltfError::new("", format!("cannot read the file: {e}")))?;
     let invalid = |e: gltf::Error| GltfError::new("", format!("not a valid glTF 2.0 file: {e}"));
-    // Parsed, then checked where the gltf crate's validation would index out of bounds
-    // itself, then validated.
+    // Checked wherever the gltf crate's parser, validation or readers would overflow or
+    // index out of bounds themselves (the GLB header before parsing, the rest after), then
+    // validated.
+    checks::glb_header(&bytes)?;
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice_without_validation(&bytes).map_err(invalid)?;
     let root = document.into_json();
