@@ -39,6 +39,24 @@ fn check_exr_size(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
+/// Runs one of the exr crate's decoders (built `non_parallel`) on this thread, a panic in it
+/// an error. Its parallel decoder unpacks blocks on a thread pool of its own, where a panic
+/// aborts the whole process — a coordinator validating a job, a worker with tasks in hand —
+/// so one malformed block would take them down; here it fails the one file.
+fn decode<T>(read: impl FnOnce() -> exr::error::Result<T>) -> Result<T, String> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(read)) {
+        Ok(r) => r.map_err(|e| e.to_string()),
+        Err(panic) => Err(format!(
+            "the OpenEXR decoder failed on a malformed block ({})",
+            panic
+                .downcast_ref::<&str>()
+                .copied()
+                .or(panic.downcast_ref::<String>().map(String::as_str))
+                .unwrap_or("no message")
+        )),
+    }
+}
+
 /// The named channels of the first layer of an OpenEXR file, as f32 in row order, with the
 /// layer's width and height (e.g. `variance.R` of a Tessera EXR).
 pub fn read_exr_channels(
@@ -47,14 +65,17 @@ pub fn read_exr_channels(
 ) -> Result<(u32, u32, Vec<Vec<f32>>), String> {
     use exr::prelude::*;
     check_exr_size(bytes)?;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_buffered(std::io::Cursor::new(bytes))
-        .map_err(|e| format!("expected an OpenEXR image: {e}"))?;
+    let image = decode(|| {
+        read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_buffered(std::io::Cursor::new(bytes))
+    })
+    .map_err(|e| format!("expected an OpenEXR image: {e}"))?;
     let layer = &image.layer_data;
     let (w, h) = (layer.size.width() as u32, layer.size.height() as u32);
     let channels = names
@@ -76,24 +97,27 @@ pub fn read_exr_channels(
 pub fn read_exr_rgb(bytes: &[u8]) -> Result<RgbImage, String> {
     use exr::prelude::*;
     check_exr_size(bytes)?;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .rgba_channels(
-            |resolution, _| RgbImage {
-                width: resolution.width() as u32,
-                height: resolution.height() as u32,
-                pixels: vec![Vec3::ZERO; resolution.width() * resolution.height()],
-            },
-            |img: &mut RgbImage, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
-                let i = pos.y() * img.width as usize + pos.x();
-                img.pixels[i] = Vec3::new(r, g, b);
-            },
-        )
-        .first_valid_layer()
-        .all_attributes()
-        .from_buffered(std::io::Cursor::new(bytes))
-        .map_err(|e| format!("expected an OpenEXR image with R, G and B channels: {e}"))?;
+    let image = decode(|| {
+        read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .rgba_channels(
+                |resolution, _| RgbImage {
+                    width: resolution.width() as u32,
+                    height: resolution.height() as u32,
+                    pixels: vec![Vec3::ZERO; resolution.width() * resolution.height()],
+                },
+                |img: &mut RgbImage, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                    let i = pos.y() * img.width as usize + pos.x();
+                    img.pixels[i] = Vec3::new(r, g, b);
+                },
+            )
+            .first_valid_layer()
+            .all_attributes()
+            .non_parallel()
+            .from_buffered(std::io::Cursor::new(bytes))
+    })
+    .map_err(|e| format!("expected an OpenEXR image with R, G and B channels: {e}"))?;
     Ok(image.layer_data.channel_data.pixels)
 }
 
@@ -188,5 +212,28 @@ mod tests {
         ] {
             assert!(e.contains("60000×60000") && e.contains("limit"), "{e}");
         }
+    }
+    /// A B44 block whose OpenEXR arithmetic wraps (AFL++ found it aborting a debug build from
+    /// the decoder's thread pool): it decodes, as a release build and OpenEXR decode it.
+    #[test]
+    fn a_b44_block_whose_arithmetic_wraps_decodes() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../fuzz/regressions/image/b44-block-that-wraps.exr"
+        );
+        let bytes = std::fs::read(path).expect("the regression input");
+        let image = read_exr_rgb(&bytes).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(image.pixels.len(), (image.width * image.height) as usize);
+    }
+
+    /// A panic inside the decoder fails that file, with what it said, and nothing else.
+    #[test]
+    fn a_panic_in_the_decoder_is_an_error_of_the_file() {
+        let r: Result<(), String> = decode(|| panic!("index out of bounds"));
+        let e = r.unwrap_err();
+        assert!(
+            e.contains("malformed block") && e.contains("index out of bounds"),
+            "{e}"
+        );
     }
 }
