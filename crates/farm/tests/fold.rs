@@ -414,3 +414,94 @@ async fn a_worker_refuses_a_result_over_the_limit_and_the_job_says_which_limit()
         "{error}"
     );
 }
+
+/// A photon pass that stores more than a job may hold fails its job as the results come in,
+/// naming the pass, what it held and the limit, before the coordinator runs out of memory;
+/// the frame itself fitted the budget at admission.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_pass_outgrowing_the_job_memory_budget_fails_its_job_with_the_figures() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let scene_dir = dir.path().join("scene");
+    std::fs::create_dir(&scene_dir).expect("dir");
+    let cornell_dir = cornell().parent().expect("folder").to_path_buf();
+    for e in std::fs::read_dir(&cornell_dir).expect("cornell") {
+        let path = e.expect("entry").path();
+        if path.extension().is_some_and(|x| x == "obj") {
+            std::fs::copy(&path, scene_dir.join(path.file_name().expect("name"))).expect("copy");
+        }
+    }
+    let scene = std::fs::read_to_string(cornell()).expect("scene").replace(
+        r#""integrator": { "type": "path", "spp": 256, "max_depth": 64, "rr_depth": 3, "seed": 0 }"#,
+        r#""integrator": { "type": "photon", "spp": 1, "photon_map": { "photons": 400000, "irradiance_cache": { "enabled": false } } }"#,
+    );
+    assert!(
+        scene.contains("400000"),
+        "the Cornell box's integrator line changed"
+    );
+    std::fs::write(scene_dir.join("scene.json"), scene).expect("write");
+    let mut config = Config::new(
+        "127.0.0.1:0".parse().expect("addr"),
+        dir.path().join("data"),
+        CLIENT.into(),
+        WORKER.into(),
+    );
+    config.store = tessera_farm::store::test_store_url(&dir.path().join("data"));
+    // A 32×32 frame fits; 400,000 photons landing on the box's walls (52 bytes each) do not.
+    config.limits.max_memory = 1 << 20;
+    let running = coordinator::start(config).await.expect("coordinator");
+    let url = format!("http://{}", running.addr);
+    let client = Client::new(&url, CLIENT).expect("client");
+    let (bundle, _, scene_name) =
+        Bundle::pack_scene(&scene_dir.join("scene.json")).expect("bundle");
+    let hash = client
+        .upload_bundle(bundle.to_tar().expect("packs"))
+        .await
+        .expect("upload")
+        .hash;
+    let job = client
+        .submit(&JobRequest {
+            bundle: hash,
+            scene: scene_name,
+            name: None,
+            frames: None,
+            settings: RenderSettings {
+                size: Some([32, 32]),
+                ..Default::default()
+            },
+            priority: 0,
+            require_tags: vec![],
+        })
+        .await
+        .expect("admitted: the frame fits");
+    let worker = tokio::spawn(tessera_farm::worker::run(
+        tessera_farm::worker::WorkerConfig {
+            coordinator: url.clone(),
+            token: WORKER.into(),
+            name: "photons".into(),
+            slots: 2,
+            parent_pid: None,
+            tags: vec![],
+            fail_tasks_with: None,
+            ca: None,
+        },
+    ));
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let status = loop {
+        let s = client.job(job.id).await.expect("status");
+        if s.state.is_final() {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "job still {:?}", s.state);
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    worker.abort();
+    assert_eq!(status.state, JobState::Failed);
+    let error = status.error.unwrap_or_default();
+    assert!(
+        error.contains("photons pass holds")
+            && error.contains("GiB a job")
+            && error.contains("--max-job-memory-gib"),
+        "{error}"
+    );
+    running.stop().await.expect("stop");
+}

@@ -554,6 +554,7 @@ impl App {
                     anyhow::anyhow!("task {id} ({} {}): {e}", spec.kind, spec.index)
                 })?;
                 fold.next += 1;
+                check_pass_memory(pass, fold, *id, self.config.limits.max_memory)?;
                 folded += 1;
             }
             if folded < BATCH {
@@ -624,4 +625,27 @@ impl App {
         }
         Ok(out)
     }
+}
+
+/// A pass's state against the job's memory budget, after task `id` folded into it: how much a
+/// pass stores is known only as its results come in, so a job whose pass outgrows the budget
+/// fails then, with the figures, before the process folding it runs out of memory.
+fn check_pass_memory(
+    pass: &dyn DynPass,
+    fold: &PassFold,
+    id: i64,
+    budget: u64,
+) -> anyhow::Result<()> {
+    let held = pass.state_bytes(fold.state.as_ref());
+    if held > budget {
+        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        anyhow::bail!(
+            "the {} pass holds {:.2} GiB after task {id} ({} of its tasks folded), past this farm's {:.2} GiB a job (--max-job-memory-gib)",
+            pass.name(),
+            gib(held),
+            fold.next,
+            gib(budget)
+        );
+    }
+    Ok(())
 }

@@ -371,6 +371,10 @@ pub trait Pass: Send + Sync + 'static {
     /// [`Method::fits`]).
     fn fits(&self, task: &TaskSpec, p: &Self::Partial) -> Result<(), String>;
     fn start(&self) -> Self::State;
+    /// Bytes `state` holds now (what it has allocated): a process folding a pass checks it
+    /// against the job's memory budget as results come in, since how much a pass stores
+    /// (photons that land, records the error bound asks for) is known only then.
+    fn state_bytes(&self, state: &Self::State) -> u64;
     fn fold(
         &self,
         state: &mut Self::State,
@@ -419,6 +423,8 @@ pub trait DynPass: Send + Sync {
     /// See [`Pass::fits`].
     fn fits(&self, task: &TaskSpec, p: &dyn Payload) -> Result<(), String>;
     fn start(&self) -> Box<dyn Any + Send + Sync>;
+    /// See [`Pass::state_bytes`].
+    fn state_bytes(&self, state: &(dyn Any + Send + Sync)) -> u64;
     fn fold(
         &self,
         state: &mut (dyn Any + Send + Sync),
@@ -461,6 +467,11 @@ impl<P: Pass> DynPass for P {
     }
     fn start(&self) -> Box<dyn Any + Send + Sync> {
         Box::new(Pass::start(self))
+    }
+    fn state_bytes(&self, state: &(dyn Any + Send + Sync)) -> u64 {
+        state
+            .downcast_ref::<P::State>()
+            .map_or(0, |s| Pass::state_bytes(self, s))
     }
     fn fold(
         &self,

@@ -173,6 +173,10 @@ impl Pass for PhotonsPass {
         (Vec::new(), Vec::new())
     }
 
+    fn state_bytes(&self, (global, caustic): &Self::State) -> u64 {
+        ((global.capacity() + caustic.capacity()) * std::mem::size_of::<Photon>()) as u64
+    }
+
     /// One stored photon per bounce at most, bounded by the depth.
     fn fits(&self, task: &TaskSpec, p: &Vec<Photon>) -> Result<(), String> {
         let shot = task.end.saturating_sub(task.start) as usize;

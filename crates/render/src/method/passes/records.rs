@@ -121,6 +121,10 @@ impl Pass for RecordsPass {
         Vec::new()
     }
 
+    fn state_bytes(&self, state: &Self::State) -> u64 {
+        (state.capacity() * std::mem::size_of::<Record>()) as u64
+    }
+
     /// A task's keyframe pixels make as many records as the cache's error bound asks for:
     /// any count fits; each record must be finite to be looked up.
     fn fits(&self, _: &TaskSpec, p: &Vec<Record>) -> Result<(), String> {

@@ -92,6 +92,10 @@ impl Pass for SubsurfacePass {
         Ok(e.iter().map(|v| v.to_array()).collect())
     }
 
+    fn state_bytes(&self, state: &Self::State) -> u64 {
+        (state.capacity() * std::mem::size_of::<[f32; 3]>()) as u64
+    }
+
     fn start(&self) -> Self::State {
         Vec::with_capacity(self.points as usize)
     }
