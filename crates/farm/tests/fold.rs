@@ -353,6 +353,38 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
     running.stop().await.expect("stop");
 }
 
+/// Runs a real worker of `slots` slots until job `id` ends; its last status.
+async fn run_to_the_end(
+    url: &str,
+    client: &Client,
+    id: i64,
+    slots: u32,
+) -> tessera_farm::protocol::JobStatus {
+    let worker = tokio::spawn(tessera_farm::worker::run(
+        tessera_farm::worker::WorkerConfig {
+            coordinator: url.to_string(),
+            token: WORKER.into(),
+            name: "worker".into(),
+            slots,
+            parent_pid: None,
+            tags: vec![],
+            fail_tasks_with: None,
+            ca: None,
+        },
+    ));
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let status = loop {
+        let s = client.job(id).await.expect("status");
+        if s.state.is_final() {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "job still {:?}", s.state);
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    worker.abort();
+    status
+}
+
 /// A real worker whose result is over the coordinator's limit does not upload it: the task
 /// fails on the worker with the limit, the result's size and how to raise the limit, and after
 /// its attempts the job fails with that message.
@@ -385,28 +417,7 @@ async fn a_worker_refuses_a_result_over_the_limit_and_the_job_says_which_limit()
         })
         .await
         .expect("submit");
-    let worker = tokio::spawn(tessera_farm::worker::run(
-        tessera_farm::worker::WorkerConfig {
-            coordinator: url.clone(),
-            token: WORKER.into(),
-            name: "limited".into(),
-            slots: 1,
-            parent_pid: None,
-            tags: vec![],
-            fail_tasks_with: None,
-            ca: None,
-        },
-    ));
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let status = loop {
-        let s = client.job(job.id).await.expect("status");
-        if s.state.is_final() {
-            break s;
-        }
-        assert!(Instant::now() < deadline, "job still {:?}", s.state);
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    };
-    worker.abort();
+    let status = run_to_the_end(&url, &client, job.id, 1).await;
     assert_eq!(status.state, JobState::Failed);
     let error = status.error.unwrap_or_default();
     assert!(
@@ -473,28 +484,7 @@ async fn a_pass_outgrowing_the_job_memory_budget_fails_its_job_with_the_figures(
         })
         .await
         .expect("admitted: the frame fits");
-    let worker = tokio::spawn(tessera_farm::worker::run(
-        tessera_farm::worker::WorkerConfig {
-            coordinator: url.clone(),
-            token: WORKER.into(),
-            name: "photons".into(),
-            slots: 2,
-            parent_pid: None,
-            tags: vec![],
-            fail_tasks_with: None,
-            ca: None,
-        },
-    ));
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let status = loop {
-        let s = client.job(job.id).await.expect("status");
-        if s.state.is_final() {
-            break s;
-        }
-        assert!(Instant::now() < deadline, "job still {:?}", s.state);
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    };
-    worker.abort();
+    let status = run_to_the_end(&url, &client, job.id, 2).await;
     assert_eq!(status.state, JobState::Failed);
     let error = status.error.unwrap_or_default();
     assert!(
