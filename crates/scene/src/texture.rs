@@ -235,9 +235,19 @@ pub fn decode(bytes: &[u8], name: &str, role: TextureRole) -> Result<TextureImag
             .with_guessed_format()
             .map_err(|e| format!("cannot read the image: {e}"))
     };
-    // The header's size is checked before the decoder allocates for it.
+    // The header's size is checked before the decoder allocates for it: against the limit,
+    // and against what the file's bytes could hold.
+    let format = reader()?.format();
     let (width, height) = reader()?.into_dimensions().map_err(bad)?;
     crate::budget::check_image_size(width as u64, height as u64)?;
+    if let Some((least, why)) = format.and_then(|f| least_bytes(f, width as u64, height as u64))
+        && least > bytes.len() as u64
+    {
+        return Err(format!(
+            "its header claims {width}×{height} pixels, which takes at least {least} bytes ({why}); the file has {}",
+            bytes.len()
+        ));
+    }
     let img = reader()?.decode().map_err(bad)?;
     let (width, height) = (img.width(), img.height());
     let eight = matches!(
@@ -269,6 +279,28 @@ pub fn decode(bytes: &[u8], name: &str, role: TextureRole) -> Result<TextureImag
         ),
     };
     Ok(TextureImage::new(name, width, height, texels))
+}
+
+/// The fewest bytes in which a file of `format` can hold a `width`×`height` image, and why: a
+/// header may state any size, but the data that fills it compresses only so far, so a small
+/// file cannot make the decoder allocate for a large image it does not hold.
+/// - PNG: each row is a filter byte and its pixels at no less than 1 bit each, which deflate
+///   shrinks at most 1032:1 (its longest match, 258 bytes, in no less than 2 bits).
+/// - JPEG: each 8×8 block of the full-resolution component carries a DC code of at least one
+///   bit (ITU-T T.81 Huffman codes are 1 to 16 bits long; arithmetic coding, which could go
+///   below, is not read by the decoder).
+fn least_bytes(format: image::ImageFormat, width: u64, height: u64) -> Option<(u64, &'static str)> {
+    match format {
+        image::ImageFormat::Png => Some((
+            height.saturating_mul(1 + width.div_ceil(8)) / 1032,
+            "a 1-bit row and its filter byte, deflated at most 1032:1",
+        )),
+        image::ImageFormat::Jpeg => Some((
+            width.div_ceil(8).saturating_mul(height.div_ceil(8)) / 8,
+            "a bit at least for each 8×8 block",
+        )),
+        _ => None,
+    }
 }
 
 /// How coordinates outside [0, 1] map back into the image (glTF's sampler modes).
@@ -395,6 +427,32 @@ mod tests {
             _ => unreachable!("PNG or JPEG"),
         }
         bytes
+    }
+
+    /// AFL++ found a 624-byte progressive JPEG claiming 65285×1535 pixels, within the pixel
+    /// limit, that the decoder spent 3 s and 770 MB filling with nothing: a claimed size is
+    /// also one the file's bytes could hold.
+    #[test]
+    fn a_claimed_size_the_file_cannot_hold_is_refused_before_decoding() {
+        for format in [image::ImageFormat::Png, image::ImageFormat::Jpeg] {
+            let lying = lying_image(format, 8000, 8000);
+            assert!(lying.len() < 2048);
+            let e = decode(&lying, "t", TextureRole::Color).unwrap_err();
+            assert!(
+                e.contains("8000×8000")
+                    && e.contains("takes at least")
+                    && e.contains(&format!("the file has {}", lying.len())),
+                "{format:?}: {e}"
+            );
+        }
+        // A real image as large as its bytes allow is read: a flat 4096×4096 PNG deflates
+        // near the bound.
+        let flat = image::GrayImage::from_pixel(4096, 4096, image::Luma([128]));
+        let mut png = Vec::new();
+        flat.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .expect("encode");
+        let t = decode(&png, "flat", TextureRole::Data).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((t.width, t.height), (4096, 4096));
     }
 
     #[test]
