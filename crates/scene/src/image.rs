@@ -39,15 +39,19 @@ fn check_exr_size(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
-/// Runs one of the exr crate's decoders (built `non_parallel`) on this thread, a panic in it
-/// an error. Its parallel decoder unpacks blocks on a thread pool of its own, where a panic
-/// aborts the whole process — a coordinator validating a job, a worker with tasks in hand —
-/// so one malformed block would take them down; here it fails the one file.
-fn decode<T>(read: impl FnOnce() -> exr::error::Result<T>) -> Result<T, String> {
+/// Runs a third-party decoder on this thread, a panic in it an error of the file: the
+/// decoders assert things of their input that a malformed file breaks (zune-jpeg's
+/// upsampler, exr's block unpacking), and a panic must fail the one file, not the
+/// coordinator validating a job or the worker with tasks in hand. The exr crate's decoders
+/// are built `non_parallel`: its parallel one unpacks blocks on a thread pool of its own,
+/// where a panic aborts the whole process.
+pub(crate) fn guarded<T, E: std::fmt::Display>(
+    read: impl FnOnce() -> Result<T, E>,
+) -> Result<T, String> {
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(read)) {
         Ok(r) => r.map_err(|e| e.to_string()),
         Err(panic) => Err(format!(
-            "the OpenEXR decoder failed on a malformed block ({})",
+            "the decoder failed on a malformed file ({})",
             panic
                 .downcast_ref::<&str>()
                 .copied()
@@ -65,7 +69,7 @@ pub fn read_exr_channels(
 ) -> Result<(u32, u32, Vec<Vec<f32>>), String> {
     use exr::prelude::*;
     check_exr_size(bytes)?;
-    let image = decode(|| {
+    let image = guarded(|| {
         read()
             .no_deep_data()
             .largest_resolution_level()
@@ -97,7 +101,7 @@ pub fn read_exr_channels(
 pub fn read_exr_rgb(bytes: &[u8]) -> Result<RgbImage, String> {
     use exr::prelude::*;
     check_exr_size(bytes)?;
-    let image = decode(|| {
+    let image = guarded(|| {
         read()
             .no_deep_data()
             .largest_resolution_level()
@@ -229,10 +233,11 @@ mod tests {
     /// A panic inside the decoder fails that file, with what it said, and nothing else.
     #[test]
     fn a_panic_in_the_decoder_is_an_error_of_the_file() {
-        let r: Result<(), String> = decode(|| panic!("index out of bounds"));
+        let r: Result<(), String> =
+            guarded(|| -> Result<(), String> { panic!("index out of bounds") });
         let e = r.unwrap_err();
         assert!(
-            e.contains("malformed block") && e.contains("index out of bounds"),
+            e.contains("malformed file") && e.contains("index out of bounds"),
             "{e}"
         );
     }

@@ -248,7 +248,7 @@ pub fn decode(bytes: &[u8], name: &str, role: TextureRole) -> Result<TextureImag
             bytes.len()
         ));
     }
-    let img = reader()?.decode().map_err(bad)?;
+    let img = crate::image::guarded(|| reader()?.decode().map_err(bad))?;
     let (width, height) = (img.width(), img.height());
     let eight = matches!(
         img.color(),
@@ -453,6 +453,24 @@ mod tests {
             .expect("encode");
         let t = decode(&png, "flat", TextureRole::Data).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!((t.width, t.height), (4096, 4096));
+    }
+
+    /// AFL++ found a JPEG on which zune-jpeg's AVX2 upsampler fails an assertion (in release
+    /// builds too): the file is refused, saying so, and nothing panics past the decoder.
+    #[test]
+    fn a_panic_in_the_jpeg_decoder_refuses_the_file() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../fuzz/regressions/image/jpeg-upsampler-assert.jpg"
+        );
+        let bytes = std::fs::read(path).expect("the regression input");
+        // A CPU without AVX2 takes the scalar upsampler, which may read the file.
+        if let Err(e) = decode(&bytes, "t", TextureRole::Color) {
+            assert!(
+                e.contains("malformed file") || e.contains("cannot decode"),
+                "{e}"
+            );
+        }
     }
 
     #[test]
