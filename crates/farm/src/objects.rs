@@ -23,6 +23,8 @@ use object_store::{ObjectStore, PutPayload, WriteMultipart};
 
 /// Bytes per part of an upload to a remote store.
 const PART: usize = 8 << 20;
+/// The object holding the store's identity ([`Objects::identity`]).
+pub const IDENTITY: &str = "tessera-objects-id";
 
 /// Where objects are kept, and how this process reaches them.
 pub struct Objects {
@@ -166,32 +168,54 @@ impl Objects {
         check().with_context(|| format!("the object store {} cannot be written", self.location))
     }
 
-    /// The store's identity: an id kept in the store itself (`tessera-objects-id`), `fresh`
+    /// The store's identity: an id kept in the store itself ([`IDENTITY`]), `fresh`
     /// (random) written by the first process to ask. Copies of a store share it; two stores
     /// never do.
     pub fn identity(
         &self,
         fresh: impl FnOnce() -> anyhow::Result<String>,
     ) -> anyhow::Result<String> {
-        const KEY: &str = "tessera-objects-id";
         let read = || -> anyhow::Result<Option<String>> {
             Ok(self
-                .get(KEY)?
+                .get(IDENTITY)?
                 .map(|b| String::from_utf8_lossy(&b).trim().to_string()))
         };
         if let Some(id) = read()? {
             anyhow::ensure!(
                 !id.is_empty() && id.len() <= 64 && id.bytes().all(|b| b.is_ascii_hexdigit()),
-                "the object store {}: {KEY} holds {id:?}, expected a hex id",
+                "the object store {}: {IDENTITY} holds {id:?}, expected a hex id",
                 self.location
             );
             return Ok(id);
         }
         let id = fresh()?;
-        self.put(KEY, Bytes::from(id.clone()))?;
+        self.put(IDENTITY, Bytes::from(id.clone()))?;
         // Two first coordinators at once write the same id (`fresh` agrees through the job
         // store); what the store holds is its identity.
         Ok(read()?.unwrap_or(id))
+    }
+
+    /// Waits up to `patience` for the store to hold identity `id`, written by the coordinator
+    /// that recorded it in the job store a moment ago: a store that does not show it by then
+    /// is not that coordinator's, only at the same location (a local directory of the same
+    /// path on another host).
+    pub fn await_identity(&self, id: &str, patience: std::time::Duration) -> anyhow::Result<()> {
+        let deadline = std::time::Instant::now() + patience;
+        loop {
+            match self.get(IDENTITY)? {
+                Some(b) if String::from_utf8_lossy(&b).trim() == id => return Ok(()),
+                Some(b) => anyhow::bail!(
+                    "the object store {} holds id {:?}, not {id}, the one the job store records for its location",
+                    self.location,
+                    String::from_utf8_lossy(&b).trim()
+                ),
+                None if std::time::Instant::now() >= deadline => anyhow::bail!(
+                    "the object store {} is not the one this farm's job store records at that location (id {id}): it does not hold that id, so it is another store at the same path, such as a local directory on another host; coordinators sharing a job store must share its object store (--objects)",
+                    self.location
+                ),
+                None => std::thread::sleep(std::time::Duration::from_millis(100)),
+            }
+        }
     }
 
     /// The spool directory: scratch space of this process, on local disk.

@@ -619,6 +619,47 @@ async fn coordinators_of_one_job_store_must_share_its_object_store() {
 }
 
 #[cfg(unix)]
+/// Two object stores at one path — a local directory of the same name on each host: the
+/// second coordinator's is empty where the first's holds the farm's id, and it is refused,
+/// naming the path, rather than taking the id as its own.
+#[tokio::test]
+async fn a_second_object_store_at_the_same_path_is_refused() {
+    let dir = tempfile::tempdir().expect("dir");
+    let objects = dir.path().join("objects");
+    let with_objects = || {
+        let mut config = config(dir.path());
+        config.objects = Some(objects.display().to_string());
+        config
+    };
+    let running = coordinator::start(with_objects())
+        .await
+        .expect("coordinator");
+    running.stop().await.expect("stop");
+    // What the other host's directory of that path holds: nothing yet.
+    let first_hosts = dir.path().join("objects-of-the-first-host");
+    std::fs::rename(&objects, &first_hosts).expect("move");
+    std::fs::create_dir(&objects).expect("dir");
+    let e = coordinator::start(with_objects())
+        .await
+        .map(|_| ())
+        .expect_err("refused")
+        .to_string();
+    assert!(
+        e.contains(&objects.display().to_string())
+            && e.contains("another store at the same path")
+            && e.contains("--objects"),
+        "{e}"
+    );
+    // Nothing was written into it; with the first host's store back, the farm starts.
+    assert_eq!(std::fs::read_dir(&objects).expect("dir").count(), 0);
+    std::fs::remove_dir(&objects).expect("remove");
+    std::fs::rename(&first_hosts, &objects).expect("move back");
+    let again = coordinator::start(with_objects())
+        .await
+        .expect("coordinator");
+    again.stop().await.expect("stop");
+}
+
 #[tokio::test]
 async fn the_job_store_is_readable_by_its_owner_alone() {
     use std::os::unix::fs::PermissionsExt;

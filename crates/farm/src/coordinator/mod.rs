@@ -43,6 +43,11 @@ use crate::store::{Retry, RetryPolicy, Store};
 use fold::Folds;
 use metrics::Metrics;
 
+/// How long a coordinator joining a farm waits for its object store to show the identity the
+/// job store records for its location (see `start`): the coordinator that recorded it writes
+/// it a moment later.
+const IDENTITY_PATIENCE: std::time::Duration = std::time::Duration::from_secs(5);
+
 /// How a coordinator runs.
 #[derive(Debug, Clone)]
 pub struct Config {
@@ -437,9 +442,17 @@ pub async fn start(config: Config) -> anyhow::Result<Running> {
     let objects = open_objects(&config, &id)?;
     objects.probe(&id)?;
     // A store without an id takes the one the job store records for its location, if another
-    // coordinator is making it now, so that two first coordinators agree.
-    let identity =
-        objects.identity(|| Ok(store.adopt_objects(&random_token()?, &objects.location)?))?;
+    // coordinator is making it now, so that two first coordinators agree; that one writes it
+    // into the store a moment after recording it, so the same store shows it, and a store
+    // that never does is another one at the same path.
+    let identity = objects.identity(|| {
+        let candidate = random_token()?;
+        let id = store.adopt_objects(&candidate, &objects.location)?;
+        if id != candidate {
+            objects.await_identity(&id, IDENTITY_PATIENCE)?;
+        }
+        Ok(id)
+    })?;
     if let Some((recorded, location)) = store.check_objects(&identity, &objects.location)? {
         anyhow::bail!(
             "the object store {} (id {identity}) is not the one this farm's job store records: {location} (id {recorded}); coordinators sharing a job store must share its object store (--objects)",
