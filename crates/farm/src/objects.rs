@@ -175,12 +175,7 @@ impl Objects {
         &self,
         fresh: impl FnOnce() -> anyhow::Result<String>,
     ) -> anyhow::Result<String> {
-        let read = || -> anyhow::Result<Option<String>> {
-            Ok(self
-                .get(IDENTITY)?
-                .map(|b| String::from_utf8_lossy(&b).trim().to_string()))
-        };
-        if let Some(id) = read()? {
+        if let Some(id) = self.stored_identity()? {
             anyhow::ensure!(
                 !id.is_empty() && id.len() <= 64 && id.bytes().all(|b| b.is_ascii_hexdigit()),
                 "the object store {}: {IDENTITY} holds {id:?}, expected a hex id",
@@ -192,7 +187,14 @@ impl Objects {
         self.put(IDENTITY, Bytes::from(id.clone()))?;
         // Two first coordinators at once write the same id (`fresh` agrees through the job
         // store); what the store holds is its identity.
-        Ok(read()?.unwrap_or(id))
+        Ok(self.stored_identity()?.unwrap_or(id))
+    }
+
+    /// The id the store holds ([`IDENTITY`]), if any.
+    fn stored_identity(&self) -> anyhow::Result<Option<String>> {
+        Ok(self
+            .get(IDENTITY)?
+            .map(|b| String::from_utf8_lossy(&b).trim().to_string()))
     }
 
     /// Waits up to `patience` for the store to hold identity `id`, written by the coordinator
@@ -202,12 +204,11 @@ impl Objects {
     pub fn await_identity(&self, id: &str, patience: std::time::Duration) -> anyhow::Result<()> {
         let deadline = std::time::Instant::now() + patience;
         loop {
-            match self.get(IDENTITY)? {
-                Some(b) if String::from_utf8_lossy(&b).trim() == id => return Ok(()),
-                Some(b) => anyhow::bail!(
-                    "the object store {} holds id {:?}, not {id}, the one the job store records for its location",
-                    self.location,
-                    String::from_utf8_lossy(&b).trim()
+            match self.stored_identity()? {
+                Some(held) if held == id => return Ok(()),
+                Some(held) => anyhow::bail!(
+                    "the object store {} holds id {held:?}, not {id}, the one the job store records for its location",
+                    self.location
                 ),
                 None if std::time::Instant::now() >= deadline => anyhow::bail!(
                     "the object store {} is not the one this farm's job store records at that location (id {id}): it does not hold that id, so it is another store at the same path, such as a local directory on another host; coordinators sharing a job store must share its object store (--objects)",

@@ -21,7 +21,7 @@ use tessera_render::wire::Header;
 const CLIENT: &str = "client-token";
 const WORKER: &str = "worker-token";
 
-async fn start(dir: &Path, max_result: u64) -> Running {
+fn config(dir: &Path) -> Config {
     let mut config = Config::new(
         "127.0.0.1:0".parse().expect("addr"),
         dir.to_path_buf(),
@@ -29,6 +29,11 @@ async fn start(dir: &Path, max_result: u64) -> Running {
         WORKER.into(),
     );
     config.store = tessera_farm::store::test_store_url(dir);
+    config
+}
+
+async fn start(dir: &Path, max_result: u64) -> Running {
+    let mut config = config(dir);
     config.max_result = max_result;
     coordinator::start(config).await.expect("coordinator")
 }
@@ -353,6 +358,32 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
     running.stop().await.expect("stop");
 }
 
+/// Packs the scene at `scene`, uploads it and submits it with `settings`.
+async fn submit(
+    client: &Client,
+    scene: &Path,
+    settings: RenderSettings,
+) -> tessera_farm::protocol::JobStatus {
+    let (bundle, _, scene_name) = Bundle::pack_scene(scene).expect("bundle");
+    let hash = client
+        .upload_bundle(bundle.to_tar().expect("packs"))
+        .await
+        .expect("upload")
+        .hash;
+    client
+        .submit(&JobRequest {
+            bundle: hash,
+            scene: scene_name,
+            name: None,
+            frames: None,
+            settings,
+            priority: 0,
+            require_tags: vec![],
+        })
+        .await
+        .expect("submit")
+}
+
 /// Runs a real worker of `slots` slots until job `id` ends; its last status.
 async fn run_to_the_end(
     url: &str,
@@ -394,29 +425,13 @@ async fn a_worker_refuses_a_result_over_the_limit_and_the_job_says_which_limit()
     let running = start(&dir.path().join("data"), 64 << 10).await;
     let url = format!("http://{}", running.addr);
     let client = Client::new(&url, CLIENT).expect("client");
-    let (bundle, _, scene_name) = Bundle::pack_scene(&cornell()).expect("bundle");
-    let hash = client
-        .upload_bundle(bundle.to_tar().expect("packs"))
-        .await
-        .expect("upload")
-        .hash;
-    let job = client
-        .submit(&JobRequest {
-            bundle: hash,
-            scene: scene_name,
-            name: None,
-            frames: None,
-            settings: RenderSettings {
-                size: Some([128, 128]),
-                spp: Some(1),
-                tile: Some(128),
-                ..Default::default()
-            },
-            priority: 0,
-            require_tags: vec![],
-        })
-        .await
-        .expect("submit");
+    let settings = RenderSettings {
+        size: Some([128, 128]),
+        spp: Some(1),
+        tile: Some(128),
+        ..Default::default()
+    };
+    let job = submit(&client, &cornell(), settings).await;
     let status = run_to_the_end(&url, &client, job.id, 1).await;
     assert_eq!(status.state, JobState::Failed);
     let error = status.error.unwrap_or_default();
@@ -450,40 +465,18 @@ async fn a_pass_outgrowing_the_job_memory_budget_fails_its_job_with_the_figures(
         "the Cornell box's integrator line changed"
     );
     std::fs::write(scene_dir.join("scene.json"), scene).expect("write");
-    let mut config = Config::new(
-        "127.0.0.1:0".parse().expect("addr"),
-        dir.path().join("data"),
-        CLIENT.into(),
-        WORKER.into(),
-    );
-    config.store = tessera_farm::store::test_store_url(&dir.path().join("data"));
+    let mut config = config(&dir.path().join("data"));
     // A 32×32 frame fits; 400,000 photons landing on the box's walls (52 bytes each) do not.
     config.limits.max_memory = 1 << 20;
     let running = coordinator::start(config).await.expect("coordinator");
     let url = format!("http://{}", running.addr);
     let client = Client::new(&url, CLIENT).expect("client");
-    let (bundle, _, scene_name) =
-        Bundle::pack_scene(&scene_dir.join("scene.json")).expect("bundle");
-    let hash = client
-        .upload_bundle(bundle.to_tar().expect("packs"))
-        .await
-        .expect("upload")
-        .hash;
-    let job = client
-        .submit(&JobRequest {
-            bundle: hash,
-            scene: scene_name,
-            name: None,
-            frames: None,
-            settings: RenderSettings {
-                size: Some([32, 32]),
-                ..Default::default()
-            },
-            priority: 0,
-            require_tags: vec![],
-        })
-        .await
-        .expect("admitted: the frame fits");
+    let settings = RenderSettings {
+        size: Some([32, 32]),
+        ..Default::default()
+    };
+    // Admitted: the frame fits.
+    let job = submit(&client, &scene_dir.join("scene.json"), settings).await;
     let status = run_to_the_end(&url, &client, job.id, 2).await;
     assert_eq!(status.state, JobState::Failed);
     let error = status.error.unwrap_or_default();

@@ -1,5 +1,8 @@
 //! Reading float RGB images (OpenEXR) — environment maps and reference images.
 
+#[cfg(test)]
+use std::path::Path;
+
 use glam::Vec3;
 
 /// A float RGB image, rows from top to bottom.
@@ -125,6 +128,15 @@ pub fn read_exr_rgb(bytes: &[u8]) -> Result<RgbImage, String> {
     Ok(image.layer_data.channel_data.pixels)
 }
 
+/// An input that once made a fuzz target fail: `crates/fuzz/regressions/PATH`.
+#[cfg(test)]
+pub(crate) fn fuzz_regression(path: &str) -> Vec<u8> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fuzz/regressions")
+        .join(path);
+    std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -217,15 +229,12 @@ mod tests {
             assert!(e.contains("60000×60000") && e.contains("limit"), "{e}");
         }
     }
+
     /// A B44 block whose OpenEXR arithmetic wraps (AFL++ found it aborting a debug build from
     /// the decoder's thread pool): it decodes, as a release build and OpenEXR decode it.
     #[test]
     fn a_b44_block_whose_arithmetic_wraps_decodes() {
-        let path = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../fuzz/regressions/image/b44-block-that-wraps.exr"
-        );
-        let bytes = std::fs::read(path).expect("the regression input");
+        let bytes = fuzz_regression("image/b44-block-that-wraps.exr");
         let image = read_exr_rgb(&bytes).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(image.pixels.len(), (image.width * image.height) as usize);
     }

@@ -488,6 +488,13 @@ fn a_scene_json_places_a_gltf_file_in_its_own_units() {
 #[test]
 fn bad_input_is_refused_naming_the_file_the_object_and_what_was_expected() {
     let gltf = |doc: Value| vec![("bad.gltf", doc.to_string().into_bytes())];
+    // The triangle with field `at` (a JSON pointer) set to `value`.
+    let edited = |at: &str, value: Value| {
+        let mut d = document(json!({}));
+        let (object, field) = at.rsplit_once('/').expect("a pointer");
+        d.pointer_mut(object).expect("an object of the triangle")[field] = value;
+        gltf(d)
+    };
     type Files<'a> = Vec<(&'a str, Vec<u8>)>;
     let cases: Vec<(Files, &[&str])> = vec![
         (
@@ -501,11 +508,7 @@ fn bad_input_is_refused_naming_the_file_the_object_and_what_was_expected() {
             &["buffers[0]", "missing.bin"],
         ),
         (
-            gltf({
-                let mut d = document(json!({}));
-                d["accessors"][0]["count"] = json!(30);
-                d
-            }),
+            edited("/accessors/0/count", json!(30)),
             &[
                 "meshes[0] \"Triangle\" primitives[0]",
                 "POSITION",
@@ -526,19 +529,11 @@ fn bad_input_is_refused_naming_the_file_the_object_and_what_was_expected() {
             &["buffers[0]", "expected byteLength 200"],
         ),
         (
-            gltf({
-                let mut d = document(json!({}));
-                d["accessors"][1]["count"] = json!(0);
-                d
-            }),
+            edited("/accessors/1/count", json!(0)),
             &["primitives[0]", "NORMAL (accessors[1])", "0 elements"],
         ),
         (
-            gltf({
-                let mut d = document(json!({}));
-                d["accessors"][2]["count"] = json!((1u64 << 63) + 1);
-                d
-            }),
+            edited("/accessors/2/count", json!((1u64 << 63) + 1)),
             &["indices", "more than 2^64", "bufferView 2"],
         ),
         (
@@ -550,11 +545,7 @@ fn bad_input_is_refused_naming_the_file_the_object_and_what_was_expected() {
             &["images[0]", "expected a uri or a bufferView"],
         ),
         (
-            gltf({
-                let mut d = document(json!({}));
-                d["bufferViews"][0]["byteStride"] = json!(4);
-                d
-            }),
+            edited("/bufferViews/0/byteStride", json!(4)),
             &[
                 "bufferViews[0].byteStride",
                 "accessors[0] reads elements of 12 bytes",
