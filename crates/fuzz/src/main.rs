@@ -11,9 +11,9 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 
-/// The largest seed AFL++ starts from. It mutates and trims byte by byte, so one seed of
-/// 200 KB slows every later execution of the queue it grows; the suite still replays the
-/// larger ones (`tests/regressions.rs`).
+/// The largest seed AFL++ starts from. It mutates and trims byte by byte, so one large seed
+/// slows every later execution of the queue it grows; the suite still replays the larger
+/// ones (`tests/regressions.rs`).
 const MAX_SEED_BYTES: usize = 64 << 10;
 
 fn main() -> anyhow::Result<()> {
