@@ -2,8 +2,8 @@
 # Speed against error on six scenes with every method and `auto` (issue 25's "must show"):
 # `tessera bench` per scene into bench-report/auto/SCENE/, then a table of the wall seconds to
 # relMSE 1e-2 with auto's ratio to the best fixed method (scripts/bench-auto-table.py).
-# Usage: scripts/bench-auto.sh [--hd] [TESSERA] (default target/release/tessera). Long (the
-# README's dated section says how long it took); run it with nothing else running.
+# Usage: scripts/bench-auto.sh [--hd] [TESSERA] (default target/release/tessera). Long (about
+# an hour with --hd on 2 cores); run it with nothing else running.
 # --hd: also the Cornell box at 1920×1080, the size users work at, against Mitsuba 3's
 # reference (not committed: scripts/references/run.sh renders it first when it is missing).
 set -eu
@@ -41,7 +41,7 @@ run indirect-room scenes/indirect-room/reference-128.exr "$ALL" "$SPP" "" $SEEDS
 # seconds and the pilot's film has thousands of pixels (at most 4096): the glass against
 # Mitsuba's reference under the scene's filter (scripts/references/make.py
 # cornell-glass/reference-512), the room against BDPT's and the spheres (the scene's own film)
-# against VCM's (README, "At the sizes where a render takes seconds", says how each was made).
+# against VCM's (docs/src/benchmarks/auto.md says how each was made).
 run cornell-glass scenes/cornell-glass/reference-512.exr "$ALL" "$SPP" 512
 run indirect-room scenes/indirect-room/reference-512x384.exr "$ALL" "$SPP" 512x384
 run pool scenes/pool/reference-96.exr "$ALL" "$SPP" "" $SEEDS

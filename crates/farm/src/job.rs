@@ -411,7 +411,7 @@ pub fn write_frame(
     write_png(&path.with_extension("png"), &done.image)
 }
 
-/// What the core will do with a job, with reasons, for logs and the job status (DESIGN
+/// What the core will do with a job, with reasons, for logs and the job status (docs/src/design/overview.md
 /// invariant 4): scene analysis, then the method's own decisions.
 pub fn decisions(desc: &SceneDesc, plan: &dyn Plan) -> Vec<String> {
     let i = &desc.integrator;

@@ -483,7 +483,7 @@ pub fn check_tags(tags: &[String], field: &str) -> Result<(), String> {
     Ok(())
 }
 
-/// What a token may do (see docs/roles.md, the route-by-role table).
+/// What a token may do (see docs/src/farm/roles.md, the route-by-role table).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Role {

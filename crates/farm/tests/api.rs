@@ -587,6 +587,56 @@ async fn openapi_document_describes_the_api() {
     running.stop().await.expect("stop");
 }
 
+/// The book's API page lists every operation of the OpenAPI document with its summary: the
+/// table between its markers is rendered from the document here and must equal the page's
+/// (`TESSERA_BLESS=1` writes it).
+#[tokio::test]
+async fn the_books_api_page_is_the_openapi_document() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let running = start(dir.path()).await;
+    let doc: serde_json::Value = reqwest::get(format!("http://{}/v1/openapi.json", running.addr))
+        .await
+        .expect("get")
+        .json()
+        .await
+        .expect("JSON");
+    running.stop().await.expect("stop");
+    let mut table = String::from("| operation | group | what |\n|---|---|---|\n");
+    for (path, ops) in doc["paths"].as_object().expect("paths") {
+        for (method, op) in ops.as_object().expect("operations") {
+            let tag = op["tags"][0].as_str().unwrap_or("");
+            let summary = op["summary"].as_str().unwrap_or("");
+            let summary = summary.split_whitespace().collect::<Vec<_>>().join(" ");
+            let summary = summary.replace('|', "\\|");
+            assert!(
+                !summary.is_empty(),
+                "{method} {path} has no summary (its handler's doc comment)"
+            );
+            table.push_str(&format!(
+                "| `{} {path}` | {tag} | {summary} |\n",
+                method.to_uppercase()
+            ));
+        }
+    }
+    let page = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/src/farm/api.md");
+    let text = std::fs::read_to_string(&page).expect("docs/src/farm/api.md");
+    let (begin, end) = ("<!-- openapi:begin -->\n", "<!-- openapi:end -->");
+    let (Some(i), Some(k)) = (text.find(begin), text.find(end)) else {
+        panic!("docs/src/farm/api.md: no {begin:?} … {end:?} markers");
+    };
+    let written = &text[i + begin.len()..k];
+    if std::env::var_os("TESSERA_BLESS").is_some() {
+        let fresh = format!("{}{begin}{table}{}", &text[..i], &text[k..]);
+        std::fs::write(&page, fresh).expect("write docs/src/farm/api.md");
+    } else {
+        assert_eq!(
+            written, table,
+            "docs/src/farm/api.md is not the OpenAPI document's table; \
+             TESSERA_BLESS=1 cargo test -p tessera-farm --test api the_books_api_page rewrites it"
+        );
+    }
+}
+
 /// A client given several coordinators moves to the next when one cannot be reached (the
 /// request included), and stays there.
 #[tokio::test]

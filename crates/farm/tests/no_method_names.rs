@@ -1,5 +1,5 @@
 //! The farm moves the core's tasks, results and artifacts without knowing one rendering
-//! method from another (DESIGN: "the farm never names a method"): no method of the registry,
+//! method from another (docs/src/design/overview.md: "the farm never names a method"): no method of the registry,
 //! nor a pass or estimator of one, is named in the farm's source outside comments and tests.
 
 use std::path::Path;

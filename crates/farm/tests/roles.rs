@@ -1,4 +1,4 @@
-//! Users and roles on a coordinator: every cell of the route-by-role table in docs/roles.md
+//! Users and roles on a coordinator: every cell of the route-by-role table in docs/src/farm/roles.md
 //! is a request made here with that identity (the table is read, not copied), and the table
 //! lists every operation of the OpenAPI document. Also: a worker's own token acts only under
 //! its name; a revoked token and its dashboard session are refused at once; each job records
@@ -38,10 +38,10 @@ const SCENE: &str = r#"{
   "shapes": [ { "type": "sphere", "center": [0.5, 0.5, 0], "radius": 0.3, "material": "white" } ]
 }"#;
 
-/// The table of docs/roles.md: (method, path template, one cell per column).
+/// The table of docs/src/farm/roles.md: (method, path template, one cell per column).
 fn table() -> (Vec<String>, Vec<(Method, String, Vec<bool>)>) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/roles.md");
-    let text = std::fs::read_to_string(&path).expect("docs/roles.md");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/src/farm/roles.md");
+    let text = std::fs::read_to_string(&path).expect("docs/src/farm/roles.md");
     let mut lines = text
         .lines()
         .skip_while(|l| !l.starts_with("| route |"))
@@ -65,7 +65,9 @@ fn table() -> (Vec<String>, Vec<(Method, String, Vec<bool>)>) {
                 .map(|c| match c.as_str() {
                     "yes" => true,
                     "no" => false,
-                    other => panic!("docs/roles.md: {route}: expected yes or no, got {other:?}"),
+                    other => {
+                        panic!("docs/src/farm/roles.md: {route}: expected yes or no, got {other:?}")
+                    }
                 })
                 .collect();
             (
@@ -196,7 +198,10 @@ async fn every_cell_of_the_route_by_role_table_holds() {
     let farm = Farm::new(&dir.path().join("data")).await;
     let (header, rows) = table();
     let columns: Vec<&str> = farm.tokens.iter().map(|(c, _)| c.as_str()).collect();
-    assert_eq!(header, columns, "docs/roles.md: the table's columns");
+    assert_eq!(
+        header, columns,
+        "docs/src/farm/roles.md: the table's columns"
+    );
     // The table lists every operation of the API.
     let doc: serde_json::Value = reqwest::get(format!("{}/v1/openapi.json", farm.url))
         .await
@@ -213,7 +218,7 @@ async fn every_cell_of_the_route_by_role_table_holds() {
     let listed: BTreeSet<String> = rows.iter().map(|(m, r, _)| format!("{m} {r}")).collect();
     assert_eq!(
         listed, documented,
-        "docs/roles.md lists every operation, and only those"
+        "docs/src/farm/roles.md lists every operation, and only those"
     );
     let http = reqwest::Client::new();
     let mut wrong = Vec::new();

@@ -1,5 +1,5 @@
 //! Scene analysis: which light paths a scene can have, and so what is worth computing
-//! (DESIGN invariant 4, "only what a scene needs"). Pure: a function of the scene description,
+//! (invariant 4 of docs/src/design/overview.md, "only what a scene needs"). Pure: a function of the scene description,
 //! run before rendering by every process that needs it, with each decision and its reason kept
 //! for logs, the EXR header and the job status.
 //!

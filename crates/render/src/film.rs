@@ -4,7 +4,7 @@
 //! weighted sums (Σw·L, Σw, Σ(w·L)²) — never normalised colour — in fixed point
 //! (i128). Integer addition is associative, so sums merged from any split of the sample range,
 //! in any order, on any machine, are bit-identical; the image is divided out once, at the end
-//! (DESIGN: tiles carry Σw·L and Σw).
+//! (docs/src/design/overview.md: tiles carry Σw·L and Σw).
 
 use glam::UVec2;
 use half::bf16;

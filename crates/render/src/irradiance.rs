@@ -12,7 +12,7 @@
 //! deepest node whose half-size is at least its validity radius a·Rᵢ, so a lookup visits only
 //! the nodes whose loose bounds contain x.
 //!
-//! The cache is frozen (DESIGN: artifacts are frozen): it is built once from records made by a
+//! The cache is frozen (docs/src/design/overview.md: artifacts are frozen): it is built once from records made by a
 //! pass, and lookups never add to it; a point no record serves is gathered on its own.
 
 use glam::{Vec3, Vec3A};

@@ -29,7 +29,7 @@ pub fn render_tile(
             let (ray, w) = camera_ray(scene, camera, pixel, &mut sampler);
             let mut l = integrator.li(scene, ray, &mut sampler, &mut stats) * exposure;
             stats.samples += 1;
-            // DESIGN invariant 3: no NaN or Inf reaches the film. The sample counts as black
+            // invariant 3 of docs/src/design/overview.md: no NaN or Inf reaches the film. The sample counts as black
             // (every pixel keeps as many samples as its range), and is counted.
             if !l.is_finite() {
                 stats.nonfinite += 1;

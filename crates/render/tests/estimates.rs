@@ -4,7 +4,7 @@
 //! 0.01), against the relMSE measured against the converged 32×32 reference of the Cornell
 //! box (less the reference's own), over the same pixels (the emitter's left out). With
 //! independent samples the two agree within ±30 %; the Sobol sampler's stratification makes
-//! the estimate err high (the README says by how much), so these renders use independent ones.
+//! the estimate err high (docs/src/guide/rendering.md says by how much), so these renders use independent ones.
 //! Then the same against someone else's answer: Mitsuba 3's references of the harder test
 //! scenes (tests/data/references), less their own variance.
 

@@ -1,6 +1,6 @@
 //! The validated scene, in canonical units, ready for the renderer to build from.
 //!
-//! Units (DESIGN invariant 2): lengths in scene units (`metres_per_unit` converts);
+//! Units (invariant 2 of docs/src/design/overview.md): lengths in scene units (`metres_per_unit` converts);
 //! radiometry in SI with RGB in linear Rec.709: radiance in W·sr⁻¹·m⁻², intensity in W·sr⁻¹,
 //! irradiance in W·m⁻². "W" here is luminous-equivalent: luminance Y (0.2126 R + 0.7152 G +
 //! 0.0722 B) times 683 lm/W is the photometric value (cd/m², cd, lux). Emitters given as power

@@ -1,4 +1,4 @@
-//! The JSON scene file, as written by users (see `docs/scene-format.md`).
+//! The JSON scene file, as written by users (see `docs/src/guide/scene-format.md`).
 //!
 //! These types mirror the JSON closely; [`crate::resolve`] turns them into a validated
 //! [`crate::SceneDesc`]. Objects with a `"type"` (materials, shapes, lights) are kept as

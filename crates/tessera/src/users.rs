@@ -1,6 +1,6 @@
 //! `tessera users add|list|revoke`: a coordinator's users and their tokens (an admin's token
 //! is needed). Roles: admin, artist, viewer, worker (see the route-by-role table in
-//! docs/roles.md).
+//! docs/src/farm/roles.md).
 
 use tessera_farm::protocol::{NewUser, Role, User};
 

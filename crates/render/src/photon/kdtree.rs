@@ -10,7 +10,7 @@
 //! index order, four at a time, and the positions sit in their own arrays, one per axis (12
 //! bytes read per point), which keeps it faster than kiddo's immutable tree on plain
 //! Euclidean queries
-//! (`cargo bench -p tessera-render --bench knn` compares them; figures in the README).
+//! (`cargo bench -p tessera-render --bench knn` compares them; figures in docs/src/benchmarks/rays.md).
 
 use glam::{Vec3, Vec3A, Vec4};
 

@@ -1,5 +1,5 @@
 //! Samplers: every value is a function of (seed, pixel, sample index, dimension) only —
-//! never of thread, tile or worker (DESIGN invariant 1).
+//! never of thread, tile or worker (invariant 1 of docs/src/design/overview.md).
 
 pub mod hash;
 mod independent;
