@@ -289,7 +289,7 @@ async fn download_bundle(
     if !bundle::is_hash(&hash) || !app.store.bundle_exists(&hash)? {
         return Err(AppError::not_found(format!("no bundle {hash}")));
     }
-    send_object(&app, &app.bundle_key(&hash), "application/x-tar")
+    app.send_object(&app.bundle_key(&hash), "application/x-tar")
         .await?
         .ok_or_else(|| AppError::not_found(format!("bundle {hash} is not in the object store")))
 }
@@ -423,10 +423,6 @@ async fn submit_job(
     Ok((StatusCode::CREATED, Json(status)))
 }
 
-pub(super) fn job_not_found(id: i64) -> AppError {
-    AppError::not_found(format!("no job {id}"))
-}
-
 /// A job's state, progress per frame, errors and the decisions made about its scene.
 #[utoipa::path(get, path = "/v1/jobs/{id}", tag = "clients",
     params(("id" = i64, Path)), responses((status = 200, body = JobStatus), (status = 404, body = ErrorBody)),
@@ -438,7 +434,7 @@ async fn job_status(
     app.store
         .job(id)?
         .map(Json)
-        .ok_or_else(|| job_not_found(id))
+        .ok_or_else(|| AppError::no_job(id))
 }
 
 /// Delete a job that has ended (done, failed or cancelled) with its frames, results and
@@ -449,7 +445,7 @@ async fn job_status(
     security(("token" = [])))]
 async fn delete_job(State(app): State<Arc<App>>, Path(id): Path<i64>) -> AppResult<StatusCode> {
     let Some(state) = app.store.job_state(id)? else {
-        return Err(job_not_found(id));
+        return Err(AppError::no_job(id));
     };
     if !state.is_final() {
         return Err(AppError::conflict(format!(
@@ -482,7 +478,7 @@ async fn job_tasks(
     Query(q): Query<TasksQuery>,
 ) -> AppResult<Json<Vec<TaskStatus>>> {
     if !app.store.job_exists(id)? {
-        return Err(job_not_found(id));
+        return Err(AppError::no_job(id));
     }
     Ok(Json(app.store.tasks(id, q.frame)?))
 }
@@ -497,7 +493,7 @@ async fn cancel_job(
     Path(id): Path<i64>,
 ) -> AppResult<Json<JobStatus>> {
     let Some(state) = app.store.job_state(id)? else {
-        return Err(job_not_found(id));
+        return Err(AppError::no_job(id));
     };
     if !app.store.cancel(id, now_ms())? {
         return Err(AppError::conflict(format!(
@@ -511,38 +507,16 @@ async fn cancel_job(
     app.store
         .job(id)?
         .map(Json)
-        .ok_or_else(|| job_not_found(id))
+        .ok_or_else(|| AppError::no_job(id))
 }
 
 fn frame_state(app: &App, id: i64, frame: u32) -> AppResult<String> {
     if !app.store.job_exists(id)? {
-        return Err(job_not_found(id));
+        return Err(AppError::no_job(id));
     }
     app.store
         .frame_state(id, frame)?
         .ok_or_else(|| AppError::not_found(format!("job {id} has no frame {frame}")))
-}
-
-/// An object as a response body, streamed; `None` if there is none.
-pub(super) async fn send_object(
-    app: &App,
-    key: &str,
-    content_type: &'static str,
-) -> AppResult<Option<Response>> {
-    let Some((len, stream)) = app.objects.stream(key).await? else {
-        return Ok(None);
-    };
-    let body = axum::body::Body::from_stream(stream);
-    Ok(Some(
-        (
-            [
-                (header::CONTENT_TYPE, content_type.to_string()),
-                (header::CONTENT_LENGTH, len.to_string()),
-            ],
-            body,
-        )
-            .into_response(),
-    ))
 }
 
 /// Download a finished frame as OpenEXR.
@@ -560,7 +534,7 @@ async fn frame_exr(
         )));
     }
     let key = app.frame_key(id, frame);
-    send_object(&app, &key, "image/x-exr")
+    app.send_object(&key, "image/x-exr")
         .await?
         .ok_or_else(|| AppError::internal(format!("{key} is not in the object store")))
 }
@@ -602,7 +576,7 @@ async fn frame_preview(
 #[utoipa::path(get, path = "/v1/workers", tag = "clients",
     responses((status = 200, body = Vec<WorkerStatus>)), security(("token" = [])))]
 async fn list_workers(State(app): State<Arc<App>>) -> AppResult<Json<Vec<WorkerStatus>>> {
-    Ok(Json(app.store.workers(now_ms(), alive_ms(&app))?))
+    Ok(Json(app.store.workers(now_ms(), app.alive_ms())?))
 }
 
 /// The rendering methods a job may ask for (`settings.integrator`), with what `spp` counts
@@ -621,11 +595,6 @@ async fn list_methods() -> Json<Vec<MethodStatus>> {
             })
             .collect(),
     )
-}
-
-/// A worker is alive if seen within two lease periods.
-pub(super) fn alive_ms(app: &App) -> i64 {
-    2 * app.config.lease_ms as i64
 }
 
 /// Liveness: the process serves and its job store answers; with its version and the wire
@@ -650,7 +619,7 @@ async fn metrics(State(app): State<Arc<App>>) -> AppResult<Response> {
     let g = app.store.gauges()?;
     let workers_alive = app
         .store
-        .workers(now_ms(), alive_ms(&app))?
+        .workers(now_ms(), app.alive_ms())?
         .iter()
         .filter(|w| w.alive)
         .count() as u64;

@@ -71,7 +71,7 @@ impl Caller {
     }
 }
 
-/// What a group of routes asks of its caller (docs/roles.md is the table).
+/// What a group of routes asks of its caller (docs/src/farm/roles.md is the table).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Access {
     /// Jobs: read by every person; submitted by admins and artists; one job changed by

@@ -1,4 +1,4 @@
-//! Disk is reclaimed (DESIGN: "task results go once their frame is written; jobs can be
+//! Disk is reclaimed (docs/src/design/overview.md: "task results go once their frame is written; jobs can be
 //! deleted and expire; the artifact cache has a size cap").
 
 use super::{App, now_ms};

@@ -29,6 +29,10 @@ impl AppError {
     pub fn not_found(message: impl Into<String>) -> Self {
         Self::new(StatusCode::NOT_FOUND, message)
     }
+    /// No job of this id.
+    pub fn no_job(id: i64) -> Self {
+        Self::not_found(format!("no job {id}"))
+    }
     pub fn conflict(message: impl Into<String>) -> Self {
         Self::new(StatusCode::CONFLICT, message)
     }

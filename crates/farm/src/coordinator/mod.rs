@@ -30,6 +30,8 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use anyhow::Context;
+use axum::http::header;
+use axum::response::{IntoResponse, Response};
 use tessera_render::method::Plan;
 use tessera_scene::SceneDesc;
 use tokio::sync::Notify;
@@ -167,6 +169,36 @@ pub fn now_ms() -> i64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_millis() as i64)
+}
+
+/// What handlers share.
+impl App {
+    /// A worker is alive if seen within two lease periods.
+    pub(super) fn alive_ms(&self) -> i64 {
+        2 * self.config.lease_ms as i64
+    }
+
+    /// An object as a response body, streamed; `None` if there is none.
+    pub(super) async fn send_object(
+        &self,
+        key: &str,
+        content_type: &'static str,
+    ) -> AppResult<Option<Response>> {
+        let Some((len, stream)) = self.objects.stream(key).await? else {
+            return Ok(None);
+        };
+        let body = axum::body::Body::from_stream(stream);
+        Ok(Some(
+            (
+                [
+                    (header::CONTENT_TYPE, content_type.to_string()),
+                    (header::CONTENT_LENGTH, len.to_string()),
+                ],
+                body,
+            )
+                .into_response(),
+        ))
+    }
 }
 
 /// Where things live in the object store.

@@ -9,7 +9,6 @@ use axum::extract::rejection::{JsonRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
 use serde::Deserialize;
 
-use super::api::job_not_found;
 use super::{App, AppError, AppResult, now_ms};
 use crate::protocol::*;
 use crate::store::JobFilter;
@@ -104,12 +103,15 @@ fn changed(app: &App, id: i64) -> AppResult<Json<JobStatus>> {
     app.store
         .job(id)?
         .map(Json)
-        .ok_or_else(|| job_not_found(id))
+        .ok_or_else(|| AppError::no_job(id))
 }
 
 /// A conflict naming the job's state and what the action needs.
 fn wrong_state(app: &App, id: i64, needs: &str) -> AppResult<Json<JobStatus>> {
-    let state = app.store.job_state(id)?.ok_or_else(|| job_not_found(id))?;
+    let state = app
+        .store
+        .job_state(id)?
+        .ok_or_else(|| AppError::no_job(id))?;
     Err(AppError::conflict(format!(
         "job {id} is {}; {needs}",
         state.as_str()
@@ -129,7 +131,7 @@ pub(super) async fn patch_job(
     let Json(patch) = body?;
     if let Some(p) = patch.priority {
         if !app.store.set_priority(id, p)? {
-            return Err(job_not_found(id));
+            return Err(AppError::no_job(id));
         }
         tracing::info!(job = id, priority = p, "priority changed");
         app.wake_workers();
@@ -214,7 +216,7 @@ pub(super) async fn job_attempts(
 ) -> AppResult<Json<Vec<AttemptStatus>>> {
     let Query(q) = query?;
     if !app.store.job_exists(id)? {
-        return Err(job_not_found(id));
+        return Err(AppError::no_job(id));
     }
     let limit = q.limit.unwrap_or(200).clamp(1, 10_000);
     Ok(Json(app.store.attempts(id, q.failures_first, limit)?))
@@ -224,7 +226,7 @@ pub(super) async fn job_attempts(
 fn worker_changed(app: &App, id: &str) -> AppResult<Json<WorkerStatus>> {
     app.emit(Event::Worker { id: id.to_string() });
     app.store
-        .workers(now_ms(), super::api::alive_ms(app))?
+        .workers(now_ms(), app.alive_ms())?
         .into_iter()
         .find(|w| w.id == id)
         .map(Json)

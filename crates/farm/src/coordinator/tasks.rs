@@ -15,7 +15,6 @@ use futures_util::StreamExt;
 use serde::Deserialize;
 use tokio::io::AsyncWriteExt;
 
-use super::api::send_object;
 use super::auth::Caller;
 use super::{App, AppError, AppResult, now_ms};
 use crate::bundle;
@@ -370,7 +369,7 @@ pub(super) async fn download_artifact(
         return Err(AppError::not_found(format!("no artifact {key}")));
     };
     app.store.touch(&key, now_ms())?;
-    send_object(&app, &entry.path, "application/octet-stream")
+    app.send_object(&entry.path, "application/octet-stream")
         .await?
         .ok_or_else(|| AppError::not_found(format!("no artifact {key}")))
 }
@@ -385,8 +384,7 @@ pub(super) async fn step_input(
     State(app): State<Arc<App>>,
     Path((id, frame, step)): Path<(i64, u32, u32)>,
 ) -> AppResult<Response> {
-    send_object(
-        &app,
+    app.send_object(
         &app.input_key(id, frame, step),
         "application/octet-stream",
     )

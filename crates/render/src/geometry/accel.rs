@@ -46,9 +46,6 @@ struct Sphere {
 /// A closest triangle hit, if any: block, lane in the block, barycentrics.
 pub(super) type TriangleBest = Option<(usize, usize, [f32; 3])>;
 
-/// Most rays in a packet ([`Accel::intersect8`]).
-pub const LANES: usize = 8;
-
 /// Triangles in a leaf: one block.
 const LEAF_TRIANGLES: u32 = 4;
 
@@ -60,8 +57,8 @@ pub struct Accel {
     block_ids: Vec<[u32; 4]>,
     spheres: Bvh8,
     sphere_list: Vec<(Sphere, u32)>,
-    /// Whether queries test a node's eight boxes in one AVX group (else in two SSE ones),
-    /// and packets of rays eight at a time (else one by one): the same hits either way.
+    /// Whether queries test a node's eight boxes in one AVX group (else in two SSE ones): the
+    /// same hits either way.
     pub(super) avx: bool,
 }
 
@@ -282,48 +279,6 @@ impl Accel {
                 }
                 Visit::Continue
             });
-    }
-
-    /// The closest hits of up to [`LANES`] rays, ray i's with 0 < t < `t_max[i]`, into
-    /// `hits`: each as [`Accel::intersect`] finds it (of two triangles at exactly the same
-    /// distance, either), traced together as a packet where the CPU has AVX and their
-    /// directions lie in a narrow cone (see `packet`), else one by one.
-    pub fn intersect8(&self, rays: &[Ray], t_max: &[f32], hits: &mut [Option<PrimHit>]) {
-        assert!(
-            rays.len() <= LANES && t_max.len() == rays.len() && hits.len() == rays.len(),
-            "a packet of {} rays, {} distances, {} hits",
-            rays.len(),
-            t_max.len(),
-            hits.len()
-        );
-        #[cfg(target_arch = "x86_64")]
-        if self.avx && super::packet::coherent(rays) {
-            // SAFETY: `avx` is set only where the CPU has AVX.
-            unsafe { self.intersect8_avx(rays, t_max, hits) };
-            return;
-        }
-        for ((r, &t), h) in rays.iter().zip(t_max).zip(hits) {
-            *h = self.intersect(r, t);
-        }
-    }
-
-    /// Of up to [`LANES`] rays, the mask of those that hit something with 0 < t < `t_max[i]`
-    /// (bit i for ray i): each as [`Accel::occluded`] finds it, traced as a packet where
-    /// [`Accel::intersect8`] would trace them as one.
-    pub fn occluded8(&self, rays: &[Ray], t_max: &[f32]) -> u32 {
-        assert!(
-            rays.len() <= LANES && t_max.len() == rays.len(),
-            "a packet of {} rays, {} distances",
-            rays.len(),
-            t_max.len()
-        );
-        #[cfg(target_arch = "x86_64")]
-        if self.avx && super::packet::coherent(rays) {
-            // SAFETY: `avx` is set only where the CPU has AVX.
-            return unsafe { self.occluded8_avx(rays, t_max) };
-        }
-        let hit = rays.iter().zip(t_max).map(|(r, &t)| self.occluded(r, t));
-        hit.enumerate().map(|(l, h)| (h as u32) << l).sum()
     }
 
     /// Whether anything is hit with 0 < t < `t_max`.
@@ -602,70 +557,6 @@ mod tests {
         }
         // Neither all hits nor all misses: the comparison means something.
         assert!(hits > 200 && hits < 3800, "{hits} hits");
-    }
-
-    /// Packets of eight rays get each ray's hit as a test of every primitive finds it: packets
-    /// that stay together (rays from nearby points in nearby directions, as a pixel's samples),
-    /// packets that split at once (random rays), and packets of fewer than eight rays.
-    #[test]
-    fn packet_queries_equal_a_test_of_every_primitive() {
-        let mut u = uniform();
-        let (tris, spheres) = soup(&mut u);
-        let mut point = |scale: f32| Vec3A::new(u(), u(), u()) * scale;
-        let mut accel = Accel::build(&tris, &spheres);
-        let mut packets: Vec<Vec<(Ray, f32)>> = Vec::new();
-        for k in 0..600 {
-            let (o, d) = (point(12.0) - 1.0, point(2.0) - 1.0);
-            let spread = [0.0, 0.01, 0.1, 1.0][k % 4];
-            let n = if k % 5 == 0 { 1 + k % 8 } else { LANES };
-            packets.push(
-                (0..n)
-                    .map(|i| {
-                        let o = o + (point(2.0) - 1.0) * spread;
-                        let d = (d + (point(2.0) - 1.0) * spread).normalize();
-                        let t_max = if (k + i) % 3 == 0 { 2.0 } else { f32::INFINITY };
-                        (Ray::new(o, d), t_max)
-                    })
-                    .collect(),
-            );
-        }
-        let mut forms = vec![false];
-        if avx_available() {
-            forms.push(true);
-        }
-        let (mut hits, mut rays) = (0, 0);
-        for avx in forms {
-            accel.avx = avx;
-            for packet in &packets {
-                let (r, t): (Vec<Ray>, Vec<f32>) = packet.iter().copied().unzip();
-                let mut got = vec![None; r.len()];
-                accel.intersect8(&r, &t, &mut got);
-                let occluded = accel.occluded8(&r, &t);
-                for (i, (ray, t_max)) in packet.iter().enumerate() {
-                    let want = brute(&tris, &spheres, ray, *t_max);
-                    let hit = got[i].map(|h| (h.t, h.prim));
-                    assert_eq!(
-                        hit, want,
-                        "closest hit (avx {avx}) of {ray:?} in {packet:?}"
-                    );
-                    if let Some(h) = got[i] {
-                        assert_eq!(Some(h), accel.intersect(ray, *t_max), "hit record");
-                    }
-                    assert_eq!(
-                        occluded >> i & 1 == 1,
-                        want.is_some(),
-                        "occlusion of {ray:?}"
-                    );
-                    hits += want.is_some() as u32;
-                    rays += 1;
-                }
-                assert_eq!(occluded >> r.len(), 0, "no bits beyond the packet");
-            }
-        }
-        assert!(
-            hits > rays / 10 && hits < rays * 9 / 10,
-            "{hits} hits of {rays}"
-        );
     }
 
     /// Inputs whose binary BVH comes out as deep chains (many copies of one triangle, shells

@@ -8,10 +8,8 @@
 
 pub mod bdpt;
 pub mod metropolis;
-pub mod mlt;
 mod path;
 mod photon;
-pub mod pssmlt;
 pub mod sppm;
 pub mod subsurface;
 pub mod vcm;

@@ -24,7 +24,8 @@ use crate::spectrum::{Spectrum, is_black};
 /// sample, so a long path that then reaches a small emitter through glass, or by the rare
 /// BSDF sample, adds a sample as bright as direct light. A floor of one half lets paths run
 /// longer but halves those outliers; of the floors measured it gave the lowest time × relMSE
-/// on the Cornell glass and was within noise of the lowest on the box (bench-report/profile.md).
+/// on the Cornell glass and was within noise of the lowest on the box
+/// (docs/src/benchmarks/profile.md).
 pub const ROULETTE_FLOOR: f32 = 0.5;
 
 #[derive(Debug, Clone)]

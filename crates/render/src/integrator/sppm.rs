@@ -238,7 +238,7 @@ pub const DEFAULT_ALPHA: f32 = 2.0 / 3.0;
 /// disc that would hold 2k. The photon map's radius only caps a k-nearest search, which
 /// shrinks where photons are dense; SPPM gathers everything within its radius, so that cap's
 /// margin would be kernel bias in its first iterations, which α shrinks away slowly. A smaller
-/// share trades it for the noise of fewer photons per pixel (README, "SPPM's initial radius").
+/// share trades it for the noise of fewer photons per pixel.
 pub const DEFAULT_RADIUS_SHARE: f32 = std::f32::consts::FRAC_1_SQRT_2;
 
 impl SppmSettings {

@@ -25,7 +25,7 @@
 use glam::{Vec2, Vec3, Vec3A};
 use rayon::prelude::*;
 
-use super::bdpt::{BdptSums, Ctx, Kind, Splats, Vertex};
+use super::bdpt::{BdptSums, Ctx, FIRST_MERGE, Kind, Splats, Vertex};
 use super::{RayStats, consistent};
 use crate::SampleRange;
 use crate::bsdf::TransportMode;
@@ -39,19 +39,10 @@ use crate::sampler::{PixelSampler, Sampler};
 use crate::scene::Scene;
 use crate::spectrum::{Spectrum, is_black};
 
-/// The first vertex of a path that merging may make, counted from the light (z_0 on the
-/// emitter). A merge at z_1 is direct illumination estimated from the light subpaths' first
-/// hits; the power heuristic counts the η light subpaths of an iteration as η independent
-/// samples and so gives those merges much of the weight of light sampling, which has far
-/// less variance there (every pixel's merges share the same few nearby light vertices).
-/// Leaving z_1 to the connections — every path that merging at z_1 makes, light sampling
-/// (s = 1) makes too — lowers VCM's error on every scene measured (README, VCM figures).
-pub(super) const FIRST_MERGE: usize = 2;
-
 /// Merging takes only light vertices whose surface is within 60° of the camera vertex's
 /// (|cos| of the geometric normals at least this): the merging disc lies in x's tangent plane,
 /// and without the test a disc near a corner takes light arriving on the other wall, a bias
-/// seen as a brighter room lit around corners (README, VCM figures). As r → 0 a disc meets
+/// seen as a brighter room lit around corners (docs/src/benchmarks/speed-vs-error.md). As r → 0 a disc meets
 /// another surface only ever closer to an edge, a vanishing area, so the estimate stays
 /// consistent.
 const MERGE_COS: f32 = 0.5;

@@ -3,9 +3,8 @@
 
 use std::time::Duration;
 
+use super::info::MethodInfo;
 use super::ranges::{KIND, RangeFrame, RangePartial, Ranges};
-use super::refuse_translucent;
-use super::registry::MethodInfo;
 use super::{Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::film::Image;
 use crate::integrator::bdpt::Bdpt;
@@ -15,6 +14,7 @@ pub static BDPT: MethodInfo = MethodInfo {
     summary: "bidirectional path tracing (Veach): every connection of a camera and a light subpath, power-heuristic MIS",
     spp: "samples per pixel",
     params: &["sampler"],
+    translucent: false,
     plan: |job| Ok(Box::new(BdptMethod::plan(job)?) as Box<dyn Plan>),
 };
 
@@ -25,7 +25,6 @@ pub struct BdptMethod {
 
 impl BdptMethod {
     fn plan(job: &Job) -> Result<Self, String> {
-        refuse_translucent(&job.desc, "bdpt")?;
         Ok(BdptMethod {
             ranges: Ranges::new(job, "bdpt", KIND)?,
             bdpt: Bdpt::new(&job.desc),

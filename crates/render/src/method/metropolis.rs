@@ -13,7 +13,7 @@ use super::film::{Ratios, Splats, add_splats, check_splats, splats_from_fixed};
 use super::ranges::{RangeFrame, RangePartial, Ranges};
 use std::time::Duration;
 
-use super::registry::MethodInfo;
+use super::info::MethodInfo;
 use super::{Finished, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::film::Image;
 use crate::integrator::RayStats;
@@ -64,6 +64,7 @@ pub static PSSMLT: MethodInfo = MethodInfo {
     summary: "primary-sample-space Metropolis light transport (Kelemen), multiplexed over BDPT's strategies",
     spp: "mutations per pixel",
     params: &["sampler"],
+    translucent: false,
     plan: |job| Ok(Box::new(MetropolisMethod::plan(job, "pssmlt")?) as Box<dyn Plan>),
 };
 
@@ -72,6 +73,7 @@ pub static MLT: MethodInfo = MethodInfo {
     summary: "Metropolis light transport in path space (Veach & Guibas): bidirectional, lens and caustic mutations",
     spp: "mutations per pixel",
     params: &[],
+    translucent: false,
     plan: |job| Ok(Box::new(MetropolisMethod::plan(job, "mlt")?) as Box<dyn Plan>),
 };
 
@@ -84,7 +86,6 @@ pub struct MetropolisMethod {
 
 impl MetropolisMethod {
     fn plan(job: &Job, name: &'static str) -> Result<Self, String> {
-        super::refuse_translucent(&job.desc, name)?;
         if name == "mlt" {
             refuse_for_mlt(&job.desc)?;
         }

@@ -1,4 +1,4 @@
-//! Frame methods (DESIGN: "the unit of extension is a frame method"): how each rendering
+//! Frame methods (docs/src/design/overview.md: "the unit of extension is a frame method"): how each rendering
 //! method makes a frame, in pieces a farm can move.
 //!
 //! A method is one type implementing [`Method`]: it plans a frame as *steps* of *tasks*
@@ -20,6 +20,7 @@ pub mod aov;
 pub mod auto;
 mod bdpt;
 pub mod film;
+mod info;
 #[cfg(test)]
 mod layouts;
 pub mod local;
@@ -48,8 +49,64 @@ use crate::scene::Scene;
 pub use crate::wire::TaskSpec;
 use crate::wire::{self, Header, Sizes, WireError};
 
-pub use registry::{METHODS, MethodInfo, lookup, names, plan};
+pub use info::MethodInfo;
+pub use registry::METHODS;
 pub use tiles::{Adaptive, TilePartial};
+
+/// Every method's name.
+pub fn names() -> Vec<&'static str> {
+    METHODS.iter().map(|m| m.name).collect()
+}
+
+/// The method called `name`.
+pub fn lookup(name: &str) -> Result<&'static MethodInfo, String> {
+    METHODS
+        .iter()
+        .copied()
+        .find(|m| m.name == name.trim())
+        .ok_or_else(|| {
+            format!(
+                "integrator.type: expected one of {}, got \"{name}\"",
+                names().join(", ")
+            )
+        })
+}
+
+/// Plans `job` with the method its scene names.
+pub fn plan(job: &Job) -> Result<Box<dyn Plan>, String> {
+    plan_as(lookup(&job.desc.integrator.method)?, job)
+}
+
+/// Plans `job` with `method`, after refusing what the method cannot render.
+pub fn plan_as(method: &MethodInfo, job: &Job) -> Result<Box<dyn Plan>, String> {
+    if !method.translucent {
+        refuse_translucent(&job.desc, method.name)?;
+    }
+    (method.plan)(job)
+}
+
+/// Refuses translucent materials for method `name`, naming the materials and the methods that
+/// do render them.
+fn refuse_translucent(desc: &SceneDesc, name: &str) -> Result<(), String> {
+    let translucent = desc.translucent_materials();
+    if translucent.is_empty() {
+        return Ok(());
+    }
+    let able: Vec<&str> = METHODS
+        .iter()
+        .filter(|m| m.translucent)
+        .map(|m| m.name)
+        .collect();
+    let able = match able.split_last() {
+        Some((last, [])) => last.to_string(),
+        Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+        None => "a method that renders them; none does".to_string(),
+    };
+    Err(format!(
+        "integrator.type: {name} does not render translucent (subsurface) materials yet ({}); expected {able}",
+        translucent.join(", ")
+    ))
+}
 
 /// A job as methods see it: the scene with the job's settings applied, the frames to render,
 /// and how the job wants its work cut.
@@ -193,18 +250,6 @@ impl TaskCtx<'_> {
     pub fn progress(&self, work: u64) {
         self.resources.progress(work);
     }
-}
-
-/// Refuses translucent materials for a method that does not render them.
-pub(crate) fn refuse_translucent(desc: &SceneDesc, name: &str) -> Result<(), String> {
-    let translucent = desc.translucent_materials();
-    if translucent.is_empty() {
-        return Ok(());
-    }
-    Err(format!(
-        "integrator.type: {name} does not render translucent (subsurface) materials yet ({}); expected path, direct or auto",
-        translucent.join(", ")
-    ))
 }
 
 /// The first 12 characters of a key, for messages.

@@ -5,8 +5,8 @@
 
 use std::time::Duration;
 
+use super::info::MethodInfo;
 use super::passes::SubsurfacePass;
-use super::registry::MethodInfo;
 use super::tiles::{TileFrame, TilePartial, Tiles, execute_tile};
 use super::{DynPass, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov, tiles};
 use crate::camera::Camera;
@@ -18,6 +18,7 @@ pub static PATH: MethodInfo = MethodInfo {
     summary: "unidirectional path tracing with next-event estimation, MIS and Russian roulette",
     spp: "samples per pixel",
     params: &["subsurface", "sampler"],
+    translucent: true,
     plan: |job| Ok(Box::new(PathMethod::plan(job, "path")?) as Box<dyn Plan>),
 };
 
@@ -26,6 +27,7 @@ pub static DIRECT: MethodInfo = MethodInfo {
     summary: "emitted and directly reflected light only (specular chains are followed)",
     spp: "samples per pixel",
     params: &["subsurface", "sampler"],
+    translucent: true,
     plan: |job| Ok(Box::new(PathMethod::plan(job, "direct")?) as Box<dyn Plan>),
 };
 

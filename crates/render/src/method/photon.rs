@@ -4,12 +4,10 @@
 
 use std::time::Duration;
 
+use super::info::MethodInfo;
 use super::passes::{PhotonsPass, RecordsPass};
-use super::registry::MethodInfo;
 use super::tiles::{TileFrame, TilePartial, Tiles, execute_tile};
-use super::{
-    DynPass, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov, refuse_translucent, tiles,
-};
+use super::{DynPass, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov, tiles};
 use crate::analysis::analyze;
 use crate::camera::Camera;
 use crate::film::Image;
@@ -29,6 +27,7 @@ pub static PHOTON: MethodInfo = MethodInfo {
         "photon_map.gather_rays",
         "photon_map.irradiance_cache",
     ],
+    translucent: false,
     plan: |job| Ok(Box::new(PhotonMethod::plan(job)?) as Box<dyn Plan>),
 };
 
@@ -42,7 +41,6 @@ pub struct PhotonMethod {
 
 impl PhotonMethod {
     fn plan(job: &Job) -> Result<Self, String> {
-        refuse_translucent(&job.desc, "photon")?;
         let (settings, decisions) = PhotonSettings::resolve(&job.desc, &analyze(&job.desc));
         let photons = PhotonsPass::new(&job.desc, settings);
         let cache = SceneDesc {

@@ -11,8 +11,7 @@ use serde::{Deserialize, Serialize};
 use tessera_scene::SceneDesc;
 
 use super::film::{AovAcc, check_aov};
-use super::refuse_translucent;
-use super::registry::MethodInfo;
+use super::info::MethodInfo;
 use super::{Finished, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::analysis::analyze;
 use crate::camera::Camera;
@@ -30,6 +29,7 @@ pub static SPPM: MethodInfo = MethodInfo {
         "photon_map.radius",
         "photon_map.alpha",
     ],
+    translucent: false,
     plan: |job| Ok(Box::new(SppmMethod::plan(job)?) as Box<dyn Plan>),
 };
 
@@ -98,7 +98,6 @@ impl SppmFrame {
 impl SppmMethod {
     fn plan(job: &Job) -> Result<Self, String> {
         let d = &job.desc;
-        refuse_translucent(d, "sppm")?;
         if job.time_limit.is_some() {
             return Err("time_limit: sppm runs whole iterations over every pixel; give spp (its iterations) or target_error instead".into());
         }

@@ -4,9 +4,8 @@
 
 use std::time::Duration;
 
+use super::info::MethodInfo;
 use super::ranges::{KIND, RangeFrame, RangePartial, Ranges};
-use super::refuse_translucent;
-use super::registry::MethodInfo;
 use super::{Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::film::Image;
 use crate::integrator::vcm::Vcm;
@@ -16,6 +15,7 @@ pub static VCM: MethodInfo = MethodInfo {
     summary: "vertex connection and merging (Georgiev et al.): BDPT plus photon merging under one MIS",
     spp: "iterations (one light and one camera subpath per pixel each)",
     params: &["sampler"],
+    translucent: false,
     plan: |job| Ok(Box::new(VcmMethod::plan(job)?) as Box<dyn Plan>),
 };
 
@@ -25,7 +25,6 @@ pub struct VcmMethod {
 
 impl VcmMethod {
     fn plan(job: &Job) -> Result<Self, String> {
-        refuse_translucent(&job.desc, "vcm")?;
         Ok(VcmMethod {
             ranges: Ranges::new(job, "vcm", KIND)?,
         })

@@ -475,7 +475,8 @@ pub fn assert_bootstrap_agrees_with_bdpt(
     let camera = tessera_render::camera::Camera::new(&desc.camera, &desc.film);
     let ((m, m_se), (b, b_se)) = pool()
         .install(|| {
-            tessera_render::integrator::mlt::Mlt::new(desc).brightness_check(&scene, &camera, n)
+            tessera_render::integrator::metropolis::mlt::Mlt::new(desc)
+                .brightness_check(&scene, &camera, n)
         })
         .expect("runs");
     let z = (m - b) / (m_se * m_se + b_se * b_se).sqrt();

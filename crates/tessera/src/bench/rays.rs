@@ -12,7 +12,7 @@
 //! Each query runs over the whole ray set `--repeat` times; the best run counts (these machines
 //! are noisy). Built with `--features embree` (Debian's libembree-dev, Embree 3), the same rays
 //! go through Embree's BVH too, for triangle-only scenes: one at a time, and in packets of eight
-//! consecutive rays.
+//! consecutive rays (what a wavefront path tracer's ray batches could gain).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -105,8 +105,7 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
     );
     println!();
     let mut header = "| scene | triangles | spheres | BVH nodes, blocks | rays | coherent closest | coherent occluded | incoherent closest | incoherent occluded |".to_string();
-    header += " packets of 8: coherent closest | coherent occluded | incoherent closest | incoherent occluded |";
-    let mut rule = "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|".to_string();
+    let mut rule = "|---|---:|---:|---:|---:|---:|---:|---:|---:|".to_string();
     if cfg!(feature = "embree") {
         header += " Embree 3: coherent closest | coherent occluded | incoherent closest | incoherent occluded |";
         header += " Embree 3, packets of 8: coherent closest | coherent occluded | incoherent closest | incoherent occluded |";
@@ -120,22 +119,6 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
             |r| case.accel.intersect(r, f32::INFINITY).is_some(),
             |r| case.accel.occluded(r, f32::INFINITY),
         );
-        let accel = &case.accel;
-        let packets = packets(
-            case,
-            repeat,
-            |p, _| {
-                let mut hits = [None; 8];
-                let hits = &mut hits[..p.len()];
-                accel.intersect8(p, &[f32::INFINITY; 8][..p.len()], hits);
-                hits.iter().filter(|h| h.is_some()).count()
-            },
-            |p, _| {
-                accel
-                    .occluded8(p, &[f32::INFINITY; 8][..p.len()])
-                    .count_ones() as usize
-            },
-        );
         let (nodes, blocks) = case.accel.triangle_bvh_size();
         let row = format!(
             "| {} | {} | {} | {nodes}, {blocks} | {} + {} |{}",
@@ -145,7 +128,7 @@ pub fn run(args: RaysArgs) -> anyhow::Result<()> {
             case.coherent.len(),
             case.incoherent.len(),
             labelled(&ours, &ours),
-        ) + &labelled(&packets, &ours);
+        );
         #[cfg(feature = "embree")]
         let row = row + &embree_columns(case, repeat, &ours)?;
         println!("{row}");
@@ -187,11 +170,13 @@ fn labelled(row: &Row, ours: &Row) -> String {
 
 /// A query over `rays` in packets of eight consecutive rays: neighbouring pixels of a tile
 /// row, or their bounces. `q` returns how many of a packet's rays hit.
+#[cfg(feature = "embree")]
 fn packet_rate(rays: &[Ray], repeat: u32, q: &dyn Fn(&[Ray]) -> usize) -> Rate {
     rate(rays.len(), repeat, || rays.chunks(8).map(q).sum())
 }
 
 /// [`measure`] for packet queries, which are told whether the rays are the coherent set.
+#[cfg(feature = "embree")]
 fn packets(
     case: &Case,
     repeat: u32,

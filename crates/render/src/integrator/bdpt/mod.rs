@@ -31,6 +31,7 @@ mod strategies;
 mod subpath;
 mod vertex;
 
+pub(in crate::integrator) use mis::FIRST_MERGE;
 use splats::{SPLAT_SCALE, add_fixed};
 pub(in crate::integrator) use splats::{Splats, add_splats, fixed_brightness};
 use strategies::Recorder;

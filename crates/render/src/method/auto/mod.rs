@@ -13,7 +13,8 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 use tessera_scene::{SceneDesc, SubsurfaceMethod};
 
-use super::registry::{MethodInfo, lookup};
+use super::info::MethodInfo;
+use super::lookup;
 use super::{DynPass, Job, Next, Payload, Plan, Step, TaskCtx, TaskSpec};
 use crate::analysis::analyze;
 use crate::film::Image;
@@ -24,6 +25,7 @@ pub static AUTO: MethodInfo = MethodInfo {
     summary: "the method a short pilot of every suitable method predicts to reach the error soonest",
     spp: "as the chosen method counts them",
     params: &[],
+    translucent: true,
     plan: plan_auto,
 };
 
@@ -116,7 +118,7 @@ fn plan_auto(job: &Job) -> Result<Box<dyn Plan>, String> {
     }
     inner_job.desc.integrator.method = method.name.into();
     Ok(Box::new(Auto {
-        inner: (method.plan)(&inner_job)?,
+        inner: super::plan_as(method, &inner_job)?,
         choice: job.choice.clone(),
         report,
     }))

@@ -42,9 +42,8 @@
 //!    the initial one), which the radii module follows from the photons each pixel of the
 //!    first half found: dense pixels shrink as Knaus & Zwicker's n^(α − 1), sparse ones slower.
 //!    Kernel bias falls as r⁴ where the radiance is smooth and as r across its edges; r², what
-//!    is taken, fitted the material spheres' errors at two iteration counts (the README's "Why
-//!    SPPM misses the goal on the material spheres"), though their bias, split from their
-//!    variance with a second seed, falls slower still ("SPPM's pilot under the film's filter").
+//!    is taken, fitted the material spheres' errors at two iteration counts, though their bias, split
+//!    from their variance with a second seed, falls slower still.
 //! 3. **Prediction** at full size: samples to reach relMSE E are v / E (unbiased),
 //!    v / (E − b) (photon map; none if b is near E, or if the judges' own relMSE is, under
 //!    which b cannot be told from their noise), the least n with

@@ -1,4 +1,4 @@
-//! View-independent precomputation as passes (DESIGN: "passes are tasks too"): each builds an
+//! View-independent precomputation as passes (docs/src/design/overview.md: "passes are tasks too"): each builds an
 //! artifact addressed by a hash of everything that determines it, so every frame of a
 //! camera-only fly-through, and every later job of the same scene, reads it instead of
 //! building it again.

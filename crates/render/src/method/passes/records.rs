@@ -1,6 +1,6 @@
 //! Ward's irradiance cache as a pass: the records made by final gathering over the photon
 //! maps at the candidates of every keyframe's pre-render, one task per tile of candidates,
-//! concatenated in (keyframe, tile) order. Frozen before any frame renders (DESIGN: artifacts
+//! concatenated in (keyframe, tile) order. Frozen before any frame renders (docs/src/design/overview.md: artifacts
 //! are frozen). Key: the photon maps' key, the gather settings, the film size and the
 //! keyframes' cameras.
 

@@ -571,8 +571,8 @@ pub(super) mod tests {
     }
 
     /// Of two renders predicted alike, the one whose passes the pilot has built ends sooner:
-    /// they are not built again (the Cornell glass's photon map against VCM, README's twentieth
-    /// run). Without them, the sooner prediction.
+    /// they are not built again (the Cornell glass's photon map against VCM). Without them, the
+    /// sooner prediction.
     #[test]
     fn the_pilot_s_work_the_render_takes_over_is_not_counted_twice() {
         let goal = Goal::Error(1e-2);

@@ -9,8 +9,8 @@ use glam::UVec2;
 use rayon::prelude::*;
 use tessera_scene::{FilmDesc, SceneDesc};
 
-use super::run::rgb;
 use crate::camera::Camera;
+use crate::film::Image;
 use crate::integrator::sppm::{self, Sppm, SppmSettings, SppmState};
 use crate::method::Loaded;
 use crate::photon::{KdTree, Photon, PhotonSettings};
@@ -204,6 +204,11 @@ fn gathering_at_the_render(
     }
     let n = vps.len() * (side * side) as usize;
     Some((start.elapsed().as_secs_f64(), n))
+}
+
+/// An image's pixels as f64 RGB, for the pilot's arithmetic.
+pub(super) fn rgb(image: &Image) -> Vec<[f64; 3]> {
+    image.pixels.iter().map(|p| p.rgb.map(f64::from)).collect()
 }
 
 #[cfg(test)]

@@ -7,12 +7,11 @@ use std::time::Instant;
 use tessera_scene::{FilmDesc, FilterDesc, SceneDesc};
 
 use super::predict::rel;
-use super::progressive::{sppm_photons, sppm_second_half};
+use super::progressive::{rgb, sppm_photons, sppm_second_half};
 use super::radii::Shrinkage;
 use super::{Candidate, Model};
 use crate::analysis::analyze;
 use crate::camera::Camera;
-use crate::film::Image;
 use crate::integrator::metropolis::{GROUPS, Metropolis};
 use crate::integrator::sppm::SppmSettings;
 use crate::method::local::{Built, Local, Progress};
@@ -25,8 +24,7 @@ use crate::scene::Scene;
 /// method reaches the goal in a few whole-film iterations, their cost is the pilot's
 /// overhead, and it grows with this share. A smaller share leaves fewer pixels to estimate
 /// from, and larger ones, which alias more: a low-noise method's variance shows that most,
-/// and the consensus tells a floor less well (the README's benchmark section measures the
-/// trade-off).
+/// and the consensus tells a floor less well.
 const PILOT_FRACTION: f64 = 32.0;
 /// Pilot pixels: the film's over [`PILOT_FRACTION`], within these bounds (the upper one sets
 /// the pilot of every film above 131 072 pixels).
@@ -180,10 +178,6 @@ fn mean(a: &[[f64; 3]], b: &[[f64; 3]]) -> Vec<[f64; 3]> {
         .zip(b)
         .map(|(x, y)| [0, 1, 2].map(|i| 0.5 * (x[i] + y[i])))
         .collect()
-}
-
-pub(super) fn rgb(image: &Image) -> Vec<[f64; 3]> {
-    image.pixels.iter().map(|p| p.rgb.map(f64::from)).collect()
 }
 
 /// Renders candidate `c`'s pilot of `pilot` (the scene at a smaller film than the render's
@@ -418,7 +412,7 @@ mod tests {
 
     /// SPPM's pilot renders with the film's filter where the others' take a box for a
     /// Mitchell one: under Mitchell's negative lobes its weights' noise raises its variance
-    /// (measured in the README's "SPPM's pilot under the film's filter"), and a box pilot
+    /// (measured on the material spheres), and a box pilot
     /// would hide it. From the same pilot film (a box), its halves differ clearly more for a
     /// Mitchell render than for a box one.
     #[test]

@@ -39,7 +39,7 @@ fn path_contributions_and_weights_equal_bdpt_for_the_strategy_that_made_them() {
             let d = light.p - pt.p;
             let wi = d.normalize();
             let le = ctx.scene.lights.get(match light.kind {
-                super::super::bdpt::Kind::Light(l) => l,
+                crate::integrator::bdpt::Kind::Light(l) => l,
                 _ => unreachable!("a light subpath starts on a light"),
             });
             let l = pt.beta
@@ -122,7 +122,7 @@ fn path_contributions_and_weights_equal_bdpt_for_the_strategy_that_made_them() {
 
 /// The power-heuristic weight of strategy s for path `x`, from the densities per unit
 /// area `e` holds: p_s = Π_{i<s} p→(x_i) Π_{s≤i<k} p←(x_i) over the strategies that can
-/// join at s, and a merge at each non-specular vertex x_i, i ≥ VCM's `FIRST_MERGE` and
+/// join at s, and a merge at each non-specular vertex x_i, i ≥ `bdpt::FIRST_MERGE` and
 /// i < k (p_{i+1} p←(x_i) η π r²).
 /// BDPT's camera samples the film, not the extended film: `ext` (film area over extended
 /// film area) takes it back out of p←(x_{k−1}).
@@ -141,7 +141,7 @@ fn power_heuristic(ctx: &Ctx, x: &[Vertex], e: &PathEval, ext: f64, s: usize, me
     let joinable = |j: usize| (j <= 1 || !x[j - 1].delta) && (j == k || !x[j].delta);
     let mut sum: f64 = (0..=k).filter(|&j| joinable(j)).map(|j| term(lp(j))).sum();
     if merge > 0.0 {
-        sum += (super::super::vcm::FIRST_MERGE..k)
+        sum += (crate::integrator::bdpt::FIRST_MERGE..k)
             .filter(|&i| !x[i].delta)
             .map(|i| term(lp(i + 1) + (rev[i] * merge).ln()))
             .sum::<f64>();

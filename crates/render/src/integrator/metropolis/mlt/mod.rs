@@ -32,7 +32,7 @@
 //! normals included), so the sums over splits are exact.
 //!
 //! Direct light (depths 0 and 1) is BDPT's, as the paper proposes, and b comes from BDPT
-//! samples (shared with PSSMLT, [`super::metropolis`], which also cuts the frame into groups
+//! samples (shared with PSSMLT, [`super::chains`], which also cuts the frame into groups
 //! for the farm). The chains (1000, seeded (seed, chain)) start from paths resampled from a
 //! bootstrap of independent BDPT paths (one strategy and depth each, weight f / Σ_s p_s) in
 //! proportion to their weight, which removes start-up bias as the bootstrap grows (Veach
@@ -50,15 +50,15 @@
 use glam::{Vec2, Vec3A};
 use rayon::prelude::*;
 
-use super::RayStats;
-use super::bdpt::{Ctx, Splats, Vertex};
-use super::consistent;
-use super::metropolis::{ChainSettings, Chains, mean_and_error};
-use super::pssmlt::{
+use super::chains::{ChainSettings, Chains, mean_and_error};
+use super::primary::{
     MIN_DEPTH, MltSampler, Paths, Rng, brightness, ctx_area, film_ray, on_extended_film,
 };
 use crate::bsdf::TransportMode;
 use crate::camera::Camera;
+use crate::integrator::RayStats;
+use crate::integrator::bdpt::{Ctx, Splats, Vertex};
+use crate::integrator::consistent;
 use crate::math::{Frame, offset_ray_origin};
 use crate::ray::Ray;
 use crate::sampler::Sampler;
