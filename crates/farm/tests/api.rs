@@ -538,16 +538,21 @@ async fn the_methods_are_the_registry_in_the_api_and_its_document() {
     running.stop().await.expect("stop");
 }
 
-#[tokio::test]
-async fn openapi_document_describes_the_api() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let running = start(dir.path()).await;
-    let doc: serde_json::Value = reqwest::get(format!("http://{}/v1/openapi.json", running.addr))
+/// The OpenAPI document a running coordinator serves.
+async fn openapi(running: &Running) -> serde_json::Value {
+    reqwest::get(format!("http://{}/v1/openapi.json", running.addr))
         .await
         .expect("get")
         .json()
         .await
-        .expect("JSON");
+        .expect("JSON")
+}
+
+#[tokio::test]
+async fn openapi_document_describes_the_api() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let running = start(dir.path()).await;
+    let doc = openapi(&running).await;
     let paths = doc["paths"].as_object().expect("paths");
     for p in [
         "/v1/bundles",
@@ -594,12 +599,7 @@ async fn openapi_document_describes_the_api() {
 async fn the_books_api_page_is_the_openapi_document() {
     let dir = tempfile::tempdir().expect("temp dir");
     let running = start(dir.path()).await;
-    let doc: serde_json::Value = reqwest::get(format!("http://{}/v1/openapi.json", running.addr))
-        .await
-        .expect("get")
-        .json()
-        .await
-        .expect("JSON");
+    let doc = openapi(&running).await;
     running.stop().await.expect("stop");
     let mut table = String::from("| operation | group | what |\n|---|---|---|\n");
     for (path, ops) in doc["paths"].as_object().expect("paths") {
