@@ -31,18 +31,22 @@ fn pages() -> BTreeSet<String> {
     out
 }
 
+/// A page's lines outside fenced code blocks.
+fn prose(text: &str) -> impl Iterator<Item = &str> {
+    let mut fenced = false;
+    text.lines().filter(move |line| {
+        if line.trim_start().starts_with("```") {
+            fenced = !fenced;
+            return false;
+        }
+        !fenced
+    })
+}
+
 /// The targets of inline Markdown links `[text](target)` outside code.
 fn links(text: &str) -> Vec<String> {
     let mut out = Vec::new();
-    let mut fenced = false;
-    for line in text.lines() {
-        if line.trim_start().starts_with("```") {
-            fenced = !fenced;
-            continue;
-        }
-        if fenced {
-            continue;
-        }
+    for line in prose(text) {
         // Inline code is not a link.
         let mut plain = String::new();
         for (i, part) in line.split('`').enumerate() {
@@ -67,15 +71,7 @@ fn links(text: &str) -> Vec<String> {
 fn heading_ids(text: &str) -> BTreeSet<String> {
     let mut seen: BTreeMap<String, usize> = BTreeMap::new();
     let mut ids = BTreeSet::new();
-    let mut fenced = false;
-    for line in text.lines() {
-        if line.trim_start().starts_with("```") {
-            fenced = !fenced;
-            continue;
-        }
-        if fenced || !line.starts_with('#') {
-            continue;
-        }
+    for line in prose(text).filter(|l| l.starts_with('#')) {
         let title = line.trim_start_matches('#').trim();
         let id: String = title
             .chars()
@@ -135,16 +131,14 @@ fn check(from: &Path, target: &str) -> Option<String> {
         "" => from.to_path_buf(),
         f => from.parent().expect("a folder").join(f),
     };
-    let Ok(text) = std::fs::read_to_string(&path).or_else(|e| match path.is_file() {
-        true => Ok(String::new()),
-        false => Err(e),
-    }) else {
+    if !path.is_file() {
         return Some(format!("{target}: no file {}", path.display()));
-    };
+    }
     let anchor = anchor?;
     if path.extension().is_none_or(|e| e != "md") {
         return None;
     }
+    let text = std::fs::read_to_string(&path).expect("a page");
     match heading_ids(&text).contains(anchor) {
         true => None,
         false => Some(format!(

@@ -17,7 +17,7 @@ mod primary;
 use std::ops::Range;
 
 pub use chains::{ChainSums, GROUPS, share};
-use chains::{chain_groups, direct_light, render_groups};
+use chains::{Chains, chain_groups, direct_light, render_groups};
 use mlt::Mlt;
 use pssmlt::Pssmlt;
 
@@ -28,8 +28,6 @@ use crate::integrator::RayStats;
 use crate::integrator::bdpt::{BdptSums, Ctx};
 use crate::scene::Scene;
 use tessera_scene::SceneDesc;
-
-use chains::Chains;
 
 /// A group of chains as [`Metropolis::chains`] renders it.
 pub struct GroupWork {
