@@ -1,25 +1,20 @@
 //! Bad requests against a real coordinator on loopback: each gets a 4xx with a JSON message
 //! that says what was expected, and the server keeps serving.
 
+mod common;
+
+use common::{CLIENT, WORKER, config};
+
 use std::path::PathBuf;
 
 use reqwest::StatusCode;
 use tessera_farm::bundle::Bundle;
-use tessera_farm::coordinator::{self, Config, Running};
+use tessera_farm::coordinator::{self, Running};
 use tessera_farm::job::RenderSettings;
 use tessera_farm::protocol::{ErrorBody, JobRequest, LeaseRequest, WorkerInfo};
 
-const CLIENT: &str = "client-token";
-const WORKER: &str = "worker-token";
-
 async fn start(dir: &std::path::Path) -> Running {
-    let mut config = Config::new(
-        "127.0.0.1:0".parse().expect("addr"),
-        dir.to_path_buf(),
-        CLIENT.into(),
-        WORKER.into(),
-    );
-    config.store = tessera_farm::store::test_store_url(dir);
+    let mut config = config(dir);
     config.limits.max_resolution = 512;
     config.limits.max_spp = 1024;
     config.max_upload = 64 * 1024;

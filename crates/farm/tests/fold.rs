@@ -8,38 +8,22 @@ use std::io::BufWriter;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+mod common;
+
+use common::{CLIENT, WORKER, config, cornell, local_frame, run_to_the_end, submit};
 use reqwest::StatusCode;
 use tessera_farm::bundle::Bundle;
 use tessera_farm::client::Client;
-use tessera_farm::coordinator::{self, Config, Running};
+use tessera_farm::coordinator::{self, Running};
 use tessera_farm::job::{self, FrameRange, Limits, RenderSettings};
 use tessera_farm::protocol::{JobRequest, JobState, LeaseGrant, LeaseRequest, WorkerInfo};
-use tessera_render::method::local::Local;
 use tessera_render::method::{LoadFn, Loaded, Plan, Resources, TaskCtx};
 use tessera_render::wire::Header;
-
-const CLIENT: &str = "client-token";
-const WORKER: &str = "worker-token";
-
-fn config(dir: &Path) -> Config {
-    let mut config = Config::new(
-        "127.0.0.1:0".parse().expect("addr"),
-        dir.to_path_buf(),
-        CLIENT.into(),
-        WORKER.into(),
-    );
-    config.store = tessera_farm::store::test_store_url(dir);
-    config
-}
 
 async fn start(dir: &Path, max_result: u64) -> Running {
     let mut config = config(dir);
     config.max_result = max_result;
     coordinator::start(config).await.expect("coordinator")
-}
-
-fn cornell() -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json")
 }
 
 /// A worker's view of nothing: these jobs read no artifacts or step inputs.
@@ -59,26 +43,6 @@ impl Resources for Bare {
 
 fn worker_info() -> WorkerInfo {
     WorkerInfo::simulated("sim")
-}
-
-/// The job's frame rendered in this process, as `tessera render` writes it.
-fn local_frame(settings: &RenderSettings, dir: &Path) -> Vec<u8> {
-    let mut desc = tessera_scene::load(&cornell()).expect("scene");
-    let plan = job::plan(
-        &mut desc,
-        settings,
-        FrameRange::single(1),
-        &Limits::default(),
-    )
-    .expect("plan");
-    let scene = tessera_render::Scene::build(&desc);
-    let noop = |_| {};
-    let local = Local::new(plan.as_ref(), &scene, &desc, 2, &noop);
-    local.passes().expect("passes");
-    let done = local.frame(1).expect("frame");
-    let path = dir.join("local.exr");
-    job::write_frame(&path, &desc, plan.as_ref(), 1, &done).expect("write");
-    std::fs::read(path).expect("read")
 }
 
 /// Runs a leased task here and writes its result as a worker does.
@@ -356,64 +320,6 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
         .await
         .expect("accepted");
     running.stop().await.expect("stop");
-}
-
-/// Packs the scene at `scene`, uploads it and submits it with `settings`.
-async fn submit(
-    client: &Client,
-    scene: &Path,
-    settings: RenderSettings,
-) -> tessera_farm::protocol::JobStatus {
-    let (bundle, _, scene_name) = Bundle::pack_scene(scene).expect("bundle");
-    let hash = client
-        .upload_bundle(bundle.to_tar().expect("packs"))
-        .await
-        .expect("upload")
-        .hash;
-    client
-        .submit(&JobRequest {
-            bundle: hash,
-            scene: scene_name,
-            name: None,
-            frames: None,
-            settings,
-            priority: 0,
-            require_tags: vec![],
-        })
-        .await
-        .expect("submit")
-}
-
-/// Runs a real worker of `slots` slots until job `id` ends; its last status.
-async fn run_to_the_end(
-    url: &str,
-    client: &Client,
-    id: i64,
-    slots: u32,
-) -> tessera_farm::protocol::JobStatus {
-    let worker = tokio::spawn(tessera_farm::worker::run(
-        tessera_farm::worker::WorkerConfig {
-            coordinator: url.to_string(),
-            token: WORKER.into(),
-            name: "worker".into(),
-            slots,
-            parent_pid: None,
-            tags: vec![],
-            fail_tasks_with: None,
-            ca: None,
-        },
-    ));
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let status = loop {
-        let s = client.job(id).await.expect("status");
-        if s.state.is_final() {
-            break s;
-        }
-        assert!(Instant::now() < deadline, "job still {:?}", s.state);
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    };
-    worker.abort();
-    status
 }
 
 /// A real worker whose result is over the coordinator's limit does not upload it: the task

@@ -4,28 +4,22 @@
 //! its name; a revoked token and its dashboard session are refused at once; each job records
 //! who submitted it.
 
+mod common;
+
+use common::{CLIENT, WORKER, config};
+
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 use reqwest::{Method, StatusCode};
 use tessera_farm::bundle::Bundle;
 use tessera_farm::client::Client;
-use tessera_farm::coordinator::{self, Config, Running};
+use tessera_farm::coordinator::{self, Running};
 use tessera_farm::job::RenderSettings;
 use tessera_farm::protocol::{JobRequest, LeaseRequest, NewUser, Role, WorkerInfo};
 
-const CLIENT: &str = "client-token";
-const WORKER: &str = "worker-token";
-
 async fn start(dir: &Path) -> Running {
-    let mut config = Config::new(
-        "127.0.0.1:0".parse().expect("addr"),
-        dir.to_path_buf(),
-        CLIENT.into(),
-        WORKER.into(),
-    );
-    config.store = tessera_farm::store::test_store_url(dir);
-    coordinator::start(config).await.expect("coordinator")
+    coordinator::start(config(dir)).await.expect("coordinator")
 }
 
 const SCENE: &str = r#"{

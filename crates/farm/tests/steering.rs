@@ -3,6 +3,10 @@
 //! resume, priority, cancel, requeue and the attempt log; drain; server-sent events; and the
 //! dashboard's login, session cookie, CSRF check, logout and `/docs`.
 
+mod common;
+
+use common::{CLIENT, WORKER, config};
+
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -10,23 +14,13 @@ use futures_util::StreamExt;
 use reqwest::StatusCode;
 use tessera_farm::bundle::Bundle;
 use tessera_farm::client::Client;
-use tessera_farm::coordinator::{self, Config, Running};
+use tessera_farm::coordinator::{self, Running};
 use tessera_farm::protocol::{
     Event, Failure, JobList, JobPatch, JobRequest, JobState, LeaseRequest, WorkerInfo,
 };
 
-const CLIENT: &str = "client-token";
-const WORKER: &str = "worker-token";
-
 async fn start(dir: &std::path::Path) -> Running {
-    let mut config = Config::new(
-        "127.0.0.1:0".parse().expect("addr"),
-        dir.to_path_buf(),
-        CLIENT.into(),
-        WORKER.into(),
-    );
-    config.store = tessera_farm::store::test_store_url(dir);
-    coordinator::start(config).await.expect("coordinator")
+    coordinator::start(config(dir)).await.expect("coordinator")
 }
 
 const SCENE: &str = r#"{

@@ -5,6 +5,10 @@
 //! name, half-sent requests. Each is refused with a JSON error that says what was expected,
 //! nothing is lost, and the server keeps serving.
 
+mod common;
+
+use common::{CLIENT, WORKER};
+
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -18,17 +22,8 @@ use tessera_farm::protocol::{
     ErrorBody, Failure, Heartbeat, JobRequest, JobState, LeaseGrant, LeaseRequest, WorkerInfo,
 };
 
-const CLIENT: &str = "client-token";
-const WORKER: &str = "worker-token";
-
 fn config(dir: &Path) -> Config {
-    let mut config = Config::new(
-        "127.0.0.1:0".parse().expect("addr"),
-        dir.to_path_buf(),
-        CLIENT.into(),
-        WORKER.into(),
-    );
-    config.store = tessera_farm::store::test_store_url(dir);
+    let mut config = common::config(dir);
     config.max_upload = 1 << 20;
     config.timeouts.header = Duration::from_secs(1);
     config.timeouts.body_idle = Duration::from_secs(1);

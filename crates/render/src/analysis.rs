@@ -72,11 +72,23 @@ impl std::fmt::Display for Decision {
     }
 }
 
+/// How much of the light transport a scene needs computed, and how much a method computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Transport {
+    /// Every path up to `max_depth`.
+    Full,
+    /// Emitted light and light reflected once (specular chains followed): exact where every
+    /// light path has at most one diffuse or glossy bounce (or the scene has no light), and
+    /// cheaper there.
+    Direct,
+}
+
 /// What the analysis found and decided.
 #[derive(Debug, Clone)]
 pub struct Analysis {
-    /// The method to run (the scene's own choice unless it asked for `auto`).
-    pub method: String,
+    /// The light transport the scene needs: where direct lighting is exact, `auto` chooses a
+    /// method of [`Transport::Direct`] without measuring.
+    pub transport: Transport,
     /// Light can reach a diffuse surface through a specular one: a caustic map has work.
     pub caustics: bool,
     /// Emitters with less than [`SMALL_EMITTER`] of the scene's surface area.
@@ -290,15 +302,15 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
     let caustics = !specular.is_empty() && !diffuse.is_empty() && has_light;
     let mut decisions = Vec::new();
 
-    // The integrator.
-    let (auto, reason) = if !has_light {
+    // The light transport.
+    let (transport, reason) = if !has_light {
         (
-            "direct",
+            Transport::Direct,
             "the scene has no light: the image is black whatever is traced".to_string(),
         )
     } else if caustics {
         (
-            "path",
+            Transport::Full,
             format!(
                 "light reaches diffuse surfaces through specular ones ({}): caustic paths need full path tracing",
                 names(&specular)
@@ -306,7 +318,7 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         )
     } else if interreflection {
         (
-            "path",
+            Transport::Full,
             format!(
                 "{} reflective surfaces light each other ({}): indirect light matters",
                 reflective.len(),
@@ -315,12 +327,12 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         )
     } else if reflective.is_empty() {
         (
-            "direct",
+            Transport::Direct,
             "nothing reflects light: the camera sees only emitters and the environment, which direct lighting computes exactly".to_string(),
         )
     } else if specular.is_empty() {
         (
-            "direct",
+            Transport::Direct,
             format!(
                 "one reflective surface that cannot see itself ({}), no specular surface: every light path has one bounce, direct lighting is exact and cheaper",
                 names(&reflective)
@@ -328,30 +340,19 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         )
     } else {
         (
-            "path",
+            Transport::Full,
             "specular surfaces seen by the camera: their reflections are followed".to_string(),
         )
     };
-    let integrator = if desc.integrator.method == "auto" {
-        decisions.push(Decision {
-            topic: "integrator",
-            choice: format!("{auto} (auto)"),
-            reason,
-        });
-        auto.to_string()
-    } else {
-        let name = desc.integrator.method.clone();
-        decisions.push(Decision {
-            topic: "integrator",
-            choice: name.clone(),
-            reason: if auto == "direct" {
-                format!("set by the scene (auto would choose direct because {reason})")
-            } else {
-                format!("set by the scene (auto would measure the methods on it: {reason})")
-            },
-        });
-        name
-    };
+    decisions.push(Decision {
+        topic: "light transport",
+        choice: match transport {
+            Transport::Direct => "direct lighting",
+            Transport::Full => "every path (auto measures the methods)",
+        }
+        .into(),
+        reason,
+    });
 
     // Passes the literature would add, and whether this scene can use them.
     decisions.push(if caustics {
@@ -359,13 +360,8 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
             topic: "caustic photon map",
             choice: "needed".into(),
             reason: format!(
-                "specular surfaces ({}) can focus light onto diffuse ones{}",
+                "specular surfaces ({}) can focus light onto diffuse ones (photon maps and light tracing find them; path tracing renders caustics with more noise)",
                 names(&specular),
-                if matches!(integrator.as_str(), "photon" | "sppm") {
-                    ""
-                } else {
-                    " (used by the photon and sppm integrators; path tracing renders caustics with more noise)"
-                }
             ),
         }
     } else {
@@ -462,7 +458,7 @@ pub fn analyze(desc: &SceneDesc) -> Analysis {
         reason: w.clone(),
     }));
     Analysis {
-        method: integrator,
+        transport,
         caustics,
         small_emitters: small.iter().map(|s| s.name.clone()).collect(),
         decisions,
@@ -502,7 +498,7 @@ mod tests {
     fn auto_makes_different_reasoned_choices_for_different_scenes() {
         // The Cornell box: diffuse walls light each other; nothing specular.
         let (cb, text) = analyze_scene("cornell-box/scene.json");
-        assert_eq!(cb.method, "path", "{text}");
+        assert_eq!(cb.transport, Transport::Full, "{text}");
         assert!(text.contains("light each other"), "{text}");
         assert_eq!(choice(&cb, "caustic photon map"), "skipped", "{text}");
         assert!(
@@ -513,21 +509,21 @@ mod tests {
 
         // Cornell glass: glass over diffuse blocks, a small bulb: caustics, small emitter.
         let (cg, text) = analyze_scene("cornell-glass/scene.json");
-        assert_eq!(cg.method, "path", "{text}");
+        assert_eq!(cg.transport, Transport::Full, "{text}");
         assert!(text.contains("caustic paths"), "{text}");
         assert_eq!(choice(&cg, "caustic photon map"), "needed", "{text}");
         assert!(text.contains("small emitters"), "{text}");
 
         // One diffuse plane under a sun, nothing specular: one bounce, direct lighting is exact.
         let (gp, text) = analyze_scene("hard/grazing-plane/scene.json");
-        assert_eq!(gp.method, "direct", "{text}");
+        assert_eq!(gp.transport, Transport::Direct, "{text}");
         assert!(text.contains("direct lighting is exact"), "{text}");
         assert_eq!(choice(&gp, "caustic photon map"), "skipped");
 
         // An IOR-1 sphere under a sky is noticed as invisible.
         let (io, text) = analyze_scene("hard/ior-one/scene.json");
         assert!(text.contains("IOR 1"), "{text}");
-        assert_eq!(io.method, "direct", "{text}");
+        assert_eq!(io.transport, Transport::Direct, "{text}");
     }
 
     /// Lights that send their power from a point or a small solid angle are named: a sun in
@@ -549,8 +545,7 @@ mod tests {
         assert!(cb.is_empty(), "{cb:?}");
     }
 
-    /// No translucent material, no point-cloud pass: the decision says so (and `prepare`
-    /// builds none even when the scene asks for the hierarchical method).
+    /// No translucent material, no point-cloud pass: the decision says so.
     #[test]
     fn a_point_cloud_pass_only_for_translucent_materials() {
         let (cb, text) = analyze_scene("cornell-box/scene.json");
@@ -565,39 +560,23 @@ mod tests {
             text.contains("translucent materials: marble, skin"),
             "{text}"
         );
-
-        let path =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
-        let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-        d.integrator.subsurface = tessera_scene::SubsurfaceMethod::Hierarchical;
-        let scene = crate::Scene::build(&d);
-        let (_, passes) = crate::integrator::prepare(&d, &scene, &analyze(&d), 1..=1);
-        assert!(passes.is_empty(), "{passes:?}");
     }
 
+    /// What light transport a scene needs does not depend on the method it sets.
     #[test]
-    fn a_scene_that_sets_its_integrator_keeps_it_and_says_what_auto_would_do() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../scenes/hard/grazing-plane/scene.json");
-        let d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-        let a = analyze(&d);
-        assert_eq!(a.method, "path");
-        assert!(
-            a.decisions[0].reason.contains("auto would choose direct"),
-            "{:?}",
-            a.decisions[0]
-        );
-        // Where indirect light matters, auto measures rather than picks the path tracer.
-        let path =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json");
-        let d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
-        let a = analyze(&d);
-        assert!(
-            a.decisions[0]
-                .reason
-                .contains("auto would measure the methods on it"),
-            "{:?}",
-            a.decisions[0]
-        );
+    fn the_transport_a_scene_needs_is_the_same_whatever_method_it_sets() {
+        for rel in ["hard/grazing-plane/scene.json", "cornell-box/scene.json"] {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("../../scenes")
+                .join(rel);
+            let mut d = tessera_scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            let decided = |d: &SceneDesc| {
+                let a = analyze(d);
+                (a.transport, a.decisions[0].to_string())
+            };
+            let own = decided(&d);
+            d.integrator.method = "auto".into();
+            assert_eq!(decided(&d), own, "{rel}");
+        }
     }
 }

@@ -10,7 +10,7 @@ use serde_json::Value;
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::render::render_frame;
-use tessera_render::{Image, Scene, integrator};
+use tessera_render::{Image, Scene};
 
 fn hard_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/hard")
@@ -54,7 +54,7 @@ fn check_case(dir: &Path) -> Vec<String> {
     let desc = tessera_scene::load(&dir.join("scene.json")).unwrap_or_else(|e| panic!("{e}"));
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let integ = integrator::for_scene(&desc, &scene);
+    let integ = tessera_render::method::for_scene(&desc, &scene).expect("a per-ray method");
     let range = SampleRange {
         start: 0,
         end: desc.integrator.spp,
@@ -63,7 +63,7 @@ fn check_case(dir: &Path) -> Vec<String> {
     // The same scene with another seed: an independent estimate of every pixel's noise.
     let mut other = desc.clone();
     other.integrator.seed ^= 0x5eed_0a1e;
-    let other_integ = integrator::for_scene(&other, &scene);
+    let other_integ = tessera_render::method::for_scene(&other, &scene).expect("a per-ray method");
     let (img2, _) = render_frame(&scene, &camera, other_integ.as_ref(), 16, range);
     let mut failures = Vec::new();
     let mut fail = |what: &str, msg: String| failures.push(format!("{name}: {what}: {msg}"));

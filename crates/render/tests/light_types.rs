@@ -26,7 +26,6 @@ use common::{
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::integrator::bdpt::Bdpt;
-use tessera_render::integrator::metropolis::Metropolis;
 use tessera_render::metrics::compare;
 use tessera_render::{Image, Scene};
 use tessera_scene::SceneDesc;
@@ -69,7 +68,7 @@ fn path_traced(desc: &SceneDesc, spp: u32) -> Image {
     d.integrator.seed = 99;
     let scene = Scene::build(&d);
     let camera = Camera::new(&d.camera, &d.film);
-    let integrator = tessera_render::integrator::for_scene(&d, &scene);
+    let integrator = tessera_render::method::for_scene(&d, &scene).expect("a per-ray method");
     let range = SampleRange { start: 0, end: spp };
     pool()
         .install(|| {
@@ -136,7 +135,7 @@ fn vcm_and_the_metropolis_renderers_agree_with_the_path_tracer_under_sky_and_sun
     assert!((mean - 1.0).abs() < 0.01 && rel < 2e-3, "vcm {rel} {mean}");
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let pssmlt = Metropolis::new("pssmlt", &desc).expect("pssmlt");
+    let pssmlt = common::metropolis("pssmlt", &desc);
     let (image, _) = pool()
         .install(|| pssmlt.render(&scene, &camera, 256, &|_| {}))
         .expect("renders lights at infinity");
@@ -150,7 +149,7 @@ fn vcm_and_the_metropolis_renderers_agree_with_the_path_tracer_under_sky_and_sun
     // infinity's vertex a direction) estimates the brightness BDPT does, and its chains
     // converge to the path tracer's image.
     common::assert_bootstrap_agrees_with_bdpt("sky and sun", &desc, 1_000_000);
-    let mlt = Metropolis::new("mlt", &desc).expect("mlt");
+    let mlt = common::metropolis("mlt", &desc);
     let (image, _) = pool()
         .install(|| mlt.render(&scene, &camera, 256, &|_| {}))
         .expect("renders lights at infinity");
@@ -210,7 +209,7 @@ fn bidirectional_renderers_converge_under_point_and_spot_lights() {
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
     for kind in ["pssmlt", "mlt"] {
-        let m = Metropolis::new(kind, &desc).expect("a Metropolis renderer");
+        let m = common::metropolis(kind, &desc);
         let (image, _) = pool()
             .install(|| m.render(&scene, &camera, 256, &|_| {}))
             .expect("renders point and spot lights");

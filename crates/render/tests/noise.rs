@@ -11,7 +11,7 @@ use std::path::Path;
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::render::render_frame;
-use tessera_render::{Image, Scene, integrator};
+use tessera_render::{Image, Scene};
 
 const SPP: u32 = 256;
 
@@ -64,7 +64,7 @@ fn unbiased_integrators_agree_with_the_reference_within_their_noise() {
         d.integrator.seed = seed;
         // The seed lives in the scene the sampler reads: build it per run.
         let scene = Scene::build(&d);
-        let integ = integrator::for_scene(&d, &scene);
+        let integ = tessera_render::method::for_scene(&d, &scene).expect("a per-ray method");
         let range = SampleRange { start: 0, end: SPP };
         pool.install(|| render_frame(&scene, &camera, integ.as_ref(), 8, range).0)
     };

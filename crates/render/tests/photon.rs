@@ -11,10 +11,10 @@ mod common;
 use common::{
     assert_falls, error_against, pool, render_by_method, scene_and_reference, scene_at_reference,
 };
+use tessera_render::Scene;
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::render::render_frame;
-use tessera_render::{Scene, integrator};
 
 /// relMSE and mean ratio against `reference-32.exr` of scene `name` rendered by photon mapping
 /// (no irradiance cache: final gathering at every sample) with `photons` global and caustic
@@ -34,7 +34,7 @@ fn photon_error(name: &str, photons: u32, gather: u32, spp: u32) -> (f64, f64) {
     let camera = Camera::new(&desc.camera, &desc.film);
     let pool = pool();
     let image = pool.install(|| {
-        let integ = integrator::for_scene(&desc, &scene);
+        let integ = tessera_render::method::for_scene(&desc, &scene).expect("a per-ray method");
         render_frame(
             &scene,
             &camera,
@@ -220,7 +220,7 @@ fn the_irradiance_cache_is_as_accurate_as_its_error_bound() {
         let scene = Scene::build(&desc);
         let camera = Camera::new(&desc.camera, &desc.film);
         pool().install(|| {
-            let integ = integrator::for_scene(&desc, &scene);
+            let integ = tessera_render::method::for_scene(&desc, &scene).expect("a per-ray method");
             let range = SampleRange { start: 0, end: 32 };
             render_frame(&scene, &camera, integ.as_ref(), 8, range).0
         })

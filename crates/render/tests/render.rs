@@ -6,7 +6,7 @@
 use tessera_render::Scene;
 use tessera_render::camera::Camera;
 use tessera_render::film::{Image, PixelSums, SampleRange, Tile, TileSums, tiles};
-use tessera_render::integrator::{self, Integrator};
+use tessera_render::integrator::Integrator;
 use tessera_render::render::{render_frame, render_tile};
 use tessera_scene::SceneDesc;
 
@@ -28,7 +28,7 @@ fn cornell(width: u32, height: u32) -> SceneDesc {
 fn render(desc: &SceneDesc, spp: u32, threads: usize) -> Image {
     let scene = Scene::build(desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let integrator = integrator::for_scene(desc, &scene);
+    let integrator = tessera_render::method::for_scene(desc, &scene).expect("a per-ray method");
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -80,7 +80,7 @@ fn a_tile_rendered_alone_equals_the_same_pixels_of_the_full_frame() {
         c: 1.0 / 3.0,
     };
     let scene = (Scene::build(&desc), Camera::new(&desc.camera, &desc.film));
-    let integ = integrator::for_scene(&desc, &scene.0);
+    let integ = tessera_render::method::for_scene(&desc, &scene.0).expect("a per-ray method");
     let full = vec![sums(
         &scene,
         integ.as_ref(),

@@ -21,7 +21,7 @@ use tessera_render::bssrdf::dipole::{Dipole, Medium};
 use tessera_render::bssrdf::profile::RadialTable;
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
-use tessera_render::integrator::for_scene;
+use tessera_render::method::for_scene;
 use tessera_render::render::render_frame;
 use tessera_scene::SubsurfaceMethod;
 
@@ -55,7 +55,9 @@ fn render(desc: &tessera_scene::SceneDesc) -> tessera_render::Image {
         .num_threads(2)
         .build()
         .expect("pool");
-    let integrator = pool.install(|| for_scene(desc, &scene));
+    let integrator = pool
+        .install(|| for_scene(desc, &scene))
+        .expect("a per-ray method");
     let range = SampleRange {
         start: 0,
         end: desc.integrator.spp,

@@ -14,10 +14,10 @@ mod common;
 
 use common::data_uri;
 use serde_json::json;
+use tessera_render::Scene;
 use tessera_render::camera::Camera;
 use tessera_render::film::SampleRange;
 use tessera_render::render::render_frame;
-use tessera_render::{Scene, integrator};
 
 fn png_of(img: &image::RgbaImage) -> Vec<u8> {
     let mut png = Vec::new();
@@ -131,7 +131,7 @@ fn a_checker_is_averaged_where_pixels_cover_many_checks_and_sharp_where_they_do_
     let scene = Scene::build(&desc);
     assert!(scene.stats.texture_bytes > 0);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let integ = integrator::for_scene(&desc, &scene);
+    let integ = tessera_render::method::for_scene(&desc, &scene).expect("a per-ray method");
     let image = render_frame(
         &scene,
         &camera,
@@ -231,7 +231,7 @@ fn lit_floor_through(
     }];
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let integ = integrator::for_scene(&desc, &scene);
+    let integ = tessera_render::method::for_scene(&desc, &scene).expect("a per-ray method");
     let image = render_frame(
         &scene,
         &camera,
@@ -331,7 +331,7 @@ fn render_doc(doc: &serde_json::Value) -> Vec<f32> {
     desc.integrator.spp = 1;
     let scene = Scene::build(&desc);
     let camera = Camera::new(&desc.camera, &desc.film);
-    let integ = integrator::for_scene(&desc, &scene);
+    let integ = tessera_render::method::for_scene(&desc, &scene).expect("a per-ray method");
     let image = render_frame(
         &scene,
         &camera,

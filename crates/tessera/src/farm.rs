@@ -398,7 +398,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
 /// `tessera methods`: the registry.
 pub fn methods() -> anyhow::Result<()> {
     let mut text = String::new();
-    for m in tessera_render::method::METHODS {
+    for m in tessera_render::method::methods() {
         text += &format!("{:<8} {}\n{:<8} spp: {}\n", m.name, m.summary, "", m.spp);
         if !m.params.is_empty() {
             text += &format!(

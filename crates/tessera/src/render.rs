@@ -67,8 +67,9 @@ pub struct RenderArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
-    /// BDPT only: also write each strategy (s, t) of depth ≤ 5 into this folder, MIS-weighted
-    /// (`d1_s2_t1.exr`) and unweighted (`d1_s2_t1_unweighted.exr`), for debugging.
+    /// Also write each of BDPT's strategies (s, t) of depth ≤ 5 into this folder, at the job's
+    /// spp and whatever method renders the image, MIS-weighted (`d1_s2_t1.exr`) and
+    /// unweighted (`d1_s2_t1_unweighted.exr`), for debugging.
     #[arg(long)]
     pub strategies: Option<PathBuf>,
 }
@@ -218,10 +219,6 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         None
     };
     let plan = tessera_render::method::plan(&job).map_err(|e| setting_error(&args.scene, e))?;
-    anyhow::ensure!(
-        args.strategies.is_none() || plan.method() == "bdpt",
-        "--strategies: per-strategy images are BDPT's; give --integrator bdpt"
-    );
     let output = args
         .output
         .clone()

@@ -585,8 +585,8 @@ async fn list_workers(State(app): State<Arc<App>>) -> AppResult<Json<Vec<WorkerS
     responses((status = 200, body = Vec<MethodStatus>)), security(("token" = [])))]
 async fn list_methods() -> Json<Vec<MethodStatus>> {
     Json(
-        tessera_render::method::METHODS
-            .iter()
+        tessera_render::method::methods()
+            .into_iter()
             .map(|m| MethodStatus {
                 name: m.name.into(),
                 summary: m.summary.into(),

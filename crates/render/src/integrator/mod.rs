@@ -15,9 +15,7 @@ pub mod subsurface;
 pub mod vcm;
 
 use glam::{Vec2, Vec3A};
-use tessera_scene::{IntegratorDesc, SceneDesc, SubsurfaceMethod};
-
-use crate::analysis::Analysis;
+use tessera_scene::{SceneDesc, SubsurfaceMethod};
 
 use crate::bsdf::TransportMode;
 use crate::math::Frame;
@@ -181,44 +179,6 @@ pub trait Integrator: Send + Sync {
     ) -> Spectrum;
 }
 
-/// A path tracer, or the direct-lighting estimator for `direct`.
-fn path_family(method: &str, desc: &IntegratorDesc) -> PathIntegrator {
-    match method {
-        "direct" => PathIntegrator::direct_lighting(desc.max_depth),
-        _ => PathIntegrator::new(desc.max_depth, desc.rr_depth),
-    }
-    .with_subsurface(desc.subsurface)
-}
-
-/// The per-ray integrator of a tile method (path, direct, photon; `analysis` resolved
-/// `auto`) with its passes (photon maps, irradiance records, point clouds) run in-process, and
-/// what was decided on the way: for tests and tools that render with [`crate::render`]
-/// directly. Frames are rendered by [`crate::method`].
-///
-/// `frames` are the frames to be rendered: view-dependent passes (irradiance records) are made
-/// from their cameras.
-pub fn prepare(
-    desc: &SceneDesc,
-    scene: &Scene,
-    analysis: &Analysis,
-    frames: std::ops::RangeInclusive<u32>,
-) -> (Box<dyn Integrator>, Vec<String>) {
-    if analysis.method == "photon" {
-        let (p, why) = PhotonIntegrator::prepare(desc, scene, analysis, frames);
-        return (Box::new(p), why);
-    }
-    let path = path_family(&analysis.method, &desc.integrator);
-    if !needs_point_clouds(desc) {
-        return (Box::new(path), Vec::new());
-    }
-    let clouds = subsurface_pass(desc, scene);
-    let passes = clouds.summary.clone();
-    (
-        Box::new(path.with_clouds(std::sync::Arc::new(clouds))),
-        passes,
-    )
-}
-
 /// Whether rendering `desc` takes the hierarchical method's point-cloud pass: translucent
 /// materials rendered by `hierarchical`.
 pub fn needs_point_clouds(desc: &SceneDesc) -> bool {
@@ -249,10 +209,4 @@ pub fn subsurface_irradiance(
     placement.irradiance(desc, scene, range, &|si, sub, sampler, stats| {
         tracer.exit_irradiance(scene, si, sub, sampler, stats)
     })
-}
-
-/// The integrator for frame 1 of a scene: its own choice, or the one scene analysis makes for
-/// `auto`, passes run in-process.
-pub fn for_scene(desc: &SceneDesc, scene: &Scene) -> Box<dyn Integrator> {
-    prepare(desc, scene, &crate::analysis::analyze(desc), 1..=1).0
 }

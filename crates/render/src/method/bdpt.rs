@@ -3,7 +3,7 @@
 
 use std::time::Duration;
 
-use super::info::MethodInfo;
+use super::info::{MethodInfo, Model, PilotInfo, Sight, Transport};
 use super::ranges::{KIND, RangeFrame, RangePartial, Ranges};
 use super::{Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::film::Image;
@@ -15,6 +15,17 @@ pub static BDPT: MethodInfo = MethodInfo {
     spp: "samples per pixel",
     params: &["sampler"],
     translucent: false,
+    refuses: None,
+    transport: Transport::Full,
+    pilot: Some(PilotInfo {
+        order: 1,
+        model: Model::Unbiased,
+        k: 4,
+        sight: Sight::NoSpecularJoin,
+        photon_map: false,
+        probe: None,
+    }),
+    per_ray: None,
     plan: |job| Ok(Box::new(BdptMethod::plan(job)?) as Box<dyn Plan>),
 };
 

@@ -11,13 +11,19 @@ use serde::{Deserialize, Serialize};
 
 use super::film::{Ratios, Splats, add_splats, check_splats, splats_from_fixed};
 use super::ranges::{RangeFrame, RangePartial, Ranges};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use super::info::MethodInfo;
+use tessera_scene::SceneDesc;
+
+use super::info::{MethodInfo, Model, PilotInfo, Probe, Sight, Transport};
 use super::{Finished, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
+use crate::camera::Camera;
 use crate::film::Image;
 use crate::integrator::RayStats;
+use crate::integrator::metropolis::mlt::Mlt;
+use crate::integrator::metropolis::pssmlt::Pssmlt;
 use crate::integrator::metropolis::{GROUPS, GroupWork, Metropolis};
+use crate::scene::Scene;
 
 /// Kind of the direct-light tasks.
 pub const DIRECT: &str = "direct";
@@ -65,7 +71,16 @@ pub static PSSMLT: MethodInfo = MethodInfo {
     spp: "mutations per pixel",
     params: &["sampler"],
     translucent: false,
-    plan: |job| Ok(Box::new(MetropolisMethod::plan(job, "pssmlt")?) as Box<dyn Plan>),
+    refuses: None,
+    transport: Transport::Full,
+    pilot: Some(pilot(5, |d, scene, frame, k| {
+        probe(Metropolis::Pssmlt(Pssmlt::new(d)), d, scene, frame, k)
+    })),
+    per_ray: None,
+    plan: |job| {
+        let m = Metropolis::Pssmlt(Pssmlt::new(&job.desc));
+        Ok(Box::new(MetropolisMethod::plan(job, PSSMLT.name, m)?) as Box<dyn Plan>)
+    },
 };
 
 pub static MLT: MethodInfo = MethodInfo {
@@ -74,8 +89,46 @@ pub static MLT: MethodInfo = MethodInfo {
     spp: "mutations per pixel",
     params: &[],
     translucent: false,
-    plan: |job| Ok(Box::new(MetropolisMethod::plan(job, "mlt")?) as Box<dyn Plan>),
+    refuses: Some(refuse_for_mlt),
+    transport: Transport::Full,
+    pilot: Some(pilot(6, |d, scene, frame, k| {
+        probe(Metropolis::Mlt(Mlt::new(d)), d, scene, frame, k)
+    })),
+    per_ray: None,
+    plan: |job| {
+        let m = Metropolis::Mlt(Mlt::new(&job.desc));
+        Ok(Box::new(MetropolisMethod::plan(job, MLT.name, m)?) as Box<dyn Plan>)
+    },
 };
+
+/// A Metropolis method's pilot, measured `order`-th: unbiased, four mutations a pixel a half,
+/// its frames timed first by `probe`.
+const fn pilot(order: u32, probe: Probe) -> PilotInfo {
+    PilotInfo {
+        order,
+        model: Model::Unbiased,
+        k: 4,
+        sight: Sight::All,
+        photon_map: false,
+        probe: Some(probe),
+    }
+}
+
+/// A Metropolis frame's bootstrap (its brightness samples and bootstrap paths) costs the same
+/// whatever the film: the seconds of a pilot's two frames of `k` mutations per pixel, from
+/// one group of `m`'s chains (see [`GROUPS`]).
+fn probe(
+    m: Metropolis,
+    desc: &SceneDesc,
+    scene: &Scene,
+    frame: u32,
+    k: u32,
+) -> Result<f64, String> {
+    let camera = Camera::new(&desc.camera_at(frame), &desc.film);
+    let start = Instant::now();
+    m.chains(scene, &camera, k, 0, &|_| {})?;
+    Ok(start.elapsed().as_secs_f64() * 2.0 * GROUPS as f64)
+}
 
 pub struct MetropolisMethod {
     name: &'static str,
@@ -85,12 +138,7 @@ pub struct MetropolisMethod {
 }
 
 impl MetropolisMethod {
-    fn plan(job: &Job, name: &'static str) -> Result<Self, String> {
-        if name == "mlt" {
-            refuse_for_mlt(&job.desc)?;
-        }
-        let m = Metropolis::new(name, &job.desc)
-            .ok_or_else(|| format!("{name} is not a Metropolis renderer"))?;
+    fn plan(job: &Job, name: &'static str, m: Metropolis) -> Result<Self, String> {
         let ranges = Ranges::new(job, name, DIRECT)?;
         Ok(MetropolisMethod {
             name,
@@ -102,7 +150,7 @@ impl MetropolisMethod {
 }
 
 /// What path-space MLT does not support, refused before anything is queued.
-fn refuse_for_mlt(d: &tessera_scene::SceneDesc) -> Result<(), String> {
+fn refuse_for_mlt(d: &SceneDesc) -> Result<(), String> {
     use tessera_scene::Lens;
     if matches!(d.camera.lens, Lens::Thin { aperture_radius, .. } if aperture_radius > 0.0) {
         return Err(

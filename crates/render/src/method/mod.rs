@@ -9,7 +9,7 @@
 //! subsurface point cloud): its tasks fold into an artifact that every frame and every later
 //! job with the same key reads.
 //!
-//! One registry ([`METHODS`]) names every method; the CLI, the bench, the farm's API,
+//! One registry ([`methods`]) names every method; the CLI, the bench, the farm's API,
 //! coordinator and worker find methods there and see them only through the object-safe
 //! [`Plan`]. Partial results, artifacts, step inputs and frame checkpoints cross processes in
 //! the one [`crate::wire`] format. A task is a pure function of (job, task, the artifacts and
@@ -49,20 +49,19 @@ use crate::scene::Scene;
 pub use crate::wire::TaskSpec;
 use crate::wire::{self, Header, Sizes, WireError};
 
-pub use info::MethodInfo;
-pub use registry::METHODS;
+pub use info::{MethodInfo, Model, PerRay, PilotInfo, Probe, Sight, Transport};
+pub use registry::{methods, register};
 pub use tiles::{Adaptive, TilePartial};
 
 /// Every method's name.
 pub fn names() -> Vec<&'static str> {
-    METHODS.iter().map(|m| m.name).collect()
+    methods().iter().map(|m| m.name).collect()
 }
 
 /// The method called `name`.
 pub fn lookup(name: &str) -> Result<&'static MethodInfo, String> {
-    METHODS
-        .iter()
-        .copied()
+    methods()
+        .into_iter()
         .find(|m| m.name == name.trim())
         .ok_or_else(|| {
             format!(
@@ -72,6 +71,45 @@ pub fn lookup(name: &str) -> Result<&'static MethodInfo, String> {
         })
 }
 
+/// The method scene analysis chooses for `desc` where nothing measured it: the first of the
+/// registry that computes the light transport the scene needs ([`crate::analysis`]).
+pub fn analysed(desc: &SceneDesc) -> Result<&'static MethodInfo, String> {
+    let transport = crate::analysis::analyze(desc).transport;
+    methods()
+        .into_iter()
+        .find(|m| m.transport == transport && !std::ptr::eq(*m, &auto::AUTO))
+        .ok_or_else(|| format!("integrator.type: no method computes {transport:?} light transport"))
+}
+
+/// The per-ray estimator of the method `desc` names (scene analysis's choice for `auto`),
+/// its passes (photon maps, irradiance records, point clouds) run in-process, and what was
+/// decided on the way: for tests and tools that render pixels with [`crate::render`]
+/// directly. Frames are rendered by [`plan`].
+pub fn per_ray(
+    desc: &SceneDesc,
+    scene: &Scene,
+) -> Result<(Box<dyn crate::integrator::Integrator>, Vec<String>), String> {
+    let mut method = lookup(&desc.integrator.method)?;
+    if std::ptr::eq(method, &auto::AUTO) {
+        method = analysed(desc)?;
+    }
+    let per_ray = method.per_ray.ok_or_else(|| {
+        format!(
+            "integrator.type: {} renders frames, not one ray at a time",
+            method.name
+        )
+    })?;
+    Ok(per_ray(desc, scene))
+}
+
+/// The per-ray estimator of [`per_ray`], without what was decided.
+pub fn for_scene(
+    desc: &SceneDesc,
+    scene: &Scene,
+) -> Result<Box<dyn crate::integrator::Integrator>, String> {
+    Ok(per_ray(desc, scene)?.0)
+}
+
 /// Plans `job` with the method its scene names.
 pub fn plan(job: &Job) -> Result<Box<dyn Plan>, String> {
     plan_as(lookup(&job.desc.integrator.method)?, job)
@@ -79,10 +117,17 @@ pub fn plan(job: &Job) -> Result<Box<dyn Plan>, String> {
 
 /// Plans `job` with `method`, after refusing what the method cannot render.
 pub fn plan_as(method: &MethodInfo, job: &Job) -> Result<Box<dyn Plan>, String> {
-    if !method.translucent {
-        refuse_translucent(&job.desc, method.name)?;
-    }
+    refuses(method, &job.desc)?;
     (method.plan)(job)
+}
+
+/// Why `method` cannot render `desc` (translucent materials, a camera or light it does not
+/// support), in words that begin with the setting; `Ok` where it can.
+pub fn refuses(method: &MethodInfo, desc: &SceneDesc) -> Result<(), String> {
+    if !method.translucent {
+        refuse_translucent(desc, method.name)?;
+    }
+    method.refuses.map_or(Ok(()), |refuses| refuses(desc))
 }
 
 /// Refuses translucent materials for method `name`, naming the materials and the methods that
@@ -92,8 +137,8 @@ fn refuse_translucent(desc: &SceneDesc, name: &str) -> Result<(), String> {
     if translucent.is_empty() {
         return Ok(());
     }
-    let able: Vec<&str> = METHODS
-        .iter()
+    let able: Vec<&str> = methods()
+        .into_iter()
         .filter(|m| m.translucent)
         .map(|m| m.name)
         .collect();

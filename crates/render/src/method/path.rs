@@ -5,13 +5,18 @@
 
 use std::time::Duration;
 
-use super::info::MethodInfo;
+use std::sync::Arc;
+
+use tessera_scene::{IntegratorDesc, SceneDesc};
+
+use super::info::{MethodInfo, Model, PilotInfo, Sight, Transport};
 use super::passes::SubsurfacePass;
 use super::tiles::{TileFrame, TilePartial, Tiles, execute_tile};
 use super::{DynPass, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov, tiles};
 use crate::camera::Camera;
 use crate::film::Image;
-use crate::integrator::PathIntegrator;
+use crate::integrator::{Integrator, PathIntegrator, needs_point_clouds, subsurface_pass};
+use crate::scene::Scene;
 
 pub static PATH: MethodInfo = MethodInfo {
     name: "path",
@@ -19,7 +24,18 @@ pub static PATH: MethodInfo = MethodInfo {
     spp: "samples per pixel",
     params: &["subsurface", "sampler"],
     translucent: true,
-    plan: |job| Ok(Box::new(PathMethod::plan(job, "path")?) as Box<dyn Plan>),
+    refuses: None,
+    transport: Transport::Full,
+    pilot: Some(PilotInfo {
+        order: 0,
+        model: Model::Unbiased,
+        k: 16,
+        sight: Sight::CameraOnly,
+        photon_map: false,
+        probe: None,
+    }),
+    per_ray: Some(|desc, scene| per_ray(Transport::Full, desc, scene)),
+    plan: |job| Ok(Box::new(PathMethod::plan(job, &PATH)?) as Box<dyn Plan>),
 };
 
 pub static DIRECT: MethodInfo = MethodInfo {
@@ -28,31 +44,54 @@ pub static DIRECT: MethodInfo = MethodInfo {
     spp: "samples per pixel",
     params: &["subsurface", "sampler"],
     translucent: true,
-    plan: |job| Ok(Box::new(PathMethod::plan(job, "direct")?) as Box<dyn Plan>),
+    refuses: None,
+    transport: Transport::Direct,
+    // Chosen without a pilot where it is exact, never measured.
+    pilot: None,
+    per_ray: Some(|desc, scene| per_ray(Transport::Direct, desc, scene)),
+    plan: |job| Ok(Box::new(PathMethod::plan(job, &DIRECT)?) as Box<dyn Plan>),
 };
+
+/// The path tracer, or the direct-lighting estimator for [`Transport::Direct`].
+pub fn estimator(transport: Transport, i: &IntegratorDesc) -> PathIntegrator {
+    match transport {
+        Transport::Full => PathIntegrator::new(i.max_depth, i.rr_depth),
+        Transport::Direct => PathIntegrator::direct_lighting(i.max_depth),
+    }
+    .with_subsurface(i.subsurface)
+}
+
+/// The estimator of `transport`, with the hierarchical method's point-cloud pass run
+/// in-process where the scene takes it.
+fn per_ray(
+    transport: Transport,
+    desc: &SceneDesc,
+    scene: &Scene,
+) -> (Box<dyn Integrator>, Vec<String>) {
+    let path = estimator(transport, &desc.integrator);
+    if !needs_point_clouds(desc) {
+        return (Box::new(path), Vec::new());
+    }
+    let clouds = subsurface_pass(desc, scene);
+    let passes = clouds.summary.clone();
+    (Box::new(path.with_clouds(Arc::new(clouds))), passes)
+}
 
 pub struct PathMethod {
     name: &'static str,
-    desc: tessera_scene::SceneDesc,
+    desc: SceneDesc,
     tiles: Tiles,
     integrator: PathIntegrator,
     clouds: Option<SubsurfacePass>,
 }
 
 impl PathMethod {
-    fn plan(job: &Job, name: &'static str) -> Result<Self, String> {
-        let i = &job.desc.integrator;
-        let integrator = if name == "direct" {
-            PathIntegrator::direct_lighting(i.max_depth)
-        } else {
-            PathIntegrator::new(i.max_depth, i.rr_depth)
-        }
-        .with_subsurface(i.subsurface);
+    fn plan(job: &Job, info: &'static MethodInfo) -> Result<Self, String> {
         Ok(PathMethod {
-            name,
+            name: info.name,
             desc: job.desc.clone(),
             tiles: Tiles::new(job)?,
-            integrator,
+            integrator: estimator(info.transport, &job.desc.integrator),
             clouds: SubsurfacePass::plan(&job.desc),
         })
     }
@@ -139,5 +178,24 @@ impl Method for PathMethod {
 
     fn preview(&self, _frame: u32, state: &TileFrame) -> Image {
         self.tiles.image(state)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    /// No translucent material, no point-cloud pass, even where the scene asks for the
+    /// hierarchical method.
+    #[test]
+    fn a_point_cloud_pass_only_for_translucent_materials() {
+        let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+        let load =
+            |rel: &str| tessera_scene::load(&scenes.join(rel)).unwrap_or_else(|e| panic!("{e}"));
+        let mut d = load("cornell-box/scene.json");
+        d.integrator.method = "path".into();
+        d.integrator.subsurface = tessera_scene::SubsurfaceMethod::Hierarchical;
+        let (_, passes) = super::per_ray(super::Transport::Full, &d, &crate::Scene::build(&d));
+        assert!(passes.is_empty(), "{passes:?}");
     }
 }

@@ -4,7 +4,7 @@
 
 use std::time::Duration;
 
-use super::info::MethodInfo;
+use super::info::{MethodInfo, Model, PilotInfo, Sight, Transport};
 use super::passes::{PhotonsPass, RecordsPass};
 use super::tiles::{TileFrame, TilePartial, Tiles, execute_tile};
 use super::{DynPass, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov, tiles};
@@ -28,6 +28,20 @@ pub static PHOTON: MethodInfo = MethodInfo {
         "photon_map.irradiance_cache",
     ],
     translucent: false,
+    refuses: None,
+    transport: Transport::Full,
+    pilot: Some(PilotInfo {
+        order: 4,
+        model: Model::Biased,
+        k: 4,
+        sight: Sight::All,
+        photon_map: true,
+        probe: None,
+    }),
+    per_ray: Some(|desc, scene| {
+        let (p, why) = PhotonIntegrator::prepare(desc, scene, &analyze(desc), 1..=1);
+        (Box::new(p), why)
+    }),
     plan: |job| Ok(Box::new(PhotonMethod::plan(job)?) as Box<dyn Plan>),
 };
 

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use tessera_scene::SceneDesc;
 
 use super::film::{AovAcc, check_aov};
-use super::info::MethodInfo;
+use super::info::{MethodInfo, Model, PilotInfo, Sight, Transport};
 use super::{Finished, Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::analysis::analyze;
 use crate::camera::Camera;
@@ -30,6 +30,17 @@ pub static SPPM: MethodInfo = MethodInfo {
         "photon_map.alpha",
     ],
     translucent: false,
+    refuses: None,
+    transport: Transport::Full,
+    pilot: Some(PilotInfo {
+        order: 3,
+        model: Model::Progressive,
+        k: 1,
+        sight: Sight::All,
+        photon_map: false,
+        probe: None,
+    }),
+    per_ray: None,
     plan: |job| Ok(Box::new(SppmMethod::plan(job)?) as Box<dyn Plan>),
 };
 

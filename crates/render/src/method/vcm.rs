@@ -4,7 +4,7 @@
 
 use std::time::Duration;
 
-use super::info::MethodInfo;
+use super::info::{MethodInfo, Model, PilotInfo, Sight, Transport};
 use super::ranges::{KIND, RangeFrame, RangePartial, Ranges};
 use super::{Job, Method, Next, Plan, Step, TaskCtx, TaskSpec, aov};
 use crate::film::Image;
@@ -16,6 +16,17 @@ pub static VCM: MethodInfo = MethodInfo {
     spp: "iterations (one light and one camera subpath per pixel each)",
     params: &["sampler"],
     translucent: false,
+    refuses: None,
+    transport: Transport::Full,
+    pilot: Some(PilotInfo {
+        order: 2,
+        model: Model::Unbiased,
+        k: 4,
+        sight: Sight::All,
+        photon_map: false,
+        probe: None,
+    }),
+    per_ray: None,
     plan: |job| Ok(Box::new(VcmMethod::plan(job)?) as Box<dyn Plan>),
 };
 

@@ -77,6 +77,20 @@ pub fn assert_falls(what: &str, budgets: &[String], errors: &[(f64, f64)], mean_
     assert!((mean - 1.0).abs() < mean_tol, "{what}: mean/ref {mean}");
 }
 
+/// The Metropolis renderer `kind` (pssmlt or mlt) with `desc`'s settings.
+#[allow(dead_code, reason = "used by the Metropolis tests only")]
+pub fn metropolis(
+    kind: &str,
+    desc: &tessera_scene::SceneDesc,
+) -> tessera_render::integrator::metropolis::Metropolis {
+    use tessera_render::integrator::metropolis::{Metropolis, mlt::Mlt, pssmlt::Pssmlt};
+    match kind {
+        "pssmlt" => Metropolis::Pssmlt(Pssmlt::new(desc)),
+        "mlt" => Metropolis::Mlt(Mlt::new(desc)),
+        other => panic!("{other} is not a Metropolis renderer"),
+    }
+}
+
 /// A Metropolis renderer (`kind`: pssmlt or mlt) on scene `name` at its reference's size:
 /// relMSE at 4, 32, 256 and 4096 mutations per pixel falls and the mean ends within 1 % of the
 /// reference; and 8 mutations per pixel of cornell-glass are the same bits on one thread and
@@ -86,10 +100,9 @@ pub fn assert_falls(what: &str, budgets: &[String], errors: &[(f64, f64)], mean_
 /// 0.2 % (mlt) over seeds 0–5, so 1 % is 2.7σ and 5σ there.
 #[allow(dead_code, reason = "used by the Metropolis tests only")]
 pub fn assert_metropolis_converges_deterministically(kind: &str) {
-    use tessera_render::integrator::metropolis::Metropolis;
     let setup = |name: &str| {
         let (desc, reference) = scene_and_reference(name);
-        let m = Metropolis::new(kind, &desc).expect("a Metropolis renderer");
+        let m = metropolis(kind, &desc);
         let camera = tessera_render::camera::Camera::new(&desc.camera, &desc.film);
         (tessera_render::Scene::build(&desc), camera, m, reference)
     };

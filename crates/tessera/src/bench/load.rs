@@ -33,7 +33,8 @@ pub fn run(args: LoadArgs) -> anyhow::Result<()> {
     let scene = tessera_render::Scene::build(&desc);
     let build_s = building.elapsed().as_secs_f64();
     let camera = Camera::new(&desc.camera, &desc.film);
-    let integrator = tessera_render::integrator::for_scene(&desc, &scene);
+    let integrator = tessera_render::method::for_scene(&desc, &scene)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
     // The tile at the film's centre, one sample per pixel: the first pixels a user sees.
     let (w, h) = (desc.film.width, desc.film.height);
     let side = 32.min(w).min(h);

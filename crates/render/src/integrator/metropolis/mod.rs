@@ -27,7 +27,6 @@ use crate::film::Image;
 use crate::integrator::RayStats;
 use crate::integrator::bdpt::{BdptSums, Ctx};
 use crate::scene::Scene;
-use tessera_scene::SceneDesc;
 
 /// A group of chains as [`Metropolis::chains`] renders it.
 pub struct GroupWork {
@@ -48,16 +47,6 @@ pub enum Metropolis {
 }
 
 impl Metropolis {
-    /// The Metropolis renderer called `name` (`pssmlt` or `mlt`), with `desc`'s settings;
-    /// `None` for other names.
-    pub fn new(name: &str, desc: &SceneDesc) -> Option<Self> {
-        match name {
-            "pssmlt" => Some(Metropolis::Pssmlt(Pssmlt::new(desc))),
-            "mlt" => Some(Metropolis::Mlt(Mlt::new(desc))),
-            _ => None,
-        }
-    }
-
     fn ctx<'a>(&self, scene: &'a Scene, camera: &'a Camera) -> Result<Ctx<'a>, String> {
         match self {
             Metropolis::Pssmlt(m) => m.ctx(scene, camera),

@@ -13,10 +13,9 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 use tessera_scene::{SceneDesc, SubsurfaceMethod};
 
-use super::info::MethodInfo;
+use super::info::{MethodInfo, Transport};
 use super::lookup;
 use super::{DynPass, Job, Next, Payload, Plan, Step, TaskCtx, TaskSpec};
-use crate::analysis::analyze;
 use crate::film::Image;
 use crate::wire::WireError;
 
@@ -26,6 +25,10 @@ pub static AUTO: MethodInfo = MethodInfo {
     spp: "as the chosen method counts them",
     params: &[],
     translucent: true,
+    refuses: None,
+    transport: Transport::Full,
+    pilot: None,
+    per_ray: None,
     plan: plan_auto,
 };
 
@@ -59,10 +62,13 @@ impl Choice {
     /// other than `auto`, and photons within the scene format's limit. The error begins with
     /// the field.
     pub fn check(&self) -> Result<(), String> {
-        if self.method == "auto" {
-            return Err("method: expected the method auto chose, got auto".into());
+        let method = lookup(&self.method).map_err(|e| format!("method: {e}"))?;
+        if std::ptr::eq(method, &AUTO) {
+            return Err(format!(
+                "method: expected the method {0} chose, got {0}",
+                AUTO.name
+            ));
         }
-        lookup(&self.method).map_err(|e| format!("method: {e}"))?;
         if let Some(n) = self.photons
             && !(1..=tessera_scene::MAX_PHOTONS).contains(&n)
         {
@@ -111,9 +117,9 @@ fn plan_auto(job: &Job) -> Result<Box<dyn Plan>, String> {
             c.apply(&mut inner_job.desc);
             (lookup(&c.method)?, c.report.clone())
         }
-        None => (lookup(&analyze(&job.desc).method)?, Vec::new()),
+        None => (super::analysed(&job.desc)?, Vec::new()),
     };
-    if method.name == "auto" {
+    if std::ptr::eq(method, &AUTO) {
         return Err("auto chose auto: no method to run".into());
     }
     inner_job.desc.integrator.method = method.name.into();

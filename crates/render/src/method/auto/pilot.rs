@@ -102,7 +102,7 @@ use tessera_scene::{SceneDesc, SubsurfaceMethod};
 use super::Choice;
 use crate::analysis::analyze;
 use crate::film::MAX_SPP;
-use crate::method::{Job, Loaded, plan};
+use crate::method::{Job, Loaded, Model, Probe, Transport, plan};
 use crate::scene::Scene;
 
 mod deepen;
@@ -140,19 +140,6 @@ impl Goal {
     }
 }
 
-/// How a candidate's error falls with its samples n.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Model {
-    /// v / n.
-    Unbiased,
-    /// v / n + b: b is kernel bias and the noise of a view-independent pass.
-    Biased,
-    /// v / n + b s(n) / s̄: progressive photon mapping, whose noise falls as a mean's while
-    /// its radii still hold photons from many iterations, and whose kernel bias falls with the
-    /// mean squared radius s(n) (step 2 of the module's comment).
-    Progressive,
-}
-
 #[derive(Clone)]
 struct Candidate {
     label: String,
@@ -167,16 +154,21 @@ struct Candidate {
     /// Photons of the photon map it renders with, where the scene leaves the count to the
     /// pilot ([`FEW_PHOTONS`]).
     photons: Option<u32>,
+    /// Whether its pilot judges the others (is part of their consensus): the unbiased
+    /// candidates whose pilot sees every path, or where none does, every unbiased one. A
+    /// pilot that traces from the camera only does not see the paths it finds too rarely
+    /// (caustics of small lights, light seen through glass), which make its image dark there
+    /// and its variance look small ([`crate::method::Sight`]).
+    judges: bool,
+    /// Times a small part of its pilot first ([`crate::method::PilotInfo::probe`]).
+    probe: Option<Probe>,
 }
 
 impl Candidate {
-    /// Whether its pilot judges the others (is part of their consensus): the unbiased
-    /// candidates but the path tracer, whose pilot does not see the paths it finds too rarely
-    /// (caustics of small lights, light seen through glass), which make its image dark there
-    /// and its variance look small. It judges only where no other unbiased candidate was
-    /// measured.
+    /// Whether its pilot judges the others ([`Candidate::judges`](struct@Candidate)); one
+    /// that does not judges only where no judge was measured.
     fn judges(&self) -> bool {
-        self.model == Model::Unbiased && self.label != "path"
+        self.judges
     }
 }
 
@@ -308,14 +300,15 @@ fn measure(
 ) -> Result<Selection, String> {
     let start = Instant::now();
     let analysis = analyze(desc);
-    if analysis.method == "direct" {
+    if analysis.transport == Transport::Direct {
         let reason = analysis
             .decisions
             .first()
             .map_or(String::new(), |d| d.reason.clone());
+        let method = crate::method::analysed(desc)?.name;
         return Ok(Selection {
             choice: Choice {
-                method: "direct".into(),
+                method: method.into(),
                 subsurface: None,
                 photons: None,
                 spp: desc.integrator.spp,
@@ -323,7 +316,7 @@ fn measure(
                     Goal::Error(e) => Some(e),
                     _ => None,
                 },
-                report: vec![format!("chose direct without a pilot: {reason}")],
+                report: vec![format!("chose {method} without a pilot: {reason}")],
             },
             measurements: Vec::new(),
             pilot_s: 0.0,
@@ -645,6 +638,11 @@ mod tests {
             k: 1,
             caveat: None,
             photons: None,
+            judges: model == Model::Unbiased && method != "path",
+            probe: crate::method::lookup(method)
+                .ok()
+                .and_then(|m| m.pilot)
+                .and_then(|p| p.probe),
         }
     }
 

@@ -10,6 +10,7 @@ use super::{Candidate, Goal, Measurement, Model, subsurface_name};
 use crate::analysis::{Analysis, concentrated_lights};
 use crate::camera::Camera;
 use crate::integrator::sppm;
+use crate::method::{self, MethodInfo, PilotInfo, Sight};
 use crate::photon::DEFAULT_PHOTONS;
 use crate::scene::Scene;
 
@@ -26,13 +27,13 @@ pub(super) const ALWAYS_MEASURED: usize = 3;
 /// goal ([`more_photons_needed`]).
 pub const FEW_PHOTONS: u32 = DEFAULT_PHOTONS / 8;
 
-/// The photon-map candidate with `photons` photons: `photon` with the few the pilot tries
-/// first, `photon:N` with more.
-fn photon_label(photons: u32) -> String {
+/// The label of candidate `method` whose photon map has `photons` photons: the method's name
+/// with the few the pilot tries first, `name:N` with more.
+fn photon_label(method: &str, photons: u32) -> String {
     if photons == FEW_PHOTONS {
-        "photon".into()
+        method.into()
     } else {
-        format!("photon:{photons}")
+        format!("{method}:{photons}")
     }
 }
 
@@ -40,7 +41,7 @@ fn photon_label(photons: u32) -> String {
 /// not where the first reaches the goal, since more photons lower only a floor already under
 /// it, at the cost of a dearer pass (a time limit's lowest error may still want them).
 pub(super) fn more_photons_needed(c: &Candidate, measurements: &[Measurement], goal: Goal) -> bool {
-    let few = photon_label(FEW_PHOTONS);
+    let few = photon_label(c.method, FEW_PHOTONS);
     match c.photons {
         Some(n) if n > FEW_PHOTONS && !matches!(goal, Goal::Seconds(_)) => !measurements
             .iter()
@@ -49,25 +50,59 @@ pub(super) fn more_photons_needed(c: &Candidate, measurements: &[Measurement], g
     }
 }
 
-/// The candidates the scene's features leave, in pilot order, and what they ruled out.
-/// `seen`: whether the camera sees a specular surface ([`sees_specular`]).
+/// The candidates the scene's features leave, in pilot order, and what they ruled out: every
+/// method of the registry with a [`PilotInfo`], in its order, but those that cannot render
+/// the scene ([`method::refuses`]). `seen`: whether the camera sees a specular surface
+/// ([`sees_specular`]).
 pub(super) fn candidates(
     desc: &SceneDesc,
     analysis: &Analysis,
     seen: bool,
 ) -> (Vec<Candidate>, Vec<String>) {
-    let c = |label: &str, method, subsurface, model, k| Candidate {
-        label: label.to_string(),
-        method,
-        subsurface,
-        model,
-        k,
-        caveat: None,
-        photons: None,
-    };
+    let mut pool: Vec<(&MethodInfo, PilotInfo)> = method::methods()
+        .into_iter()
+        .filter_map(|m| Some((m, m.pilot?)))
+        .collect();
+    pool.sort_by_key(|(_, p)| p.order);
+    let mut ruled_out = Vec::new();
     let translucent = desc.translucent_materials();
     if !translucent.is_empty() {
-        // The scene's own subsurface method first: it is the path tracer a job's spp means.
+        let unable: Vec<&str> = pool
+            .iter()
+            .filter(|(m, _)| !m.translucent)
+            .map(|(m, _)| m.name)
+            .collect();
+        if !unable.is_empty() {
+            ruled_out.push(format!(
+                "{}: not candidates: they do not render translucent materials ({})",
+                unable.join(", "),
+                translucent.join(", ")
+            ));
+        }
+    }
+    pool.retain(|(m, _)| match method::refuses(m, desc) {
+        Ok(()) => true,
+        Err(why) if m.translucent || translucent.is_empty() => {
+            ruled_out.push(format!("{}: not a candidate: {why}", m.name));
+            false
+        }
+        Err(_) => false,
+    });
+    let candidate = |m: &MethodInfo, p: &PilotInfo| Candidate {
+        label: m.name.to_string(),
+        method: m.name,
+        subsurface: None,
+        model: p.model,
+        k: p.k,
+        caveat: None,
+        photons: None,
+        judges: false,
+        probe: p.probe,
+    };
+    let mut list = Vec::new();
+    if !translucent.is_empty() {
+        // Each method renders with each subsurface method, the scene's own first (it is the
+        // one a job's spp means); all but the random walk are approximations (biased).
         let mut methods = vec![
             desc.integrator.subsurface,
             SubsurfaceMethod::RandomWalk,
@@ -80,93 +115,83 @@ pub(super) fn candidates(
             seen.push(*m);
             new
         });
-        let list = methods
-            .into_iter()
-            .map(|m| {
-                let model = if m == SubsurfaceMethod::RandomWalk {
-                    Model::Unbiased
+        for (m, p) in &pool {
+            list.extend(methods.iter().map(|&s| Candidate {
+                label: format!("{}:{}", m.name, subsurface_name(s)),
+                subsurface: Some(s),
+                model: if s == SubsurfaceMethod::RandomWalk {
+                    p.model
                 } else {
                     Model::Biased
-                };
-                c(
-                    &format!("path:{}", subsurface_name(m)),
-                    "path",
-                    Some(m),
-                    model,
-                    4,
+                },
+                k: p.k.min(TRANSLUCENT_K),
+                ..candidate(m, p)
+            }));
+        }
+    } else {
+        // Caustics of a concentrated light are rare, bright samples for a method that finds
+        // them only by hitting the light ([`Sight`]): a pilot of a few thousand paths does
+        // not see them, so their variance cannot be measured.
+        let concentrated = if analysis.caustics {
+            concentrated_lights(desc, analysis)
+        } else {
+            Vec::new()
+        };
+        for (m, p) in &pool {
+            let misses = match p.sight {
+                Sight::All => None,
+                Sight::CameraOnly => Some(""),
+                Sight::NoSpecularJoin => seen.then_some(" seen in a specular surface"),
+            };
+            let caveat = misses.filter(|_| !concentrated.is_empty()).map(|seen_in| {
+                format!(
+                    "its caustics of {}{seen_in} are rare, bright samples a pilot does not see",
+                    concentrated.join(", ")
                 )
-            })
-            .collect();
-        return (
-            list,
-            vec![format!(
-                "bdpt, vcm, photon, sppm, pssmlt, mlt: not candidates: they do not render translucent materials ({})",
-                translucent.join(", ")
-            )],
-        );
-    }
-    // The unbiased methods without passes first: they are cheap to measure and make the
-    // consensus. SPPM's iterations trace all their photons whatever the film: two, less than
-    // photon mapping's pass, which is measured at full cost (both reused by the render when
-    // they win), so SPPM goes first unless the film is large (`photon_map_first`).
-    // Caustics of a concentrated light are paths the path tracer finds only by hitting the
-    // light through the specular chain: rare, bright samples, which a pilot of a few thousand
-    // paths does not see, so their variance cannot be measured. Light tracing (BDPT, VCM)
-    // and photon maps find them from the light's side.
-    let concentrated = if analysis.caustics {
-        concentrated_lights(desc, analysis)
-    } else {
-        Vec::new()
-    };
-    let caveat = (!concentrated.is_empty()).then(|| {
-        format!(
-            "its caustics of {} are rare, bright samples a pilot does not see",
-            concentrated.join(", ")
-        )
-    });
-    // Seen in a specular surface, those caustics are specular–diffuse–specular paths: no
-    // connection of BDPT's subpaths can join them (each end of the join is specular), so it
-    // too finds them only by hitting the light, where VCM merges and photon maps gather.
-    let bdpt_caveat = (!concentrated.is_empty() && seen).then(|| {
-        format!(
-            "its caustics of {} seen in a specular surface are rare, bright samples a pilot does not see",
-            concentrated.join(", ")
-        )
-    });
-    let mut list = vec![
-        Candidate {
-            caveat,
-            ..c("path", "path", None, Model::Unbiased, 16)
-        },
-        Candidate {
-            caveat: bdpt_caveat,
-            ..c("bdpt", "bdpt", None, Model::Unbiased, 4)
-        },
-        c("vcm", "vcm", None, Model::Unbiased, 4),
-        c("sppm", "sppm", None, Model::Progressive, 1),
-    ];
-    // The photon map with a few photons, then (where those cannot reach the goal) with the
-    // default count, unless the scene sets its own.
-    if desc.integrator.photon.photons.is_some() {
-        list.push(c("photon", "photon", None, Model::Biased, 4));
-    } else {
-        list.extend([FEW_PHOTONS, DEFAULT_PHOTONS].map(|n| Candidate {
-            photons: Some(n),
-            ..c(&photon_label(n), "photon", None, Model::Biased, 4)
-        }));
-    }
-    list.extend([
-        c("pssmlt", "pssmlt", None, Model::Unbiased, 4),
-        c("mlt", "mlt", None, Model::Unbiased, 4),
-    ]);
-    if photon_map_first(desc) {
-        let at = |label: &str| list.iter().position(|c| c.label == label);
-        if let (Some(sppm), Some(photon)) = (at("sppm"), at("photon")) {
-            list.swap(sppm, photon);
+            });
+            // A photon map of a few photons, then (where those cannot reach the goal) of
+            // the default count, unless the scene sets its own.
+            let photons: &[Option<u32>] =
+                if p.photon_map && desc.integrator.photon.photons.is_none() {
+                    &[Some(FEW_PHOTONS), Some(DEFAULT_PHOTONS)]
+                } else {
+                    &[None]
+                };
+            list.extend(photons.iter().map(|&n| Candidate {
+                label: n.map_or(m.name.to_string(), |n| photon_label(m.name, n)),
+                caveat: caveat.clone(),
+                photons: n,
+                ..candidate(m, p)
+            }));
+        }
+        if photon_map_first(desc) {
+            let first = |model| list.iter().position(|c| c.model == model);
+            let photon_map = list
+                .iter()
+                .position(|c| pool.iter().any(|(m, p)| m.name == c.method && p.photon_map));
+            if let (Some(progressive), Some(photon_map)) = (first(Model::Progressive), photon_map) {
+                list.swap(progressive, photon_map);
+            }
         }
     }
-    (list, Vec::new())
+    // The unbiased candidates whose pilot sees every path judge the others; where none
+    // does, every unbiased one.
+    let sees_all = |c: &Candidate| {
+        pool.iter()
+            .any(|(m, p)| m.name == c.method && p.sight != Sight::CameraOnly)
+    };
+    let any_sees_all = list
+        .iter()
+        .any(|c| c.model == Model::Unbiased && sees_all(c));
+    for c in &mut list {
+        c.judges = c.model == Model::Unbiased && (sees_all(c) || !any_sees_all);
+    }
+    (list, ruled_out)
 }
+
+/// Pilot samples per half of a candidate rendering translucent materials, at most: as many
+/// as the bidirectional candidates' pilots take elsewhere.
+const TRANSLUCENT_K: u32 = 4;
 
 /// Puts the candidates with a caveat that judge no other (the path tracer: the consensus
 /// leaves it out where a bidirectional method is measured) last, unless the goal is the path
@@ -247,6 +272,33 @@ mod tests {
     use super::super::tests::{built, scene};
     use super::*;
     use crate::analysis::analyze;
+
+    /// The candidates are the registry's methods with a pilot, but those that refuse the
+    /// scene, which the report names with their reason: path-space MLT under a thin lens.
+    #[test]
+    fn a_method_that_refuses_the_scene_is_ruled_out_with_its_reason() {
+        let mut desc = scene("cornell-box");
+        let labels = |desc: &SceneDesc| {
+            let (list, out) = candidates(desc, &analyze(desc), false);
+            (list.into_iter().map(|c| c.label).collect::<Vec<_>>(), out)
+        };
+        let (pinhole, out) = labels(&desc);
+        assert!(pinhole.iter().any(|l| l == "mlt"), "{pinhole:?}");
+        assert!(out.is_empty(), "{out:?}");
+        desc.camera.lens = tessera_scene::Lens::Thin {
+            aperture_radius: 0.05,
+            focus_distance: 5.0,
+        };
+        let (thin, out) = labels(&desc);
+        let without: Vec<&String> = pinhole.iter().filter(|l| *l != "mlt").collect();
+        assert_eq!(thin.iter().collect::<Vec<_>>(), without);
+        assert!(
+            out.len() == 1
+                && out[0].starts_with("mlt: not a candidate")
+                && out[0].contains("pinhole"),
+            "{out:?}"
+        );
+    }
 
     /// SPPM is measured before the photon map unless the film has more pixels than an SPPM
     /// iteration has photons.

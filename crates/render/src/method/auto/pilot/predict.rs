@@ -429,6 +429,8 @@ pub(super) mod tests {
             k,
             caveat: None,
             photons: None,
+            judges: model == Model::Unbiased && label != "path",
+            probe: None,
         }
     }
 

@@ -11,8 +11,6 @@ use super::progressive::{rgb, sppm_photons, sppm_second_half};
 use super::radii::Shrinkage;
 use super::{Candidate, Model};
 use crate::analysis::analyze;
-use crate::camera::Camera;
-use crate::integrator::metropolis::{GROUPS, Metropolis};
 use crate::integrator::sppm::SppmSettings;
 use crate::method::local::{Built, Local, Progress};
 use crate::method::sppm::SppmFrame;
@@ -59,27 +57,6 @@ impl Allowance {
         };
         Allowance { left, reusable }
     }
-}
-
-/// For a Metropolis candidate with `left` seconds (finite) to spend: renders one group of a
-/// pilot frame's chains (its share of the bootstrap and of the mutations; see
-/// [`crate::integrator::metropolis::GROUPS`]) and returns what the pilot's two frames would
-/// take at that pace when it is more than `left`.
-fn metropolis_pilot_s(
-    c: &Candidate,
-    desc: &SceneDesc,
-    scene: &Scene,
-    frame: u32,
-    left: f64,
-) -> Result<Option<f64>, String> {
-    let Some(m) = Metropolis::new(c.method, desc).filter(|_| left.is_finite()) else {
-        return Ok(None);
-    };
-    let camera = Camera::new(&desc.camera_at(frame), &desc.film);
-    let probe = Instant::now();
-    m.chains(scene, &camera, c.k, 0, &|_| {})?;
-    let all = probe.elapsed().as_secs_f64() * 2.0 * GROUPS as f64;
-    Ok((all > left).then_some(all))
 }
 
 /// The scene at about 1/[`PILOT_FRACTION`] of its pixels (within [`PILOT_PIXELS`]), same view. A filter with
@@ -224,13 +201,16 @@ pub(super) fn run(
         )));
     }
     let setup_s = start.elapsed().as_secs_f64();
-    // A Metropolis frame's bootstrap costs the same whatever the film: timed on one of its
-    // groups, it stops here when its two frames would cost more than is left.
-    if let Some(all) = metropolis_pilot_s(c, &desc, scene, frame, left)? {
-        return Ok(Pilot::TooDear(format!(
-            "its two frames would take {all:.2} s at its first group's pace, more than the {:.2} s left",
-            left.max(0.0)
-        )));
+    // A frame's fixed work (a Metropolis bootstrap) costs the same whatever the film: timed
+    // on a part of it, the pilot stops here when its two frames would cost more than is left.
+    if let Some(probe) = c.probe.filter(|_| left.is_finite()) {
+        let all = probe(&desc, scene, frame, c.k)?;
+        if all > left {
+            return Ok(Pilot::TooDear(format!(
+                "its two frames would take {all:.2} s at its first part's pace, more than the {:.2} s left",
+                left.max(0.0)
+            )));
+        }
     }
     let rendering = Instant::now();
     // SPPM's photons do not depend on the film: the pilot's are the render's first 2k
