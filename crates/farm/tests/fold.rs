@@ -10,12 +10,12 @@ use std::time::{Duration, Instant};
 
 mod common;
 
-use common::{CLIENT, WORKER, config, cornell, local_frame, run_to_the_end, submit};
+use common::{CLIENT, WORKER, config, cornell, local_frame, planned, run_to_the_end, submit};
 use reqwest::StatusCode;
 use tessera_farm::bundle::Bundle;
 use tessera_farm::client::Client;
 use tessera_farm::coordinator::{self, Running};
-use tessera_farm::job::{self, FrameRange, Limits, RenderSettings};
+use tessera_farm::job::RenderSettings;
 use tessera_farm::protocol::{JobRequest, JobState, LeaseGrant, LeaseRequest, WorkerInfo};
 use tessera_render::method::{LoadFn, Loaded, Plan, Resources, TaskCtx};
 use tessera_render::wire::Header;
@@ -105,14 +105,7 @@ async fn results_arriving_in_any_order_fold_to_the_frame_one_process_renders() {
         ),
     ];
     for (shuffle, (name, settings)) in cases.into_iter().enumerate() {
-        let mut desc = tessera_scene::load(&cornell()).expect("scene");
-        let plan = job::plan(
-            &mut desc,
-            &settings,
-            FrameRange::single(1),
-            &Limits::default(),
-        )
-        .expect("plan");
+        let (desc, plan) = planned(&settings);
         let scene = tessera_render::Scene::build(&desc);
         let job = client
             .submit(&JobRequest {
@@ -246,14 +239,7 @@ async fn bad_and_oversized_results_are_refused_with_what_was_wrong() {
         (api.status, api.message)
     };
     let run = |settings: &RenderSettings, g: &LeaseGrant| {
-        let mut desc = tessera_scene::load(&cornell()).expect("scene");
-        let plan = job::plan(
-            &mut desc,
-            settings,
-            FrameRange::single(1),
-            &Limits::default(),
-        )
-        .expect("plan");
+        let (desc, plan) = planned(settings);
         let scene = tessera_render::Scene::build(&desc);
         result_file(plan.as_ref(), &scene, &desc, g, dir.path())
     };

@@ -34,8 +34,8 @@ pub fn cornell() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json")
 }
 
-/// Frame 1 of the Cornell box with `settings`, planned and rendered in this process.
-pub fn local_render(settings: &RenderSettings) -> (SceneDesc, Box<dyn Plan>, Finished) {
+/// Frame 1 of the Cornell box with `settings` applied and planned.
+pub fn planned(settings: &RenderSettings) -> (SceneDesc, Box<dyn Plan>) {
     let mut desc = tessera_scene::load(&cornell()).expect("scene");
     let plan = job::plan(
         &mut desc,
@@ -44,6 +44,12 @@ pub fn local_render(settings: &RenderSettings) -> (SceneDesc, Box<dyn Plan>, Fin
         &Limits::default(),
     )
     .expect("plan");
+    (desc, plan)
+}
+
+/// Frame 1 of the Cornell box with `settings`, planned and rendered in this process.
+pub fn local_render(settings: &RenderSettings) -> (SceneDesc, Box<dyn Plan>, Finished) {
+    let (desc, plan) = planned(settings);
     let scene = tessera_render::Scene::build(&desc);
     let noop = |_| {};
     let local = Local::new(plan.as_ref(), &scene, &desc, 2, &noop);

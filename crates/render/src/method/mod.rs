@@ -71,10 +71,9 @@ pub fn lookup(name: &str) -> Result<&'static MethodInfo, String> {
         })
 }
 
-/// The method scene analysis chooses for `desc` where nothing measured it: the first of the
+/// The method scene analysis chooses where nothing measured the scene: the first of the
 /// registry that computes the light transport the scene needs ([`crate::analysis`]).
-pub fn analysed(desc: &SceneDesc) -> Result<&'static MethodInfo, String> {
-    let transport = crate::analysis::analyze(desc).transport;
+pub fn for_transport(transport: Transport) -> Result<&'static MethodInfo, String> {
     methods()
         .into_iter()
         .find(|m| m.transport == transport && !std::ptr::eq(*m, &auto::AUTO))
@@ -91,7 +90,7 @@ pub fn per_ray(
 ) -> Result<(Box<dyn crate::integrator::Integrator>, Vec<String>), String> {
     let mut method = lookup(&desc.integrator.method)?;
     if std::ptr::eq(method, &auto::AUTO) {
-        method = analysed(desc)?;
+        method = for_transport(crate::analysis::analyze(desc).transport)?;
     }
     let per_ray = method.per_ray.ok_or_else(|| {
         format!(

@@ -117,7 +117,10 @@ fn plan_auto(job: &Job) -> Result<Box<dyn Plan>, String> {
             c.apply(&mut inner_job.desc);
             (lookup(&c.method)?, c.report.clone())
         }
-        None => (super::analysed(&job.desc)?, Vec::new()),
+        None => (
+            super::for_transport(crate::analysis::analyze(&job.desc).transport)?,
+            Vec::new(),
+        ),
     };
     if std::ptr::eq(method, &AUTO) {
         return Err("auto chose auto: no method to run".into());

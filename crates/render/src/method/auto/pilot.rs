@@ -305,7 +305,7 @@ fn measure(
             .decisions
             .first()
             .map_or(String::new(), |d| d.reason.clone());
-        let method = crate::method::analysed(desc)?.name;
+        let method = crate::method::for_transport(analysis.transport)?.name;
         return Ok(Selection {
             choice: Choice {
                 method: method.into(),
@@ -630,6 +630,7 @@ mod tests {
 
     /// Candidate `method` (its own label) with one pilot sample a half.
     pub(super) fn one_sample(method: &'static str, model: Model) -> Candidate {
+        let pilot = crate::method::lookup(method).ok().and_then(|m| m.pilot);
         Candidate {
             label: method.into(),
             method,
@@ -638,11 +639,9 @@ mod tests {
             k: 1,
             caveat: None,
             photons: None,
-            judges: model == Model::Unbiased && method != "path",
-            probe: crate::method::lookup(method)
-                .ok()
-                .and_then(|m| m.pilot)
-                .and_then(|p| p.probe),
+            judges: model == Model::Unbiased
+                && pilot.is_none_or(|p| p.sight != crate::method::Sight::CameraOnly),
+            probe: pilot.and_then(|p| p.probe),
         }
     }
 

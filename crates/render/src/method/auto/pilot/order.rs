@@ -67,26 +67,23 @@ pub(super) fn candidates(
     let mut ruled_out = Vec::new();
     let translucent = desc.translucent_materials();
     if !translucent.is_empty() {
-        let unable: Vec<&str> = pool
-            .iter()
-            .filter(|(m, _)| !m.translucent)
-            .map(|(m, _)| m.name)
-            .collect();
+        let (able, unable): (Vec<_>, Vec<_>) = pool.into_iter().partition(|(m, _)| m.translucent);
         if !unable.is_empty() {
+            let names: Vec<&str> = unable.iter().map(|(m, _)| m.name).collect();
             ruled_out.push(format!(
                 "{}: not candidates: they do not render translucent materials ({})",
-                unable.join(", "),
+                names.join(", "),
                 translucent.join(", ")
             ));
         }
+        pool = able;
     }
     pool.retain(|(m, _)| match method::refuses(m, desc) {
         Ok(()) => true,
-        Err(why) if m.translucent || translucent.is_empty() => {
+        Err(why) => {
             ruled_out.push(format!("{}: not a candidate: {why}", m.name));
             false
         }
-        Err(_) => false,
     });
     let candidate = |m: &MethodInfo, p: &PilotInfo| Candidate {
         label: m.name.to_string(),
@@ -96,7 +93,8 @@ pub(super) fn candidates(
         k: p.k,
         caveat: None,
         photons: None,
-        judges: false,
+        // Until every candidate is listed: whether it sees more than the camera's side.
+        judges: p.model == Model::Unbiased && p.sight != Sight::CameraOnly,
         probe: p.probe,
     };
     let mut list = Vec::new();
@@ -116,22 +114,27 @@ pub(super) fn candidates(
             new
         });
         for (m, p) in &pool {
-            list.extend(methods.iter().map(|&s| Candidate {
-                label: format!("{}:{}", m.name, subsurface_name(s)),
-                subsurface: Some(s),
-                model: if s == SubsurfaceMethod::RandomWalk {
+            list.extend(methods.iter().map(|&s| {
+                let model = if s == SubsurfaceMethod::RandomWalk {
                     p.model
                 } else {
                     Model::Biased
-                },
-                k: p.k.min(TRANSLUCENT_K),
-                ..candidate(m, p)
+                };
+                Candidate {
+                    label: format!("{}:{}", m.name, subsurface_name(s)),
+                    subsurface: Some(s),
+                    model,
+                    k: p.k.min(TRANSLUCENT_K),
+                    judges: model == Model::Unbiased && p.sight != Sight::CameraOnly,
+                    ..candidate(m, p)
+                }
             }));
         }
     } else {
         // Caustics of a concentrated light are rare, bright samples for a method that finds
         // them only by hitting the light ([`Sight`]): a pilot of a few thousand paths does
         // not see them, so their variance cannot be measured.
+        let mut first_photon_map = None;
         let concentrated = if analysis.caustics {
             concentrated_lights(desc, analysis)
         } else {
@@ -157,6 +160,9 @@ pub(super) fn candidates(
                 } else {
                     &[None]
                 };
+            if p.photon_map {
+                first_photon_map.get_or_insert(list.len());
+            }
             list.extend(photons.iter().map(|&n| Candidate {
                 label: n.map_or(m.name.to_string(), |n| photon_label(m.name, n)),
                 caveat: caveat.clone(),
@@ -165,26 +171,18 @@ pub(super) fn candidates(
             }));
         }
         if photon_map_first(desc) {
-            let first = |model| list.iter().position(|c| c.model == model);
-            let photon_map = list
-                .iter()
-                .position(|c| pool.iter().any(|(m, p)| m.name == c.method && p.photon_map));
-            if let (Some(progressive), Some(photon_map)) = (first(Model::Progressive), photon_map) {
+            let progressive = list.iter().position(|c| c.model == Model::Progressive);
+            if let (Some(progressive), Some(photon_map)) = (progressive, first_photon_map) {
                 list.swap(progressive, photon_map);
             }
         }
     }
-    // The unbiased candidates whose pilot sees every path judge the others; where none
-    // does, every unbiased one.
-    let sees_all = |c: &Candidate| {
-        pool.iter()
-            .any(|(m, p)| m.name == c.method && p.sight != Sight::CameraOnly)
-    };
-    let any_sees_all = list
-        .iter()
-        .any(|c| c.model == Model::Unbiased && sees_all(c));
-    for c in &mut list {
-        c.judges = c.model == Model::Unbiased && (sees_all(c) || !any_sees_all);
+    // The unbiased candidates whose pilot sees more than the camera's side judge the
+    // others; where none does, every unbiased one.
+    if !list.iter().any(|c| c.judges) {
+        for c in &mut list {
+            c.judges = c.model == Model::Unbiased;
+        }
     }
     (list, ruled_out)
 }
