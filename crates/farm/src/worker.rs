@@ -18,9 +18,8 @@ use tessera_render::wire::Header;
 use tessera_scene::SceneDesc;
 use tokio::sync::OnceCell;
 
-use crate::bundle::Bundle;
 use crate::client::{Client, is_transient, status_of};
-use crate::job::{self, Limits};
+use crate::job;
 use crate::protocol::{
     Failure, Heartbeat, LeaseGrant, LeaseRequest, WorkerInfo, result_over_limit,
 };
@@ -360,16 +359,20 @@ impl Worker {
             let started = Instant::now();
             let prepared = tokio::task::spawn_blocking(move || -> anyhow::Result<Prepared> {
                 let permanent = |e: String| anyhow::Error::new(Permanent(e));
-                let bundle = Bundle::from_tar(&bytes).map_err(permanent)?;
-                let mut desc = bundle.load(&scene).map_err(|e| permanent(e.to_string()))?;
-                // Planned as the coordinator planned it: the same frames give the same passes
-                // and artifact keys.
-                let plan =
-                    job::plan(&mut desc, &settings, frames, &Limits::none()).map_err(permanent)?;
+                // Compiled as the coordinator compiled it: the same frames give the same
+                // passes and artifact keys.
+                let compiled = job::compile_bundled(
+                    &bytes,
+                    &scene,
+                    &settings,
+                    Some(frames),
+                    job::Options::admitted(),
+                )
+                .map_err(permanent)?;
                 Ok(Prepared {
-                    scene: Scene::build(&desc),
-                    desc,
-                    plan,
+                    scene: Scene::build(&compiled.desc),
+                    desc: compiled.desc,
+                    plan: compiled.plan,
                 })
             })
             .await??;

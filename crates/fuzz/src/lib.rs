@@ -85,16 +85,21 @@ impl tessera_scene::SceneSource for Mem {
 /// plans the job (default settings, the farm's default limits) and builds the scene (BVH,
 /// lights, textures).
 pub fn load_plan_build(folder: &dyn tessera_scene::SceneSource, name: &str) -> bool {
-    let Ok(mut desc) = tessera_scene::load_from(folder, Path::new(name)) else {
+    use tessera_render::job::{FrameRange, Limits, Options, RenderSettings, compile};
+    let Ok(desc) = tessera_scene::load_from(folder, Path::new(name)) else {
         return false;
     };
-    let settings = tessera_farm::job::RenderSettings::default();
-    let frames = tessera_farm::job::FrameRange::single(1);
-    let limits = tessera_farm::job::Limits::default();
-    if tessera_farm::job::plan(&mut desc, &settings, frames, &limits).is_err() {
+    let limits = Limits::default();
+    let settings = RenderSettings::default();
+    let Ok(compiled) = compile(
+        desc,
+        &settings,
+        FrameRange::single(1),
+        Options::new(&limits),
+    ) else {
         return false;
-    }
-    let _ = tessera_render::Scene::build(&desc);
+    };
+    let _ = tessera_render::Scene::build(&compiled.desc);
     true
 }
 

@@ -13,6 +13,7 @@ pub mod filter;
 pub mod geometry;
 pub mod integrator;
 pub mod irradiance;
+pub mod job;
 pub mod light;
 pub mod math;
 pub mod method;

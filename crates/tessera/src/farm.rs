@@ -305,8 +305,7 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         first: 1,
         last: desc.frame_count(),
     });
-    let mut check = desc.clone();
-    job::plan(&mut check, &settings, frames, &job::Limits::none())
+    job::compile(desc.clone(), &settings, frames, job::Options::admitted())
         .map_err(|e| crate::render::setting_error(&args.scene, e))?;
 
     let client = args.remote.client()?;

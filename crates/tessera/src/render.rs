@@ -1,13 +1,12 @@
 //! `tessera render`: one machine, all its cores — the farm in one process.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use tessera_farm::job::{self, FrameRange, Limits, RenderSettings};
-use tessera_render::method::Job;
-use tessera_render::method::auto::{Choice, pilot};
+use tessera_render::job::{self, FrameRange, Limits, RenderSettings};
+use tessera_render::method::auto::Choice;
 use tessera_render::method::local::{Local, Progress};
 use tessera_scene::{Problem, SceneDesc, SceneError};
 
@@ -113,9 +112,13 @@ pub fn setting_error(scene: &Path, message: String) -> anyhow::Error {
     .into()
 }
 
-/// A scene loaded from `args` with its settings applied, and the job to plan.
-pub fn job_of(args: &RenderArgs) -> anyhow::Result<(SceneDesc, Job)> {
+/// The scene of `args` (loaded in `load_s` seconds) and its job compiled in this process:
+/// the settings applied and checked, `auto` measured here with `threads` threads where the
+/// job asks for it, the method planned.
+pub fn compile(args: &RenderArgs, threads: usize) -> anyhow::Result<(job::Compiled, f64)> {
+    let loading = Instant::now();
     let mut desc = tessera_scene::load(&args.scene)?;
+    let load_s = loading.elapsed().as_secs_f64();
     if let Some(m) = args.subsurface {
         desc.integrator.subsurface = m;
     }
@@ -130,34 +133,30 @@ pub fn job_of(args: &RenderArgs) -> anyhow::Result<(SceneDesc, Job)> {
         choice: args.auto_choice.clone(),
         reuse: None,
     };
-    let frames = FrameRange::single(args.frame);
-    job::apply(&mut desc, &settings, frames, &Limits::default())
+    let time_limit = match args.time_limit {
+        Some(t) => {
+            anyhow::ensure!(
+                t > 0.0 && t.is_finite(),
+                "--time-limit: expected positive seconds, got {t}"
+            );
+            Some(Duration::from_secs_f64(t))
+        }
+        None => None,
+    };
+    let limits = Limits::default();
+    let options = job::Options {
+        limits: &limits,
+        choose: job::Choose::Measure { threads },
+        time_limit,
+    };
+    let compiled = job::compile(desc, &settings, FrameRange::single(args.frame), options)
         .map_err(|e| setting_error(&args.scene, e))?;
-    let mut job = job::job(desc.clone(), &settings, frames);
-    if let Some(t) = args.time_limit {
-        anyhow::ensure!(
-            t > 0.0 && t.is_finite(),
-            "--time-limit: expected positive seconds, got {t}"
-        );
-        job.time_limit = Some(std::time::Duration::from_secs_f64(t));
+    if let Some((selection, _)) = &compiled.measured {
+        for line in &selection.choice.report {
+            tracing::info!(choice = %line, "auto");
+        }
     }
-    Ok((desc, job))
-}
-
-/// `auto`'s choice for `job` on `scene`, measured by pilots ([`pilot::select`]), with a line
-/// per candidate logged.
-pub fn choose(
-    job: &Job,
-    scene: &mut tessera_render::Scene,
-    threads: usize,
-) -> anyhow::Result<pilot::Selection> {
-    let goal = pilot::Goal::of(job);
-    let selection = pilot::select(&job.desc, scene, *job.frames.start(), goal, threads)
-        .map_err(anyhow::Error::msg)?;
-    for line in &selection.choice.report {
-        tracing::info!(choice = %line, "auto");
-    }
-    Ok(selection)
+    Ok((compiled, load_s))
 }
 
 /// Sizes the rayon pool that tasks which parallelise themselves use (once per process).
@@ -203,22 +202,20 @@ pub fn show(bar: &ProgressBar, p: Progress) {
 /// Renders one frame in this process, through the same plan → tasks → fold as the farm
 /// (`tessera_render::method::local`).
 pub fn run(args: RenderArgs) -> anyhow::Result<()> {
-    let start = Instant::now();
     let threads = threads(args.threads)?;
-    let (desc, mut job) = job_of(&args)?;
-    let load_time = start.elapsed();
     let building = Instant::now();
-    let mut scene = tessera_render::Scene::build(&desc);
-    let mut built = Vec::new();
-    let pilot_s = if desc.integrator.method == "auto" && job.choice.is_none() {
-        let s = choose(&job, &mut scene, threads)?;
-        job.choice = Some(s.choice);
-        built = s.artifacts;
-        Some((s.pilot_s, s.handed_s))
-    } else {
-        None
+    let (compiled, load_s) = compile(&args, threads)?;
+    let job::Compiled {
+        desc,
+        job,
+        plan,
+        measured,
+        ..
+    } = compiled;
+    let (scene, built, pilot_s) = match measured {
+        Some((s, scene)) => (scene, s.artifacts, Some((s.pilot_s, s.handed_s))),
+        None => (tessera_render::Scene::build(&desc), Vec::new(), None),
     };
-    let plan = tessera_render::method::plan(&job).map_err(|e| setting_error(&args.scene, e))?;
     let output = args
         .output
         .clone()
@@ -230,8 +227,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         spheres = stats.spheres,
         lights = stats.lights,
         emissive_triangles = stats.emissive_triangles,
-        load_s = load_time.as_secs_f64(),
-        build_s = building.elapsed().as_secs_f64(),
+        load_s,
+        build_s = building.elapsed().as_secs_f64() - load_s,
         "scene ready"
     );
     let spp = job.choice.as_ref().map_or(desc.integrator.spp, |c| c.spp);
@@ -247,7 +244,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let progress = |p: Progress| show(&bar, p);
     let local = Local::new(plan.as_ref(), &scene, &desc, threads, &progress).with_artifacts(built);
     let passes = local.passes().map_err(anyhow::Error::msg)?;
-    let build_time = building.elapsed().as_secs_f64();
+    let build_time = building.elapsed().as_secs_f64() - load_s;
     let rendering = Instant::now();
     let cpu_start = cpu_seconds();
     let done = local.frame(args.frame).map_err(anyhow::Error::msg)?;
@@ -312,8 +309,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let pilot = pilot_s.map_or(0.0, |(p, _)| p);
     report += &format!(
         "setup {:.2} s (load {:.2} s, BVH, lights and passes {:.2} s{})\n",
-        load_time.as_secs_f64() + build_time,
-        load_time.as_secs_f64(),
+        load_s + build_time,
+        load_s,
         build_time - pilot,
         pilot_s
             .map(|(p, handed)| format!(

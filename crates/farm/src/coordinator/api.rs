@@ -20,7 +20,7 @@ use super::tasks::*;
 use super::{App, AppError, AppResult, now_ms};
 use super::{events, ops, users, web};
 use crate::bundle::{self, Bundle};
-use crate::job::{self, FrameRange};
+use crate::job;
 use crate::protocol::*;
 use crate::store::{CacheEntry, NewJob, NewPass, PassStart};
 
@@ -320,29 +320,23 @@ async fn submit_job(
             .ok_or_else(|| {
                 AppError::bad_request(format!("bundle {} is not in the object store", req.bundle))
             })?;
-        let bundle = Bundle::from_tar(&bytes).map_err(AppError::bad_request)?;
-        let mut desc = bundle
-            .load(&req.scene)
-            .map_err(|e| AppError::bad_request(e.to_string()))?;
-        let frames = req.frames.unwrap_or(FrameRange {
-            first: 1,
-            last: desc.frame_count(),
-        });
-        let bad = |e: String| AppError::bad_request(format!("{}: {e}", req.scene));
         // `auto` is measured once, here, and the choice kept with the job's settings: every
         // process then plans the same method.
-        let mut settings = req.settings.clone();
-        let mut applied = desc.clone();
-        job::apply(&mut applied, &settings, frames, &app2.config.limits).map_err(bad)?;
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        if let Some(choice) =
-            job::measure_auto(&applied, &settings, frames, threads).map_err(bad)?
-        {
+        let options = job::Options {
+            limits: &app2.config.limits,
+            choose: job::Choose::Measure { threads },
+            time_limit: None,
+        };
+        let compiled =
+            job::compile_bundled(&bytes, &req.scene, &req.settings, req.frames, options)
+                .map_err(AppError::bad_request)?;
+        if let Some(choice) = compiled.measured.as_ref().map(|(s, _)| &s.choice) {
             tracing::info!(scene = %req.scene, method = %choice.method, spp = choice.spp, "auto chose");
-            settings.choice = Some(choice);
         }
-        let plan = job::plan(&mut desc, &settings, frames, &app2.config.limits).map_err(bad)?;
-        let mut decisions = job::decisions(&desc, plan.as_ref());
+        let settings = compiled.settings(&req.settings);
+        let (desc, plan, frames) = (&compiled.desc, compiled.plan.as_ref(), compiled.frames);
+        let mut decisions = job::decisions(desc, plan);
         let reuse = req.settings.reuse.unwrap_or(true);
         let mut new_passes = Vec::new();
         let mut planned_tasks = 0u64;

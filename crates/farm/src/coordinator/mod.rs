@@ -38,7 +38,6 @@ use tokio::sync::Notify;
 
 pub use error::{AppError, AppResult};
 
-use crate::bundle::Bundle;
 use crate::job::{self, FrameRange, Limits, RenderSettings};
 use crate::protocol::Event;
 use crate::store::{Retry, RetryPolicy, Store};
@@ -259,15 +258,19 @@ impl App {
             .objects
             .get(&self.bundle_key(&hash))?
             .with_context(|| format!("bundle {hash} of job {job} is not in the object store"))?;
-        let bundle = Bundle::from_tar(&bytes).map_err(anyhow::Error::msg)?;
-        let mut desc = bundle.load(&scene)?;
-        let plan =
-            job::plan(&mut desc, &settings, frames, &Limits::none()).map_err(anyhow::Error::msg)?;
+        let compiled = job::compile_bundled(
+            &bytes,
+            &scene,
+            &settings,
+            Some(frames),
+            job::Options::admitted(),
+        )
+        .map_err(anyhow::Error::msg)?;
         let p = Arc::new(JobPlan {
-            desc,
+            desc: compiled.desc,
             settings,
             frames,
-            plan,
+            plan: compiled.plan,
         });
         self.jobs
             .lock()

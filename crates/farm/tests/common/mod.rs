@@ -36,15 +36,16 @@ pub fn cornell() -> PathBuf {
 
 /// Frame 1 of the Cornell box with `settings` applied and planned.
 pub fn planned(settings: &RenderSettings) -> (SceneDesc, Box<dyn Plan>) {
-    let mut desc = tessera_scene::load(&cornell()).expect("scene");
-    let plan = job::plan(
-        &mut desc,
+    let desc = tessera_scene::load(&cornell()).expect("scene");
+    let limits = Limits::default();
+    let c = job::compile(
+        desc,
         settings,
         FrameRange::single(1),
-        &Limits::default(),
+        job::Options::new(&limits),
     )
     .expect("plan");
-    (desc, plan)
+    (c.desc, c.plan)
 }
 
 /// Frame 1 of the Cornell box with `settings`, planned and rendered in this process.

@@ -47,12 +47,13 @@ fn run(data: &[u8]) -> bool {
 /// pilot, a render, is left out).
 fn submit(req: &JobRequest) -> Result<(), String> {
     check_tags(&req.require_tags, "require_tags")?;
-    let mut desc = cornell().clone();
+    let desc = cornell().clone();
     let frames = req.frames.unwrap_or(FrameRange {
         first: 1,
         last: desc.frame_count(),
     });
-    job::plan(&mut desc, &req.settings, frames, &Limits::default()).map(|_| ())
+    let limits = Limits::default();
+    job::compile(desc, &req.settings, frames, job::Options::new(&limits)).map(|_| ())
 }
 
 /// One body of each kind, as the client and the worker send them.

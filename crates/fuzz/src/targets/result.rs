@@ -5,7 +5,7 @@
 
 use std::sync::OnceLock;
 
-use tessera_farm::job::{self, FrameRange, Limits, RenderSettings, check_result};
+use tessera_farm::job::{self, FrameRange, RenderSettings, check_result};
 use tessera_render::method::{LoadFn, Loaded, Plan, Resources, TaskCtx, TaskSpec};
 use tessera_render::wire::{Header, Reader};
 use tessera_scene::SceneDesc;
@@ -49,9 +49,15 @@ fn jobs() -> &'static Jobs {
                     integrator: Some(method.into()),
                     ..Default::default()
                 };
-                desc = base.clone();
-                let plan =
-                    job::plan(&mut desc, &settings, FrameRange::single(1), &Limits::none()).ok()?;
+                let compiled = job::compile(
+                    base.clone(),
+                    &settings,
+                    FrameRange::single(1),
+                    job::Options::admitted(),
+                )
+                .ok()?;
+                desc = compiled.desc;
+                let plan = compiled.plan;
                 let mut tasks = Vec::new();
                 for (i, pass) in plan.passes().iter().enumerate() {
                     tasks.extend(pass.tasks(i as u32));

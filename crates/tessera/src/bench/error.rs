@@ -373,13 +373,18 @@ fn planned(
     desc: &tessera_scene::SceneDesc,
     spp: u32,
 ) -> Result<(tessera_scene::SceneDesc, Box<dyn Plan>), String> {
-    let mut d = desc.clone();
     let settings = RenderSettings {
         spp: Some(spp),
         ..Default::default()
     };
-    let plan = job::plan(&mut d, &settings, FrameRange::single(1), &Limits::default())?;
-    Ok((d, plan))
+    let limits = Limits::default();
+    let c = job::compile(
+        desc.clone(),
+        &settings,
+        FrameRange::single(1),
+        job::Options::new(&limits),
+    )?;
+    Ok((c.desc, c.plan))
 }
 
 /// A render that can be continued where its method can (tiles, sample ranges, SPPM's

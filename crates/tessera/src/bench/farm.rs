@@ -209,13 +209,9 @@ pub async fn farm(args: FarmArgs) -> anyhow::Result<()> {
             integrator: Some(method.clone()),
             ..Default::default()
         };
-        let mut check = desc.clone();
-        if let Err(e) = job::plan(
-            &mut check,
-            &settings,
-            FrameRange::single(1),
-            &Limits::default(),
-        ) {
+        let limits = Limits::default();
+        let options = job::Options::new(&limits);
+        if let Err(e) = job::compile(desc.clone(), &settings, FrameRange::single(1), options) {
             crate::print(&format!("{method:>8}: skipped — {e}\n"))?;
             continue;
         }
@@ -508,7 +504,7 @@ impl SimulatedJob {
         tile: u32,
         name: &str,
     ) -> anyhow::Result<SimulatedJob> {
-        let (bundle, mut desc, scene_name) = Bundle::pack_scene(scene)?;
+        let (bundle, desc, scene_name) = Bundle::pack_scene(scene)?;
         let info = client
             .upload_bundle(bundle.to_tar().map_err(anyhow::Error::msg)?)
             .await?;
@@ -517,13 +513,15 @@ impl SimulatedJob {
             tile: Some(tile),
             ..Default::default()
         };
-        let plan = job::plan(
-            &mut desc,
+        let limits = Limits::default();
+        let compiled = job::compile(
+            desc,
             &settings,
             FrameRange::single(1),
-            &Limits::default(),
+            job::Options::new(&limits),
         )
         .map_err(anyhow::Error::msg)?;
+        let (desc, plan) = (compiled.desc, compiled.plan);
         Ok(SimulatedJob {
             request: JobRequest {
                 bundle: info.hash,
