@@ -458,7 +458,18 @@ pub struct MethodStatus {
     /// What `spp` counts for it.
     pub spp: String,
     /// Scene settings (`integrator.…`) it reads besides spp, depth and seed.
-    pub params: Vec<String>,
+    pub settings: Vec<SettingStatus>,
+}
+
+/// A scene setting a method reads.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct SettingStatus {
+    /// Its path under `integrator` (`photon_map.alpha`).
+    pub name: String,
+    /// The values it admits (`a fraction in (0, 1)`).
+    pub values: String,
+    /// What it sets, and what is chosen where the scene leaves it out.
+    pub doc: String,
 }
 
 /// Checks a list of worker tags: at most 32, each 1 to 64 letters, digits, `-`, `_` or `.`.

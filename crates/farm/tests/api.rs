@@ -515,6 +515,27 @@ async fn the_methods_are_the_registry_in_the_api_and_its_document() {
         .expect("JSON");
     let names: Vec<&str> = methods.iter().filter_map(|m| m["name"].as_str()).collect();
     assert_eq!(names, tessera_render::method::names());
+    for (listed, m) in methods.iter().zip(tessera_render::method::methods()) {
+        let settings: Vec<(&str, &str)> = listed["settings"]
+            .as_array()
+            .expect("settings")
+            .iter()
+            .map(|s| {
+                (
+                    s["name"].as_str().unwrap_or(""),
+                    s["values"].as_str().unwrap_or(""),
+                )
+            })
+            .collect();
+        let described: Vec<String> = m.settings.iter().map(|s| s.kind.describe()).collect();
+        let expected: Vec<(&str, &str)> = m
+            .settings
+            .iter()
+            .zip(&described)
+            .map(|(s, d)| (s.name, d.as_str()))
+            .collect();
+        assert_eq!(settings, expected, "{}", m.name);
+    }
     let doc: serde_json::Value = reqwest::get(format!("{base}/v1/openapi.json"))
         .await
         .expect("get")

@@ -32,7 +32,7 @@ static WHOLE_FRAME: MethodInfo = MethodInfo {
     name: NAME,
     summary: "the path tracer's estimator, each frame one task (a test's method)",
     spp: "samples per pixel",
-    params: &[],
+    settings: &[],
     translucent: false,
     refuses: None,
     transport: Transport::Full,

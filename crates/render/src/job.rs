@@ -260,6 +260,9 @@ pub struct Compiled {
     /// timings and the passes its pilot built, which a render in this process takes over)
     /// and the scene it was measured on.
     pub measured: Option<(Selection, Scene)>,
+    /// Settings the scene gave that the planned method does not read, one line each (as
+    /// pbrt's `ReportUnused`, but a warning: a job may override the scene's method).
+    pub unread: Vec<String>,
 }
 
 impl Compiled {
@@ -299,13 +302,42 @@ pub fn compile(
     }
     let plan = method::plan(&job)?;
     check_memory(plan.as_ref(), &desc, frames, options.limits)?;
+    let planned = method::lookup(plan.method())?;
+    let unread = desc
+        .integrator
+        .photon
+        .given()
+        .into_iter()
+        .filter(|s| !planned.settings.iter().any(|t| std::ptr::eq(*t, *s)))
+        .map(|s| {
+            format!(
+                "integrator.{}: given, but {} does not read it (it reads {})",
+                s.name,
+                planned.name,
+                reads(planned)
+            )
+        })
+        .collect();
     Ok(Compiled {
         desc,
         frames,
         job,
         plan,
         measured,
+        unread,
     })
+}
+
+/// The settings a method reads, as a list for a sentence.
+fn reads(m: &MethodInfo) -> String {
+    match m.settings {
+        [] => "none of them".into(),
+        s => s
+            .iter()
+            .map(|s| format!("integrator.{}", s.name))
+            .collect::<Vec<_>>()
+            .join(", "),
+    }
 }
 
 /// Applies `settings` to `desc` and checks them and the frames against `limits` and the
@@ -662,5 +694,36 @@ pub(crate) mod tests {
         // A recorded choice is not measured again even where measuring is asked for.
         let replayed = compile(desc(), &kept, frames, measure).unwrap();
         assert!(replayed.measured.is_none());
+    }
+
+    /// A setting the scene gives that the planned method does not read is named, with the
+    /// method and what it reads; one it reads is not.
+    #[test]
+    fn settings_the_method_does_not_read_are_named() {
+        let limits = Limits::default();
+        let mut desc = scene("cornell-box", 2);
+        desc.integrator.photon.alpha = Some(0.5);
+        let on = |method: &str| {
+            let settings = RenderSettings {
+                integrator: Some(method.into()),
+                ..Default::default()
+            };
+            compile(
+                desc.clone(),
+                &settings,
+                FrameRange::single(1),
+                Options::new(&limits),
+            )
+            .unwrap()
+            .unread
+        };
+        let unread = on("path");
+        assert_eq!(unread.len(), 1, "{unread:?}");
+        assert!(
+            unread[0].starts_with("integrator.photon_map.alpha: given, but path does not read it")
+                && unread[0].contains("integrator.subsurface"),
+            "{unread:?}"
+        );
+        assert_eq!(on("sppm"), Vec::<String>::new());
     }
 }

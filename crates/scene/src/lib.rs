@@ -15,6 +15,7 @@ pub mod media;
 pub mod mesh;
 pub mod photometry;
 mod resolve;
+pub mod setting;
 pub mod source;
 pub mod texture;
 pub mod transform;

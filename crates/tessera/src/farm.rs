@@ -305,8 +305,11 @@ pub async fn submit(args: SubmitArgs) -> anyhow::Result<()> {
         first: 1,
         last: desc.frame_count(),
     });
-    job::compile(desc.clone(), &settings, frames, job::Options::admitted())
+    let compiled = job::compile(desc.clone(), &settings, frames, job::Options::admitted())
         .map_err(|e| crate::render::setting_error(&args.scene, e))?;
+    for u in &compiled.unread {
+        tracing::warn!("{u}");
+    }
 
     let client = args.remote.client()?;
     let tar = bundle.to_tar().map_err(anyhow::Error::msg)?;
@@ -399,11 +402,13 @@ pub fn methods() -> anyhow::Result<()> {
     let mut text = String::new();
     for m in tessera_render::method::methods() {
         text += &format!("{:<8} {}\n{:<8} spp: {}\n", m.name, m.summary, "", m.spp);
-        if !m.params.is_empty() {
+        for s in m.settings {
             text += &format!(
-                "{:<8} reads integrator.{}\n",
+                "{:<8}   integrator.{}: {} — {}\n",
                 "",
-                m.params.join(", integrator.")
+                s.name,
+                s.kind.describe(),
+                s.doc
             );
         }
     }

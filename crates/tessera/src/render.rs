@@ -210,8 +210,12 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
         job,
         plan,
         measured,
+        unread,
         ..
     } = compiled;
+    for u in &unread {
+        tracing::warn!("{u}");
+    }
     let (scene, built, pilot_s) = match measured {
         Some((s, scene)) => (scene, s.artifacts, Some((s.pilot_s, s.handed_s))),
         None => (tessera_render::Scene::build(&desc), Vec::new(), None),
@@ -290,7 +294,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
             }
         }
     }
-    for w in &desc.warnings {
+    for w in desc.warnings.iter().chain(&unread) {
         report += &format!("warning: {w}\n");
     }
     if let Some(r) = meta("reproducible") {

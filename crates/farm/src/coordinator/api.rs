@@ -337,6 +337,7 @@ async fn submit_job(
         let settings = compiled.settings(&req.settings);
         let (desc, plan, frames) = (&compiled.desc, compiled.plan.as_ref(), compiled.frames);
         let mut decisions = job::decisions(desc, plan);
+        decisions.extend(compiled.unread.iter().map(|u| format!("warning: {u}")));
         let reuse = req.settings.reuse.unwrap_or(true);
         let mut new_passes = Vec::new();
         let mut planned_tasks = 0u64;
@@ -585,7 +586,15 @@ async fn list_methods() -> Json<Vec<MethodStatus>> {
                 name: m.name.into(),
                 summary: m.summary.into(),
                 spp: m.spp.into(),
-                params: m.params.iter().map(|p| p.to_string()).collect(),
+                settings: m
+                    .settings
+                    .iter()
+                    .map(|s| SettingStatus {
+                        name: s.name.into(),
+                        values: s.kind.describe(),
+                        doc: s.doc.into(),
+                    })
+                    .collect(),
             })
             .collect(),
     )

@@ -2,6 +2,7 @@
 //! power-heuristic MIS; frames cut into sample ranges over the whole film.
 
 use std::time::Duration;
+use tessera_scene::setting;
 
 use super::info::{MethodInfo, Model, PilotInfo, Sight, Transport};
 use super::ranges::{KIND, RangeFrame, RangePartial, Ranges};
@@ -13,7 +14,7 @@ pub static BDPT: MethodInfo = MethodInfo {
     name: "bdpt",
     summary: "bidirectional path tracing (Veach): every connection of a camera and a light subpath, power-heuristic MIS",
     spp: "samples per pixel",
-    params: &["sampler"],
+    settings: &[&setting::SAMPLER],
     translucent: false,
     refuses: None,
     transport: Transport::Full,

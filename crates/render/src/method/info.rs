@@ -1,6 +1,7 @@
 //! What a method says about itself, for users and for the code that plans jobs.
 
 use tessera_scene::SceneDesc;
+use tessera_scene::setting::Setting;
 
 use super::{Job, Plan};
 pub use crate::analysis::Transport;
@@ -15,8 +16,9 @@ pub struct MethodInfo {
     pub summary: &'static str,
     /// What `spp` counts for it.
     pub spp: &'static str,
-    /// Scene settings it reads besides `spp`, `max_depth`, `rr_depth` and `seed`.
-    pub params: &'static [&'static str],
+    /// Scene settings it reads besides `spp`, `max_depth`, `rr_depth` and `seed`, with the
+    /// values each admits.
+    pub settings: &'static [&'static Setting],
     /// Whether it renders translucent (subsurface) materials; a job of a scene that has them
     /// is refused for a method that does not, before it is planned.
     pub translucent: bool,
@@ -94,3 +96,54 @@ pub type PerRay = fn(desc: &SceneDesc, scene: &Scene) -> (Box<dyn Integrator>, V
 /// Wall seconds of a pilot's two frames of `desc` at frame `frame`, `k` samples per pixel
 /// each, estimated from a part of one rendered on `scene`.
 pub type Probe = fn(desc: &SceneDesc, scene: &Scene, frame: u32, k: u32) -> Result<f64, String>;
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    /// The book's table of method settings (docs/src/guide/methods.md) is the registry's: each
+    /// setting with the values it admits, what it sets and the methods that read it.
+    #[test]
+    fn the_books_settings_table_is_the_registrys() {
+        let methods = crate::method::methods();
+        let mut table =
+            String::from("| setting | values | read by | what it sets |\n|---|---|---|---|\n");
+        for s in tessera_scene::setting::ALL {
+            let readers: Vec<String> = methods
+                .iter()
+                .filter(|m| m.settings.iter().any(|t| std::ptr::eq(*t, *s)))
+                .map(|m| format!("`{}`", m.name))
+                .collect();
+            assert!(
+                !readers.is_empty(),
+                "integrator.{} is read by no method",
+                s.name
+            );
+            table += &format!(
+                "| `integrator.{}` | {} | {} | {} |\n",
+                s.name,
+                s.kind.describe(),
+                readers.join(", "),
+                s.doc
+            );
+        }
+        let page =
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/src/guide/methods.md");
+        let text = std::fs::read_to_string(&page).expect("docs/src/guide/methods.md");
+        let (begin, end) = ("<!-- settings:begin -->\n", "<!-- settings:end -->");
+        let (Some(i), Some(k)) = (text.find(begin), text.find(end)) else {
+            panic!("docs/src/guide/methods.md: no {begin:?} … {end:?} markers");
+        };
+        if std::env::var_os("TESSERA_BLESS").is_some() {
+            let fresh = format!("{}{begin}{table}{}", &text[..i], &text[k..]);
+            std::fs::write(&page, fresh).expect("write docs/src/guide/methods.md");
+        } else {
+            assert_eq!(
+                &text[i + begin.len()..k],
+                table,
+                "docs/src/guide/methods.md is not the registry's settings; \
+                 TESSERA_BLESS=1 cargo test -p tessera-render --lib the_books_settings_table rewrites it"
+            );
+        }
+    }
+}

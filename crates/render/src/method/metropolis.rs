@@ -8,6 +8,7 @@
 //! brightness b, the mean over every group's samples, once all are folded.
 
 use serde::{Deserialize, Serialize};
+use tessera_scene::setting;
 
 use super::film::{Ratios, Splats, add_splats, check_splats, splats_from_fixed};
 use super::ranges::{RangeFrame, RangePartial, Ranges};
@@ -69,7 +70,7 @@ pub static PSSMLT: MethodInfo = MethodInfo {
     name: "pssmlt",
     summary: "primary-sample-space Metropolis light transport (Kelemen), multiplexed over BDPT's strategies",
     spp: "mutations per pixel",
-    params: &["sampler"],
+    settings: &[&setting::SAMPLER],
     translucent: false,
     refuses: None,
     transport: Transport::Full,
@@ -87,7 +88,7 @@ pub static MLT: MethodInfo = MethodInfo {
     name: "mlt",
     summary: "Metropolis light transport in path space (Veach & Guibas): bidirectional, lens and caustic mutations",
     spp: "mutations per pixel",
-    params: &[],
+    settings: &[],
     translucent: false,
     refuses: Some(refuse_for_mlt),
     transport: Transport::Full,

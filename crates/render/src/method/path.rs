@@ -4,6 +4,7 @@
 //! subsurface method; the hierarchical one adds its point-cloud pass.
 
 use std::time::Duration;
+use tessera_scene::setting;
 
 use std::sync::Arc;
 
@@ -22,7 +23,7 @@ pub static PATH: MethodInfo = MethodInfo {
     name: "path",
     summary: "unidirectional path tracing with next-event estimation, MIS and Russian roulette",
     spp: "samples per pixel",
-    params: &["subsurface", "sampler"],
+    settings: &[&setting::SUBSURFACE, &setting::SAMPLER],
     translucent: true,
     refuses: None,
     transport: Transport::Full,
@@ -42,7 +43,7 @@ pub static DIRECT: MethodInfo = MethodInfo {
     name: "direct",
     summary: "emitted and directly reflected light only (specular chains are followed)",
     spp: "samples per pixel",
-    params: &["subsurface", "sampler"],
+    settings: &[&setting::SUBSURFACE, &setting::SAMPLER],
     translucent: true,
     refuses: None,
     transport: Transport::Direct,

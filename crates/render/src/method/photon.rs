@@ -3,6 +3,7 @@
 //! every frame and every later job with the same keys), then frames of independent tiles.
 
 use std::time::Duration;
+use tessera_scene::setting;
 
 use super::info::{MethodInfo, Model, PilotInfo, Sight, Transport};
 use super::passes::{PhotonsPass, RecordsPass};
@@ -19,13 +20,21 @@ pub static PHOTON: MethodInfo = MethodInfo {
     name: "photon",
     summary: "photon mapping (Jensen): global and caustic maps, final gathering through Ward's irradiance cache",
     spp: "samples per pixel",
-    params: &[
-        "photon_map.photons",
-        "photon_map.caustic_photons",
-        "photon_map.k",
-        "photon_map.radius",
-        "photon_map.gather_rays",
-        "photon_map.irradiance_cache",
+    settings: &[
+        &setting::SAMPLER,
+        &setting::PHOTONS,
+        &setting::CAUSTIC_PHOTONS,
+        &setting::PHOTON_K,
+        &setting::CAUSTIC_K,
+        &setting::RADIUS,
+        &setting::CAUSTIC_RADIUS,
+        &setting::GATHER_RAYS,
+        &setting::CAUSTIC_FILTER,
+        &setting::IRRADIANCE_CACHE,
+        &setting::IC_ACCURACY,
+        &setting::IC_SPACING,
+        &setting::IC_KEYFRAME_STEP,
+        &setting::IC_GATHER_RAYS,
     ],
     translucent: false,
     refuses: None,

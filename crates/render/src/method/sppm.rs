@@ -6,6 +6,7 @@
 //! them for the chunks it runs.
 
 use std::time::{Duration, Instant};
+use tessera_scene::setting;
 
 use serde::{Deserialize, Serialize};
 use tessera_scene::SceneDesc;
@@ -24,10 +25,11 @@ pub static SPPM: MethodInfo = MethodInfo {
     name: "sppm",
     summary: "stochastic progressive photon mapping (Hachisuka & Jensen): consistent photon mapping",
     spp: "iterations (one camera sample per pixel and photon_map.photons photons each)",
-    params: &[
-        "photon_map.photons",
-        "photon_map.radius",
-        "photon_map.alpha",
+    settings: &[
+        &setting::SAMPLER,
+        &setting::PHOTONS,
+        &setting::RADIUS,
+        &setting::ALPHA,
     ],
     translucent: false,
     refuses: None,
@@ -112,12 +114,12 @@ impl SppmMethod {
         if job.time_limit.is_some() {
             return Err("time_limit: sppm runs whole iterations over every pixel; give spp (its iterations) or target_error instead".into());
         }
-        if d.integrator
-            .photon
-            .alpha
-            .is_some_and(|a| !(a > 0.0 && a < 1.0))
-        {
-            return Err("integrator.photon_map.alpha: expected a fraction in (0, 1)".into());
+        if let Some(a) = d.integrator.photon.alpha {
+            let alpha = &tessera_scene::setting::ALPHA;
+            alpha
+                .kind
+                .check(a.into())
+                .map_err(|e| format!("integrator.{}: {e}", alpha.name))?;
         }
         let (photon, settings) = SppmSettings::resolve(d, &analyze(d));
         if settings.photons == 0 {

@@ -3,6 +3,7 @@
 //! BDPT's samples.
 
 use std::time::Duration;
+use tessera_scene::setting;
 
 use super::info::{MethodInfo, Model, PilotInfo, Sight, Transport};
 use super::ranges::{KIND, RangeFrame, RangePartial, Ranges};
@@ -14,7 +15,7 @@ pub static VCM: MethodInfo = MethodInfo {
     name: "vcm",
     summary: "vertex connection and merging (Georgiev et al.): BDPT plus photon merging under one MIS",
     spp: "iterations (one light and one camera subpath per pixel each)",
-    params: &["sampler"],
+    settings: &[&setting::SAMPLER],
     translucent: false,
     refuses: None,
     transport: Transport::Full,

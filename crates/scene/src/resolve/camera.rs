@@ -1,6 +1,7 @@
 //! The film, its reconstruction filter, the camera and its path, the integrator settings.
 
 use super::*;
+use crate::setting::{self, Setting};
 
 impl Ctx<'_> {
     pub(super) fn film(&mut self, f: &FilmFile) -> FilmDesc {
@@ -302,76 +303,38 @@ impl Ctx<'_> {
         }
     }
 
-    /// Checks a count knob of `integrator.photon_map` against [lo, hi].
-    pub(super) fn count(&mut self, name: &str, v: Option<u32>, lo: u32, hi: u32) -> Option<u32> {
+    /// Checks a value of `setting` against the values it admits.
+    fn setting<T: Copy + Into<f64>>(&mut self, setting: &Setting, v: Option<T>) -> Option<T> {
         if let Some(v) = v
-            && !(lo..=hi).contains(&v)
+            && let Err(e) = setting.kind.check(v.into())
         {
-            self.problem(
-                format!("integrator.photon_map.{name}"),
-                format!("expected {lo} to {hi}, got {v}"),
-            );
+            self.problem(format!("integrator.{}", setting.name), e);
         }
         v
     }
 
     pub(super) fn photon_map(&mut self, f: &PhotonMapFile) -> PhotonDesc {
-        const P: &str = "integrator.photon_map";
-        for (name, v) in [("radius", f.radius), ("caustic_radius", f.caustic_radius)] {
-            if let Some(v) = v {
-                self.positive(&format!("{P}.{name}"), v);
-            }
-        }
-        if let Some(a) = f.alpha
-            && !(a > 0.0 && a < 1.0)
-        {
-            self.problem(
-                format!("{P}.alpha"),
-                format!("expected a fraction in (0, 1), got {a}"),
-            );
-        }
         let irradiance_cache = match f.irradiance_cache {
             Some(ic) if !ic.enabled => None,
             None => Some(IrradianceCacheDesc::default()),
-            Some(ic) => {
-                if let Some(a) = ic.accuracy {
-                    self.range(
-                        &format!("{P}.irradiance_cache.accuracy"),
-                        a,
-                        1e-3,
-                        10.0,
-                        "Ward's accuracy a in [0.001, 10]",
-                    );
-                }
-                Some(IrradianceCacheDesc {
-                    accuracy: ic.accuracy,
-                    spacing: self.count("irradiance_cache.spacing", ic.spacing, 1, 1024),
-                    keyframe_step: self.count(
-                        "irradiance_cache.keyframe_step",
-                        ic.keyframe_step,
-                        1,
-                        MAX_FRAMES,
-                    ),
-                    gather_rays: self.count(
-                        "irradiance_cache.gather_rays",
-                        ic.gather_rays,
-                        1,
-                        MAX_GATHER_RAYS,
-                    ),
-                })
-            }
+            Some(ic) => Some(IrradianceCacheDesc {
+                accuracy: self.setting(&setting::IC_ACCURACY, ic.accuracy),
+                spacing: self.setting(&setting::IC_SPACING, ic.spacing),
+                keyframe_step: self.setting(&setting::IC_KEYFRAME_STEP, ic.keyframe_step),
+                gather_rays: self.setting(&setting::IC_GATHER_RAYS, ic.gather_rays),
+            }),
         };
         PhotonDesc {
-            photons: self.count("photons", f.photons, 1, MAX_PHOTONS),
-            caustic_photons: self.count("caustic_photons", f.caustic_photons, 0, MAX_PHOTONS),
-            k: self.count("k", f.k, 1, MAX_PHOTON_K),
-            caustic_k: self.count("caustic_k", f.caustic_k, 1, MAX_PHOTON_K),
-            radius: f.radius,
-            caustic_radius: f.caustic_radius,
-            gather_rays: self.count("gather_rays", f.gather_rays, 1, MAX_GATHER_RAYS),
+            photons: self.setting(&setting::PHOTONS, f.photons),
+            caustic_photons: self.setting(&setting::CAUSTIC_PHOTONS, f.caustic_photons),
+            k: self.setting(&setting::PHOTON_K, f.k),
+            caustic_k: self.setting(&setting::CAUSTIC_K, f.caustic_k),
+            radius: self.setting(&setting::RADIUS, f.radius),
+            caustic_radius: self.setting(&setting::CAUSTIC_RADIUS, f.caustic_radius),
+            gather_rays: self.setting(&setting::GATHER_RAYS, f.gather_rays),
             caustic_filter: f.caustic_filter.unwrap_or_default(),
             irradiance_cache,
-            alpha: f.alpha,
+            alpha: self.setting(&setting::ALPHA, f.alpha),
         }
     }
 }

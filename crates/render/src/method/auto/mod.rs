@@ -23,7 +23,7 @@ pub static AUTO: MethodInfo = MethodInfo {
     name: "auto",
     summary: "the method a short pilot of every suitable method predicts to reach the error soonest",
     spp: "as the chosen method counts them",
-    params: &[],
+    settings: &[],
     translucent: true,
     refuses: None,
     transport: Transport::Full,
