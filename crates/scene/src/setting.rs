@@ -2,7 +2,15 @@
 //! `rr_depth` and `seed`, with the values each admits: one list, which the scene format checks
 //! values against and each method's description names (`tessera methods`, `GET /v1/methods`).
 
-use crate::resolve::{MAX_FRAMES, MAX_GATHER_RAYS, MAX_PHOTON_K, MAX_PHOTONS};
+/// Longest camera path, in frames.
+pub const MAX_FRAMES: u32 = 1_000_000;
+/// Most photons one map may be shot with (each stored photon takes 40 bytes; a photon is
+/// stored about twice in a closed room).
+pub const MAX_PHOTONS: u32 = 100_000_000;
+/// Most photons in one radiance estimate (the search keeps them on the stack).
+pub const MAX_PHOTON_K: u32 = 1024;
+/// Most final-gather rays per gather point.
+pub const MAX_GATHER_RAYS: u32 = 65_536;
 
 /// One setting: its path under `integrator`, its values, what it does.
 #[derive(Debug, PartialEq)]

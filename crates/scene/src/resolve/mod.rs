@@ -34,15 +34,7 @@ use crate::transform;
 const MAX_INSTANCE_DEPTH: usize = 16;
 /// Largest film side, in pixels.
 pub const MAX_FILM_SIDE: u32 = 1 << 15;
-/// Longest camera path, in frames.
-pub const MAX_FRAMES: u32 = 1_000_000;
-/// Most photons one map may be shot with (each stored photon takes 40 bytes; a photon is
-/// stored about twice in a closed room).
-pub const MAX_PHOTONS: u32 = 100_000_000;
-/// Most photons in one radiance estimate (the search keeps them on the stack).
-pub const MAX_PHOTON_K: u32 = 1024;
-/// Most final-gather rays per gather point.
-pub const MAX_GATHER_RAYS: u32 = 65_536;
+pub use crate::setting::{MAX_FRAMES, MAX_PHOTONS};
 
 /// Parses and validates the scene file `name` (relative to `source`).
 pub fn load(source: &dyn SceneSource, name: &Path) -> Result<SceneDesc, SceneError> {
