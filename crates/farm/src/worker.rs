@@ -370,8 +370,8 @@ impl Worker {
                 )
                 .map_err(permanent)?;
                 Ok(Prepared {
-                    scene: Scene::build(&compiled.desc),
-                    desc: compiled.desc,
+                    scene: Scene::build(&compiled.job.desc),
+                    desc: compiled.job.desc,
                     plan: compiled.plan,
                 })
             })

@@ -99,7 +99,7 @@ pub fn load_plan_build(folder: &dyn tessera_scene::SceneSource, name: &str) -> b
     ) else {
         return false;
     };
-    let _ = tessera_render::Scene::build(&compiled.desc);
+    let _ = tessera_render::Scene::build(&compiled.job.desc);
     true
 }
 

@@ -249,10 +249,9 @@ impl<'a> Options<'a> {
     }
 }
 
-/// A compiled job: its scene with the settings applied, the core's job (with `auto`'s choice
+/// A compiled job: the core's job (its scene with the settings applied, and `auto`'s choice
 /// where it was measured) and its method's plan.
 pub struct Compiled {
-    pub desc: SceneDesc,
     pub frames: FrameRange,
     pub job: Job,
     pub plan: Box<dyn Plan>,
@@ -287,28 +286,30 @@ pub fn compile(
     options: Options,
 ) -> Result<Compiled, String> {
     apply(&mut desc, settings, frames, options.limits)?;
-    let mut job = job(desc.clone(), settings, frames);
+    let mut job = job(desc, settings, frames);
+    let desc = &job.desc;
     job.time_limit = options.time_limit;
     let mut measured = None;
     if let Choose::Measure { threads } = options.choose
         && job.choice.is_none()
         && is_auto(method::lookup(&desc.integrator.method)?)
     {
-        let mut scene = Scene::build(&desc);
+        let mut scene = Scene::build(desc);
         let goal = pilot::Goal::of(&job);
-        let selection = pilot::select(&desc, &mut scene, frames.first, goal, threads)?;
+        let selection = pilot::select(desc, &mut scene, frames.first, goal, threads)?;
         job.choice = Some(selection.choice.clone());
         measured = Some((selection, scene));
     }
     let plan = method::plan(&job)?;
-    check_memory(plan.as_ref(), &desc, frames, options.limits)?;
+    check_memory(plan.as_ref(), &job.desc, frames, options.limits)?;
     let planned = method::lookup(plan.method())?;
-    let unread = desc
+    let unread = job
+        .desc
         .integrator
         .photon
         .given()
         .into_iter()
-        .filter(|s| !planned.settings.iter().any(|t| std::ptr::eq(*t, *s)))
+        .filter(|s| !planned.reads(s))
         .map(|s| {
             format!(
                 "integrator.{}: given, but {} does not read it (it reads {})",
@@ -319,7 +320,6 @@ pub fn compile(
         })
         .collect();
     Ok(Compiled {
-        desc,
         frames,
         job,
         plan,

@@ -206,13 +206,13 @@ pub fn run(args: RenderArgs) -> anyhow::Result<()> {
     let building = Instant::now();
     let (compiled, load_s) = compile(&args, threads)?;
     let job::Compiled {
-        desc,
         job,
         plan,
         measured,
         unread,
         ..
     } = compiled;
+    let desc = &job.desc;
     for u in &unread {
         tracing::warn!("{u}");
     }

@@ -335,7 +335,7 @@ async fn submit_job(
             tracing::info!(scene = %req.scene, method = %choice.method, spp = choice.spp, "auto chose");
         }
         let settings = compiled.settings(&req.settings);
-        let (desc, plan, frames) = (&compiled.desc, compiled.plan.as_ref(), compiled.frames);
+        let (desc, plan, frames) = (&compiled.job.desc, compiled.plan.as_ref(), compiled.frames);
         let mut decisions = job::decisions(desc, plan);
         decisions.extend(compiled.unread.iter().map(|u| format!("warning: {u}")));
         let reuse = req.settings.reuse.unwrap_or(true);

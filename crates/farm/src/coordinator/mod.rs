@@ -267,7 +267,7 @@ impl App {
         )
         .map_err(anyhow::Error::msg)?;
         let p = Arc::new(JobPlan {
-            desc: compiled.desc,
+            desc: compiled.job.desc,
             settings,
             frames,
             plan: compiled.plan,

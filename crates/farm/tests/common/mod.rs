@@ -45,7 +45,7 @@ pub fn planned(settings: &RenderSettings) -> (SceneDesc, Box<dyn Plan>) {
         job::Options::new(&limits),
     )
     .expect("plan");
-    (c.desc, c.plan)
+    (c.job.desc, c.plan)
 }
 
 /// Frame 1 of the Cornell box with `settings`, planned and rendered in this process.

@@ -56,7 +56,7 @@ fn jobs() -> &'static Jobs {
                     job::Options::admitted(),
                 )
                 .ok()?;
-                desc = compiled.desc;
+                desc = compiled.job.desc;
                 let plan = compiled.plan;
                 let mut tasks = Vec::new();
                 for (i, pass) in plan.passes().iter().enumerate() {

@@ -39,6 +39,13 @@ pub struct MethodInfo {
     pub plan: fn(&Job) -> Result<Box<dyn Plan>, String>,
 }
 
+impl MethodInfo {
+    /// Whether it reads `setting`.
+    pub fn reads(&self, setting: &Setting) -> bool {
+        self.settings.iter().any(|s| std::ptr::eq(*s, setting))
+    }
+}
+
 /// How a method's error falls with its samples n, for `auto`'s predictions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Model {
@@ -111,7 +118,7 @@ mod tests {
         for s in tessera_scene::setting::ALL {
             let readers: Vec<String> = methods
                 .iter()
-                .filter(|m| m.settings.iter().any(|t| std::ptr::eq(*t, *s)))
+                .filter(|m| m.reads(s))
                 .map(|m| format!("`{}`", m.name))
                 .collect();
             assert!(

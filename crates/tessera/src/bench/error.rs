@@ -384,7 +384,7 @@ fn planned(
         FrameRange::single(1),
         job::Options::new(&limits),
     )?;
-    Ok((c.desc, c.plan))
+    Ok((c.job.desc, c.plan))
 }
 
 /// A render that can be continued where its method can (tiles, sample ranges, SPPM's

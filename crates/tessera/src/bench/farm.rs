@@ -521,7 +521,7 @@ impl SimulatedJob {
             job::Options::new(&limits),
         )
         .map_err(anyhow::Error::msg)?;
-        let (desc, plan) = (compiled.desc, compiled.plan);
+        let (desc, plan) = (compiled.job.desc, compiled.plan);
         Ok(SimulatedJob {
             request: JobRequest {
                 bundle: info.hash,
