@@ -180,6 +180,10 @@ pub struct JobStatus {
     /// client token).
     #[serde(default)]
     pub submitter: Option<String>,
+    /// Whether `auto`'s pilot, a task a worker runs, has yet to choose the method: until then
+    /// `method` is `auto` and the job's passes and frames are not planned.
+    #[serde(default)]
+    pub measuring: bool,
 }
 
 /// A worker blocklisted for a job.

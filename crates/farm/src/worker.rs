@@ -259,6 +259,24 @@ fn watch_parent(parent: u32) {
 #[cfg(not(unix))]
 fn watch_parent(_parent: u32) {}
 
+/// Runs `render` on a blocking thread; a panic in it is an error that says so.
+async fn rendering(
+    render: impl FnOnce() -> anyhow::Result<()> + Send + 'static,
+) -> anyhow::Result<()> {
+    tokio::task::spawn_blocking(move || {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(render))
+    })
+    .await?
+    .map_err(|panic| {
+        let what = panic
+            .downcast_ref::<String>()
+            .cloned()
+            .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+            .unwrap_or_else(|| "unknown panic".into());
+        anyhow::anyhow!("the renderer panicked: {what}")
+    })?
+}
+
 /// A failure no retry can mend: the job's own inputs are at fault.
 #[derive(Debug)]
 struct Permanent(String);
@@ -332,28 +350,35 @@ impl Worker {
         }
     }
 
-    /// The scene and plan of a job, loaded, built and planned once per worker. A bundle the
-    /// coordinator does not have, or whose verified bytes do not load and plan, is a
-    /// [`Permanent`] failure: every worker would fail the same way.
+    /// The job's bundle, downloaded and its hash checked. One the coordinator does not have is
+    /// a [`Permanent`] failure.
+    async fn bundle(&self, grant: &LeaseGrant) -> anyhow::Result<Vec<u8>> {
+        let bytes = retrying("bundle download", Duration::from_secs(600), || {
+            self.client.download_bundle(&grant.bundle)
+        })
+        .await
+        .map_err(|e| {
+            if status_of(&e) == Some(reqwest::StatusCode::NOT_FOUND) {
+                anyhow::Error::new(Permanent(format!("{e:#}")))
+            } else {
+                e
+            }
+        })?;
+        let got = crate::bundle::hash(&bytes);
+        anyhow::ensure!(
+            got == grant.bundle,
+            "the bundle downloaded for {} has the hash {got}: damaged in transit",
+            grant.bundle
+        );
+        Ok(bytes)
+    }
+
+    /// The scene and plan of a job, loaded, built and planned once per worker. A bundle whose
+    /// verified bytes do not load and plan is a [`Permanent`] failure: every worker would fail
+    /// the same way.
     async fn prepared(&self, grant: &LeaseGrant) -> anyhow::Result<Arc<Prepared>> {
         cached(&self.jobs, grant.job_id, || async {
-            let bytes = retrying("bundle download", Duration::from_secs(600), || {
-                self.client.download_bundle(&grant.bundle)
-            })
-            .await
-            .map_err(|e| {
-                if status_of(&e) == Some(reqwest::StatusCode::NOT_FOUND) {
-                    anyhow::Error::new(Permanent(format!("{e:#}")))
-                } else {
-                    e
-                }
-            })?;
-            let got = crate::bundle::hash(&bytes);
-            anyhow::ensure!(
-                got == grant.bundle,
-                "the bundle downloaded for {} has the hash {got}: damaged in transit",
-                grant.bundle
-            );
+            let bytes = self.bundle(grant).await?;
             let (scene, settings, frames) =
                 (grant.scene.clone(), grant.settings.clone(), grant.frames);
             let started = Instant::now();
@@ -404,6 +429,9 @@ impl Worker {
     async fn execute(self: &Arc<Self>, grant: &LeaseGrant) -> anyhow::Result<PathBuf> {
         if let Some(message) = &self.config.fail_tasks_with {
             anyhow::bail!("{message}");
+        }
+        if job::is_pilot(&grant.task) {
+            return self.measure(grant).await;
         }
         let prepared = self.prepared(grant).await.context("loading the scene")?;
         let mut artifacts = HashMap::new();
@@ -459,18 +487,42 @@ impl Worker {
             partial.write_to(&header, &mut BufWriter::new(file))?;
             Ok(())
         };
-        tokio::task::spawn_blocking(move || {
-            std::panic::catch_unwind(std::panic::AssertUnwindSafe(run))
+        rendering(run).await?;
+        Ok(path)
+    }
+
+    /// Runs a job's pilot task: measures `auto`'s candidates on the job's first frame with
+    /// every core of this machine, and writes the choice to a file; returns the file.
+    async fn measure(&self, grant: &LeaseGrant) -> anyhow::Result<PathBuf> {
+        let bytes = self.bundle(grant).await.context("loading the scene")?;
+        let path = self
+            .tmp
+            .join(format!("{}-{}.tswf", grant.task_id, grant.lease));
+        let (out, grant) = (path.clone(), grant.clone());
+        rendering(move || -> anyhow::Result<()> {
+            let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+            let options = job::Options {
+                choose: job::Choose::Measure { threads },
+                ..job::Options::admitted()
+            };
+            let compiled = job::compile_bundled(
+                &bytes,
+                &grant.scene,
+                &grant.settings,
+                Some(grant.frames),
+                options,
+            )
+            .map_err(|e| anyhow::Error::new(Permanent(e)))?;
+            let choice = compiled
+                .job
+                .choice
+                .as_ref()
+                .context("the job's pilot measured nothing: it does not ask for auto")?;
+            tracing::info!(job = grant.job_id, task = grant.task_id, method = %choice.method, spp = choice.spp, "auto chose");
+            let file = std::fs::File::create(&out).with_context(|| out.display().to_string())?;
+            job::write_choice(BufWriter::new(file), &grant.task, choice)
         })
-        .await?
-        .map_err(|panic| {
-            let what = panic
-                .downcast_ref::<String>()
-                .cloned()
-                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-                .unwrap_or_else(|| "unknown panic".into());
-            anyhow::anyhow!("the renderer panicked: {what}")
-        })??;
+        .await?;
         Ok(path)
     }
 

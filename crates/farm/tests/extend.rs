@@ -10,9 +10,7 @@ mod common;
 use std::path::Path;
 use std::time::Duration;
 
-use common::{CLIENT, config, cornell, local_frame, local_render, run_to_the_end, submit};
-use tessera_farm::client::Client;
-use tessera_farm::coordinator;
+use common::{coordinator_in, cornell, local_frame, local_render, run_to_the_end, submit};
 use tessera_farm::job::RenderSettings;
 use tessera_farm::protocol::JobState;
 use tessera_render::camera::Camera;
@@ -259,11 +257,7 @@ fn auto_measures_a_registered_method() {
 async fn the_farm_runs_a_registered_method() {
     register();
     let dir = tempfile::tempdir().expect("temp dir");
-    let running = coordinator::start(config(&dir.path().join("data")))
-        .await
-        .expect("coordinator");
-    let url = format!("http://{}", running.addr);
-    let client = Client::new(&url, CLIENT).expect("client");
+    let (running, url, client) = coordinator_in(dir.path()).await;
 
     let listed: Vec<String> = client
         .methods()

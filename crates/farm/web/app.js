@@ -216,7 +216,7 @@ class JobsView {
         h("td", {}, badge(j.state)),
         h("td", {}, progress(j.progress, j.state)),
         h("td", {}, h("div", { class: "priority" }, h("span", { class: "mono", dataset: { priority: j.priority } }, j.priority), up, down)),
-        h("td", {}, j.method),
+        h("td", {}, j.measuring ? "auto (measuring)" : j.method),
         h("td", { class: "mono" }, j.frames.first === j.frames.last ? j.frames.first : `${j.frames.first}–${j.frames.last}`),
         h("td", { class: "mono" }, `${j.width}×${j.height}`),
         h("td", { class: "num" }, elapsed),
@@ -312,7 +312,7 @@ class JobView {
       stat("Progress", `${(j.progress * 100).toFixed(1)}%`, progress(j.progress, j.state)),
       stat("Tasks", `${t.done} / ${Math.max(t.total, t.planned)}`, `${t.leased} rendering · ${t.queued} queued · ${t.failed} failed`),
       stat("Elapsed", elapsed, `ETA ${eta}`),
-      stat("Method", j.method, `${j.width}×${j.height} · ${j.spp} spp`),
+      stat("Method", j.measuring ? "auto: measuring on a worker" : j.method, `${j.width}×${j.height} · ${j.spp} spp`),
       stat("Attempts", j.attempts, `since ${when(j.created_ms)}`));
   }
   renderFrames(j) {

@@ -213,7 +213,8 @@ fn is_auto(m: &MethodInfo) -> bool {
 #[derive(Debug, Clone, Copy)]
 pub enum Choose {
     /// Plans what the job carries: its recorded choice, or without one what scene analysis
-    /// chooses from features alone. For a job another process admitted and measured.
+    /// chooses from features alone ([`Compiled::awaits_choice`]). For a job another process
+    /// measured, or one whose measurement comes later (the farm's pilot task).
     AsRecorded,
     /// Measures it: pilots of every candidate on the job's first frame ([`pilot::select`]),
     /// on a scene built here with this many threads.
@@ -272,6 +273,14 @@ impl Compiled {
             choice: self.job.choice.clone(),
             ..settings.clone()
         }
+    }
+
+    /// Whether the job asks for `auto` and carries no choice: compiled as recorded, its plan
+    /// is what scene analysis chooses from features alone, until a measurement
+    /// ([`Choose::Measure`]) records one.
+    pub fn awaits_choice(&self) -> bool {
+        self.job.choice.is_none()
+            && method::lookup(&self.job.desc.integrator.method).is_ok_and(is_auto)
     }
 }
 
@@ -669,7 +678,7 @@ pub(crate) mod tests {
         let frames = FrameRange::single(1);
         let desc = || scene("cornell-box", 4);
         let unmeasured = compile(desc(), &settings, frames, Options::new(&limits)).unwrap();
-        assert!(unmeasured.measured.is_none() && unmeasured.job.choice.is_none());
+        assert!(unmeasured.measured.is_none() && unmeasured.awaits_choice());
         let measure = Options {
             choose: Choose::Measure { threads: 2 },
             ..Options::new(&limits)
@@ -677,10 +686,11 @@ pub(crate) mod tests {
         let measured = compile(desc(), &settings, frames, measure).unwrap();
         let (selection, _) = measured.measured.as_ref().expect("measured");
         let kept = measured.settings(&settings);
+        assert!(!measured.awaits_choice());
         assert_eq!(kept.choice.as_ref(), Some(&selection.choice));
         assert_eq!(kept.integrator, settings.integrator);
         let again = compile(desc(), &kept, frames, Options::admitted()).unwrap();
-        assert!(again.measured.is_none());
+        assert!(again.measured.is_none() && !again.awaits_choice());
         assert_eq!(again.plan.method(), measured.plan.method());
         assert_eq!(again.plan.method(), selection.choice.method);
         assert_eq!(again.plan.passes().len(), measured.plan.passes().len());

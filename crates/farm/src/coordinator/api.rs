@@ -22,7 +22,7 @@ use super::{events, ops, users, web};
 use crate::bundle::{self, Bundle};
 use crate::job;
 use crate::protocol::*;
-use crate::store::{CacheEntry, NewJob, NewPass, PassStart};
+use crate::store::NewJob;
 
 #[derive(OpenApi)]
 #[openapi(
@@ -295,7 +295,9 @@ async fn download_bundle(
 }
 
 /// Submit a job: a bundle's scene, frames, settings and priority. The scene is validated and
-/// the job planned by its method before anything is queued.
+/// the job planned by its method before anything is queued; a job that asks for `auto` with no
+/// recorded choice is queued with its pilot, a task a worker runs, and planned when that is
+/// done (`measuring` until then).
 #[utoipa::path(post, path = "/v1/jobs", tag = "clients", request_body = JobRequest,
     responses((status = 201, body = JobStatus), (status = 400, body = ErrorBody), (status = 401, body = ErrorBody)),
     security(("token" = [])))]
@@ -320,95 +322,30 @@ async fn submit_job(
             .ok_or_else(|| {
                 AppError::bad_request(format!("bundle {} is not in the object store", req.bundle))
             })?;
-        // `auto` is measured once, here, and the choice kept with the job's settings: every
-        // process then plans the same method.
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let options = job::Options {
-            limits: &app2.config.limits,
-            choose: job::Choose::Measure { threads },
-            time_limit: None,
-        };
-        let compiled =
-            job::compile_bundled(&bytes, &req.scene, &req.settings, req.frames, options)
-                .map_err(AppError::bad_request)?;
-        if let Some(choice) = compiled.measured.as_ref().map(|(s, _)| &s.choice) {
-            tracing::info!(scene = %req.scene, method = %choice.method, spp = choice.spp, "auto chose");
-        }
-        let settings = compiled.settings(&req.settings);
-        let (desc, plan, frames) = (&compiled.job.desc, compiled.plan.as_ref(), compiled.frames);
-        let mut decisions = job::decisions(desc, plan);
-        decisions.extend(compiled.unread.iter().map(|u| format!("warning: {u}")));
-        let reuse = req.settings.reuse.unwrap_or(true);
-        let mut new_passes = Vec::new();
-        let mut planned_tasks = 0u64;
-        for (i, pass) in plan.passes().into_iter().enumerate() {
-            let cached: Option<CacheEntry> = if reuse { app2.cached(pass.key())? } else { None };
-            let tasks = pass.tasks(i as u32);
-            decisions.push(match &cached {
-                Some(e) => format!(
-                    "{} pass: reused — artifact {} ({} bytes) built by job {} has the same key (everything that determines it)",
-                    pass.name(), &e.key[..12.min(e.key.len())], e.bytes, e.job
-                ),
-                None => format!(
-                    "{} pass: built by this job in {} tasks{}",
-                    pass.name(),
-                    tasks.len(),
-                    if reuse { " (no cached artifact with its key)" } else { " (reuse disabled)" }
-                ),
-            });
-            if let Some(e) = &cached {
-                app2.store.touch(&e.key, now_ms())?;
-            }
-            planned_tasks += if cached.is_some() { 0 } else { tasks.len() as u64 };
-            new_passes.push(NewPass {
-                name: pass.name().to_string(),
-                key: pass.key().to_string(),
-                start: match cached {
-                    Some(_) => PassStart::Reused,
-                    None if i == 0 => PassStart::Build(tasks),
-                    None => PassStart::Waiting(tasks),
-                },
-            });
-        }
-        let steps: Vec<_> = frames
-            .iter()
-            .map(|f| plan.start(f))
-            .collect::<Result<_, _>>()
+        // Checked and planned from what the job carries; `auto` without a choice is measured
+        // later, by its pilot task on a worker.
+        let options = job::Options::new(&app2.config.limits);
+        let compiled = job::compile_bundled(&bytes, &req.scene, &req.settings, req.frames, options)
             .map_err(AppError::bad_request)?;
-        if steps.iter().any(|s| s.input.is_some()) {
-            return Err(AppError::internal(
-                "a method whose first step has an input: not supported by this coordinator",
-            ));
-        }
-        let tasks: Vec<Vec<job::TaskSpec>> = steps.into_iter().map(|s| s.tasks).collect();
-        planned_tasks += tasks.iter().map(|t| t.len() as u64).sum::<u64>()
-            + frames.len() as u64 * plan.later_tasks();
+        let desc = &compiled.job.desc;
         Ok(NewJob {
             name: req.name.clone().unwrap_or_else(|| desc.name.clone()),
             priority: req.priority,
             bundle: req.bundle.clone(),
             scene: req.scene.clone(),
-            frames,
+            frames: compiled.frames,
             width: desc.film.width,
             height: desc.film.height,
-            spp: settings
-                .choice
-                .as_ref()
-                .map_or(desc.integrator.spp, |c| c.spp),
-            settings,
-            method: plan.method().to_string(),
-            decisions,
-            planned_tasks,
-            tasks,
-            passes: new_passes,
             require_tags: req.require_tags.clone(),
             submitter: Some(caller.name),
+            measuring: compiled.awaits_choice(),
+            work: app2.work(&compiled, &req.settings)?,
         })
     })
     .await??;
     let id = app.store.insert_job(&new, now_ms())?;
-    let tasks: usize = new.tasks.iter().map(Vec::len).sum();
-    tracing::info!(job = id, name = %new.name, method = %new.method, frames = %new.frames, tasks, submitter = new.submitter.as_deref().unwrap_or(""), "job queued");
+    let tasks: usize = new.work.tasks.iter().map(Vec::len).sum();
+    tracing::info!(job = id, name = %new.name, method = %new.work.method, frames = %new.frames, tasks, measuring = new.measuring, submitter = new.submitter.as_deref().unwrap_or(""), "job queued");
     app.wake_workers();
     app.emit(Event::Job { id });
     let status = app
@@ -553,6 +490,14 @@ async fn frame_preview(
             .await??
             .ok_or_else(|| AppError::internal("the frame's PNG is not in the object store"))?
             .to_vec()
+    } else if state == "queued" {
+        // Nothing folded yet (and, for a job awaiting `auto`'s choice, nothing planned): a
+        // black frame of the film's size.
+        let job = app.store.job(id)?.ok_or_else(|| AppError::no_job(id))?;
+        let image = tessera_render::Image::new(job.width, job.height);
+        tokio::task::spawn_blocking(move || tessera_render::output::encode_png(&image))
+            .await?
+            .map_err(AppError::internal)?
     } else {
         let image = app.preview_of(id, frame).await.map_err(|e| match e
             .downcast_ref::<super::fold::FoldedElsewhere>()

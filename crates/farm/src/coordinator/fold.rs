@@ -1,6 +1,6 @@
 //! Folding results as they arrive, in each step's task order: a frame's into its state (then
 //! the next step, or the frame's EXR), a pass's into its artifact (then the next pass, or
-//! every frame's first step).
+//! every frame's first step), a pilot's into its job's plan ([`App::fold_pilot`]).
 //!
 //! One fold runs at a time, so the coordinator holds one task's decoded result at a time. A
 //! fold's state is kept in memory for the few frames in flight; any state can be rebuilt from
@@ -235,7 +235,9 @@ impl App {
                 self.folds.forget(key);
                 return;
             }
-            let place = if key.frame == 0 {
+            let place = if job::is_pilot_step(key.frame, key.step) {
+                "auto's pilot".to_string()
+            } else if key.frame == 0 {
                 format!("pass {}", key.step)
             } else {
                 format!("frame {}", key.frame)
@@ -272,6 +274,10 @@ impl App {
         // One coordinator folds a frame or a pass; another's results wait for it.
         if self.claim_fold(key)?.is_some() {
             return Ok(());
+        }
+        if job::is_pilot_step(key.frame, key.step) {
+            self.fold_pilot(key)?;
+            return Ok(self.store.release(&name, &self.id)?);
         }
         let job = self.job_plan(key.job)?;
         let mut inner = self.folds.lock();
@@ -511,7 +517,7 @@ impl App {
 
     /// A result that passed its checks on arrival but cannot be folded: the task runs again
     /// (its attempt counts).
-    fn unreadable(&self, task: i64, e: anyhow::Error) -> anyhow::Result<bool> {
+    pub(super) fn unreadable(&self, task: i64, e: anyhow::Error) -> anyhow::Result<bool> {
         let message = format!("the result could not be read back: {e:#}");
         tracing::warn!(task, error = %message, "task queued again");
         self.store

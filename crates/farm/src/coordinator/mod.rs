@@ -22,6 +22,7 @@ mod tasks;
 pub mod timeouts;
 mod users;
 mod web;
+mod work;
 
 use std::collections::HashMap;
 use std::net::SocketAddr;
@@ -266,6 +267,11 @@ impl App {
             job::Options::admitted(),
         )
         .map_err(anyhow::Error::msg)?;
+        // Its plan from features alone is not the one it will run: none is kept.
+        anyhow::ensure!(
+            !compiled.awaits_choice(),
+            "job {job} awaits auto's choice: its pilot has not run yet"
+        );
         let p = Arc::new(JobPlan {
             desc: compiled.job.desc,
             settings,

@@ -176,9 +176,12 @@ fn check_result(
     spec: &TaskSpec,
     path: &std::path::Path,
 ) -> anyhow::Result<u64> {
+    let file = std::io::BufReader::new(std::fs::File::open(path)?);
+    if crate::job::is_pilot(spec) {
+        return crate::job::read_choice(spec, file).map(|(_, payload)| payload);
+    }
     let plan = app.job_plan(job)?;
-    let file = std::fs::File::open(path)?;
-    crate::job::check_result(plan.plan.as_ref(), spec, std::io::BufReader::new(file))
+    crate::job::check_result(plan.plan.as_ref(), spec, file)
 }
 
 /// Upload a task's result: a wire stream (versioned, chunked, zstd-compressed, CRC-checked)
@@ -278,10 +281,12 @@ pub(super) async fn upload_result(
             Err(stale(id, q.lease))
         }
         Completion::Accepted { step, .. } => {
-            let method = app
-                .job_plan(job_id)
-                .map(|p| p.plan.method())
-                .unwrap_or("unknown");
+            let plan = (!crate::job::is_pilot(&spec)).then(|| app.job_plan(job_id));
+            let method = match &plan {
+                None => "auto",
+                Some(Ok(p)) => p.plan.method(),
+                Some(Err(_)) => "unknown",
+            };
             app.metrics.accepted(
                 method,
                 &spec.kind,

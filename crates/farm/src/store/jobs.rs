@@ -12,16 +12,29 @@ use crate::protocol::{
     AttemptStatus, FrameStatus, JobState, JobStatus, TaskCounts, TaskStatus, WorkerStatus,
 };
 
-/// A job ready to insert: its row and the first step of every frame.
+/// A job ready to insert: its row and what it runs first.
 pub struct NewJob {
     pub name: String,
     pub priority: i32,
     pub bundle: String,
     pub scene: String,
-    pub settings: RenderSettings,
     pub frames: FrameRange,
     pub width: u32,
     pub height: u32,
+    /// Tags a worker must have to run its tasks.
+    pub require_tags: Vec<String>,
+    /// Who submitted it (the token's user).
+    pub submitter: Option<String>,
+    /// Whether it awaits `auto`'s choice: then `work.tasks` is its pilot alone, and the rest
+    /// is planned when the pilot is done ([`Store::measured`]).
+    pub measuring: bool,
+    pub work: Work,
+}
+
+/// What a job runs, as planned: inserted with the job, or when its pilot is done.
+pub struct Work {
+    /// The job's settings, with `auto`'s choice where one was measured.
+    pub settings: RenderSettings,
     pub spp: u32,
     /// The method that runs.
     pub method: String,
@@ -32,10 +45,6 @@ pub struct NewJob {
     pub passes: Vec<NewPass>,
     /// Tasks expected in all (for progress), counting those queued later.
     pub planned_tasks: u64,
-    /// Tags a worker must have to run its tasks.
-    pub require_tags: Vec<String>,
-    /// Who submitted it (the token's user).
-    pub submitter: Option<String>,
 }
 
 /// Jobs by state: (state, count).
@@ -72,8 +81,8 @@ impl Store {
             let id: i64 = tx.query_row(
                 "INSERT INTO jobs (name, state, priority, created_ms, bundle, scene, settings,
                 first_frame, last_frame, width, height, spp, method, decisions, planned_tasks,
-                require_tags, submitter)
-             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)
+                require_tags, submitter, measuring)
+             VALUES (?1, 'queued', ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17)
              RETURNING id",
                 params![
                     job.name,
@@ -81,17 +90,18 @@ impl Store {
                     now,
                     job.bundle,
                     job.scene,
-                    json(&job.settings),
+                    json(&job.work.settings),
                     job.frames.first,
                     job.frames.last,
                     job.width,
                     job.height,
-                    job.spp,
-                    job.method,
-                    json(&job.decisions),
-                    job.planned_tasks as i64,
+                    job.work.spp,
+                    job.work.method,
+                    json(&job.work.decisions),
+                    job.work.planned_tasks as i64,
                     Self::tags_json(&job.require_tags),
                     job.submitter,
+                    job.measuring,
                 ],
                 |r| r.get(0),
             )?;
@@ -101,14 +111,44 @@ impl Store {
                     params![id, f],
                 )?;
             }
-            let frames_now = Self::insert_passes(tx, id, &job.passes)?;
-            if frames_now {
-                for tasks in &job.tasks {
-                    Self::insert_tasks(tx, id, tasks)?;
-                }
-            }
+            Self::insert_work(tx, id, &job.work)?;
             Ok(id)
         })
+    }
+
+    /// Plans a job that awaited `auto`'s choice, as `planned` says: once, however many coordinators fold its pilot, and only while the
+    /// job is open. Returns whether this call planned it.
+    pub fn measured(&self, job: i64, planned: &Work) -> Result<bool> {
+        self.db.write(|tx| {
+            let changed = tx.execute(
+                "UPDATE jobs SET measuring = 0, settings = ?2, method = ?3, spp = ?4, decisions = ?5,
+                    planned_tasks = planned_tasks + ?6
+                 WHERE id = ?1 AND measuring = 1 AND state IN ('queued', 'running', 'paused')",
+                params![
+                    job,
+                    json(&planned.settings),
+                    planned.method,
+                    planned.spp,
+                    json(&planned.decisions),
+                    planned.planned_tasks as i64,
+                ],
+            )?;
+            if changed == 0 {
+                return Ok(false);
+            }
+            Self::insert_work(tx, job, planned)?;
+            Ok(true)
+        })
+    }
+
+    /// Inserts a job's passes, and its frames' first steps where no pass is to be built first.
+    fn insert_work(tx: &Conn, job: i64, work: &Work) -> Result<()> {
+        if Self::insert_passes(tx, job, &work.passes)? {
+            for tasks in &work.tasks {
+                Self::insert_tasks(tx, job, tasks)?;
+            }
+        }
+        Ok(())
     }
 
     /// Queues tasks of a job (at the job's priority, copied for the queue index) and counts
@@ -246,7 +286,7 @@ impl Store {
                 "SELECT j.id, j.name, j.state, j.priority, j.created_ms, j.finished_ms, j.bundle, j.scene,
                     j.settings, j.first_frame, j.last_frame, j.width, j.height, j.spp, j.decisions, j.error,
                     t.total, t.queued, t.leased, t.done, t.failed, t.cancelled, t.attempts,
-                    j.planned_tasks, j.method, j.require_tags, j.started_ms, j.submitter
+                    j.planned_tasks, j.method, j.require_tags, j.started_ms, j.submitter, j.measuring
                  FROM (SELECT * FROM jobs {filter}) j
                  LEFT JOIN (SELECT job_id, COUNT(*) AS total, {} AS queued, {} AS leased,
                                 {} AS done, {} AS failed, {} AS cancelled, SUM(attempts) AS attempts
@@ -307,6 +347,7 @@ impl Store {
                     started_ms: r.get(26)?,
                     blocklist: Vec::new(),
                     submitter: r.get(27)?,
+                    measuring: r.get(28)?,
                 };
                 Ok((status, r.get(8)?, r.get(14)?, r.get(25)?))
             },

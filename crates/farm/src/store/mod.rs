@@ -23,7 +23,7 @@ use std::path::Path;
 use db::{Conn, Db, Dialect, Optional, params};
 
 pub use claims::Claim;
-pub use jobs::{Artifact, JobFilter, NewJob};
+pub use jobs::{Artifact, JobFilter, NewJob, Work};
 pub use ops::Blocklisting;
 pub use passes::{CacheEntry, NewPass, PassStart};
 pub use sessions::Session;
@@ -157,6 +157,10 @@ CREATE TABLE IF NOT EXISTS users (
 ALTER TABLE jobs ADD COLUMN submitter TEXT;
 ALTER TABLE sessions ADD COLUMN user_name TEXT NOT NULL DEFAULT 'admin';
 ALTER TABLE sessions ADD COLUMN role TEXT NOT NULL DEFAULT 'admin';
+"#,
+    // 7: jobs queued with `auto`'s pilot, planned when a worker has measured it.
+    r#"
+ALTER TABLE jobs ADD COLUMN measuring INTEGER NOT NULL DEFAULT 0;
 "#,
 ];
 
@@ -609,6 +613,44 @@ pub(crate) mod tests {
             .with_range(0, 1)
     }
 
+    /// A job of bundle `b` over `frames`, at priority 0, that runs `tasks` with `passes`
+    /// first (or awaits `auto`'s choice, `measuring`, with `tasks` its pilot).
+    pub(crate) fn new_job(
+        frames: FrameRange,
+        measuring: bool,
+        method: &str,
+        tasks: Vec<Vec<TaskSpec>>,
+        passes: Vec<NewPass>,
+    ) -> NewJob {
+        let planned = tasks
+            .iter()
+            .chain(passes.iter().filter_map(|p| match &p.start {
+                PassStart::Build(t) | PassStart::Waiting(t) => Some(t),
+                PassStart::Reused => None,
+            }));
+        NewJob {
+            name: "j".into(),
+            priority: 0,
+            bundle: "b".into(),
+            scene: "scene.json".into(),
+            frames,
+            width: 1,
+            height: 1,
+            require_tags: vec![],
+            submitter: None,
+            measuring,
+            work: Work {
+                settings: RenderSettings::default(),
+                spp: 1,
+                method: method.into(),
+                decisions: vec![],
+                planned_tasks: planned.map(|t| t.len() as u64).sum(),
+                tasks,
+                passes,
+            },
+        }
+    }
+
     /// A store with one job per priority given, each of `tasks` tasks in one frame.
     pub(crate) fn store(priorities: &[i32], tasks: u32) -> (tempfile::TempDir, Store, Vec<i64>) {
         let dir = tempfile::tempdir().expect("temp dir");
@@ -617,28 +659,12 @@ pub(crate) mod tests {
         let ids = priorities
             .iter()
             .map(|&priority| {
-                s.insert_job(
-                    &NewJob {
-                        name: "j".into(),
-                        priority,
-                        bundle: "b".into(),
-                        scene: "scene.json".into(),
-                        settings: RenderSettings::default(),
-                        frames: FrameRange::single(1),
-                        width: 1,
-                        height: 1,
-                        spp: 1,
-                        method: "path".into(),
-                        decisions: vec![],
-                        tasks: vec![(0..tasks).map(|i| task(1, i)).collect()],
-                        passes: vec![],
-                        planned_tasks: tasks as u64,
-                        require_tags: vec![],
-                        submitter: None,
-                    },
-                    0,
-                )
-                .expect("job")
+                let tasks = vec![(0..tasks).map(|i| task(1, i)).collect()];
+                let job = NewJob {
+                    priority,
+                    ..new_job(FrameRange::single(1), false, "path", tasks, vec![])
+                };
+                s.insert_job(&job, 0).expect("job")
             })
             .collect();
         (dir, s, ids)

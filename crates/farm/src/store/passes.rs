@@ -258,10 +258,9 @@ impl Store {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{store, task};
+    use super::super::tests::{new_job, store, task};
     use super::*;
-    use crate::job::{FrameRange, RenderSettings};
-    use crate::store::NewJob;
+    use crate::job::FrameRange;
 
     /// A pass is built once: the fold of a late request for it (arriving after its artifact
     /// was written) must not queue the frames a second time.
@@ -270,30 +269,20 @@ mod tests {
         let (_d, s, _) = store(&[], 0);
         let pass_task = TaskSpec::new("photons", 0, 0, 0).with_range(0, 10);
         let frame: Vec<TaskSpec> = (0..3).map(|i| task(1, i)).collect();
+        let passes = vec![NewPass {
+            name: "photons".into(),
+            key: "k".into(),
+            start: PassStart::Build(vec![pass_task]),
+        }];
         let job = s
             .insert_job(
-                &NewJob {
-                    name: "j".into(),
-                    priority: 0,
-                    bundle: "b".into(),
-                    scene: "scene.json".into(),
-                    settings: RenderSettings::default(),
-                    frames: FrameRange::single(1),
-                    width: 1,
-                    height: 1,
-                    spp: 1,
-                    method: "photon".into(),
-                    decisions: vec![],
-                    tasks: vec![frame.clone()],
-                    passes: vec![NewPass {
-                        name: "photons".into(),
-                        key: "k".into(),
-                        start: PassStart::Build(vec![pass_task]),
-                    }],
-                    planned_tasks: 4,
-                    require_tags: vec![],
-                    submitter: None,
-                },
+                &new_job(
+                    FrameRange::single(1),
+                    false,
+                    "photon",
+                    vec![frame.clone()],
+                    passes,
+                ),
                 0,
             )
             .expect("job");

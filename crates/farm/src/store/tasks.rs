@@ -3,10 +3,11 @@
 use super::db::{Conn, Optional, params};
 
 use super::{Result, SPEC_COLUMNS, Store, StoreError, from_json, task_spec};
-use crate::job::{FrameRange, TaskSpec};
+use crate::job::{self, FrameRange, TaskSpec};
 use crate::protocol::{LeaseGrant, WorkerInfo};
 
-/// A step of a job: a frame's (frame ≥ 1) or a pass's (frame 0, step = the pass's position).
+/// A step of a job: a frame's (frame ≥ 1), a pass's (frame 0, step = the pass's position), or
+/// its pilot's (frame 0, [`job::PILOT_STEP`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct StepKey {
     pub job: i64,
@@ -358,7 +359,9 @@ impl Store {
             && Self::count_failure(tx, job, &worker, error, now, policy.blocklist_after)?
                 == super::Blocklisting::Blocked;
         let failures = Self::counted_failures(tx, task)?;
-        let place = if spec.is_pass() {
+        let place = if job::is_pilot(&spec) {
+            "auto's pilot".to_string()
+        } else if spec.is_pass() {
             format!("pass {}", spec.step)
         } else {
             format!("frame {}, step {}", spec.frame, spec.step)
@@ -714,7 +717,8 @@ impl Store {
     }
 
     /// Steps of running jobs whose tasks are all done but which were not folded on (a restart
-    /// in between): frames at their current step, and passes still running.
+    /// in between): frames at their current step, passes still running, and pilots of jobs
+    /// not yet planned.
     pub fn finished_steps(&self) -> Result<Vec<StepKey>> {
         let conn = self.conn()?;
         conn.query_map(
@@ -726,8 +730,12 @@ impl Store {
              UNION ALL
              SELECT p.job_id, 0, p.step FROM passes p JOIN jobs j ON j.id = p.job_id
              WHERE p.state = 'running' AND p.tasks_done = p.tasks_total
+               AND j.state IN ('queued', 'running', 'paused')
+             UNION ALL
+             SELECT t.job_id, 0, t.step FROM tasks t JOIN jobs j ON j.id = t.job_id
+             WHERE j.measuring = 1 AND t.frame = 0 AND t.step = ?1 AND t.state = 'done'
                AND j.state IN ('queued', 'running', 'paused')",
-            params![],
+            params![job::PILOT_STEP],
             |r| {
                 Ok(StepKey {
                     job: r.get(0)?,
@@ -798,6 +806,62 @@ mod tests {
             ]
         );
         assert!(s.lease(&worker("w"), 0, 1000).expect("lease").is_none());
+    }
+
+    /// A job awaiting `auto`'s choice runs its pilot alone; once the pilot is done its step is
+    /// found again after a restart until the job is planned, and it is planned once.
+    #[test]
+    fn a_measuring_job_runs_its_pilot_and_is_planned_once() {
+        use crate::job::{PILOT_STEP, pilot_task};
+        use crate::store::tests::new_job;
+        let (_d, s, _) = store(&[], 0);
+        let frames = FrameRange { first: 1, last: 2 };
+        let job = s
+            .insert_job(
+                &new_job(frames, true, "auto", vec![vec![pilot_task()]], vec![]),
+                0,
+            )
+            .expect("job");
+        let status = s.job(job).expect("q").expect("job");
+        assert!(status.measuring && status.method == "auto", "{status:?}");
+        let g = s
+            .lease(&worker("w"), 0, 1000)
+            .expect("lease")
+            .expect("the pilot");
+        assert_eq!(g.task, pilot_task());
+        assert!(s.lease(&worker("w"), 0, 1000).expect("lease").is_none());
+        let key = StepKey {
+            job,
+            frame: 0,
+            step: PILOT_STEP,
+        };
+        assert_eq!(
+            s.complete(g.task_id, g.lease, 1.0, (1, 1), 1).expect("c"),
+            Completion::Accepted {
+                step: key,
+                complete: true
+            }
+        );
+        assert_eq!(s.finished_steps().expect("q"), vec![key]);
+        let tasks = vec![vec![task(1, 0), task(1, 1)], vec![task(2, 0)]];
+        let work = new_job(frames, false, "path", tasks, vec![]).work;
+        assert!(s.measured(job, &work).expect("plan"));
+        assert!(!s.measured(job, &work).expect("plan"));
+        assert_eq!(s.finished_steps().expect("q"), vec![]);
+        let status = s.job(job).expect("q").expect("job");
+        assert!(!status.measuring && status.method == "path", "{status:?}");
+        // The pilot and the three frame tasks, once.
+        assert_eq!((status.tasks.total, status.tasks.planned), (4, 4));
+        let leased: Vec<u32> = (0..3)
+            .map(|_| {
+                s.lease(&worker("w"), 2, 1000)
+                    .expect("lease")
+                    .expect("a task")
+                    .task
+                    .frame
+            })
+            .collect();
+        assert_eq!(leased, [1, 1, 2]);
     }
 
     #[test]

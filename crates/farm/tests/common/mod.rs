@@ -30,6 +30,16 @@ pub fn config(dir: &Path) -> Config {
     config
 }
 
+/// A coordinator keeping its data in `dir`/data, its URL and a client of it.
+pub async fn coordinator_in(dir: &Path) -> (tessera_farm::coordinator::Running, String, Client) {
+    let running = tessera_farm::coordinator::start(config(&dir.join("data")))
+        .await
+        .expect("coordinator");
+    let url = format!("http://{}", running.addr);
+    let client = Client::new(&url, CLIENT).expect("client");
+    (running, url, client)
+}
+
 pub fn cornell() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.json")
 }

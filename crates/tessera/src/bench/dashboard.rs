@@ -8,7 +8,7 @@ use anyhow::Context;
 use tessera_farm::coordinator::{self, Config, now_ms};
 use tessera_farm::job::{FrameRange, RenderSettings, TaskSpec};
 use tessera_farm::protocol::WorkerInfo;
-use tessera_farm::store::{NewJob, RetryPolicy, Store};
+use tessera_farm::store::{NewJob, RetryPolicy, Store, Work};
 
 #[derive(clap::Args)]
 pub struct DashboardArgs {
@@ -40,31 +40,34 @@ fn fill(store: &Store, jobs: u32, tasks: u32) -> anyhow::Result<i64> {
         priority: (i % 4) as i32,
         bundle: "0".repeat(64),
         scene: "scene.json".into(),
-        settings: RenderSettings::default(),
         frames: FrameRange::single(1),
         width: side * 32,
         height: side * 32,
-        spp: 64,
-        method: "path".into(),
-        decisions: vec!["integrator: path — a benchmark's".into()],
-        tasks: vec![
-            (0..tasks)
-                .map(|t| {
-                    TaskSpec::new("tile", 1, 0, t)
-                        .with_rect(tessera_render::Tile {
-                            x0: (t % side) * 32,
-                            y0: (t / side) * 32,
-                            x1: (t % side) * 32 + 32,
-                            y1: (t / side) * 32 + 32,
-                        })
-                        .with_range(0, 64)
-                })
-                .collect(),
-        ],
-        passes: vec![],
-        planned_tasks: tasks as u64,
         require_tags: vec![],
         submitter: None,
+        measuring: false,
+        work: Work {
+            settings: RenderSettings::default(),
+            spp: 64,
+            method: "path".into(),
+            decisions: vec!["integrator: path — a benchmark's".into()],
+            tasks: vec![
+                (0..tasks)
+                    .map(|t| {
+                        TaskSpec::new("tile", 1, 0, t)
+                            .with_rect(tessera_render::Tile {
+                                x0: (t % side) * 32,
+                                y0: (t / side) * 32,
+                                x1: (t % side) * 32 + 32,
+                                y1: (t / side) * 32 + 32,
+                            })
+                            .with_range(0, 64)
+                    })
+                    .collect(),
+            ],
+            passes: vec![],
+            planned_tasks: tasks as u64,
+        },
     };
     let policy = RetryPolicy {
         max_attempts: 1,
