@@ -44,6 +44,9 @@ static WHOLE_FRAME: MethodInfo = MethodInfo {
         probe: None,
     }),
     per_ray: None,
+    payloads: |p| {
+        p.method::<WholeFrame>();
+    },
     plan: |job| Ok(Box::new(WholeFrame::plan(job)) as Box<dyn Plan>),
 };
 

@@ -27,6 +27,9 @@ pub static BDPT: MethodInfo = MethodInfo {
         probe: None,
     }),
     per_ray: None,
+    payloads: |p| {
+        p.method::<BdptMethod>();
+    },
     plan: |job| Ok(Box::new(BdptMethod::plan(job)?) as Box<dyn Plan>),
 };
 

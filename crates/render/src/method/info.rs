@@ -3,7 +3,7 @@
 use tessera_scene::SceneDesc;
 use tessera_scene::setting::Setting;
 
-use super::{Job, Plan};
+use super::{Job, Payloads, Plan};
 pub use crate::analysis::Transport;
 use crate::integrator::Integrator;
 use crate::scene::Scene;
@@ -33,6 +33,10 @@ pub struct MethodInfo {
     /// Its per-ray estimator with its passes run in-process, for tools and tests that render
     /// pixels directly ([`super::for_scene`]); `None` where its samples are not one ray's.
     pub per_ray: Option<PerRay>,
+    /// Declares the payload types its plans write to the wire (its frame method's, its steps'
+    /// inputs', its passes'), whose layouts a test pins to the wire version
+    /// ([`super::Payloads`]).
+    pub payloads: fn(&mut Payloads),
     /// Plans a job (the scene with the job's settings applied); errors name the setting and
     /// what was expected. Called through [`super::plan_as`], which refuses first what the
     /// method cannot render.

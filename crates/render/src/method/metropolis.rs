@@ -78,6 +78,9 @@ pub static PSSMLT: MethodInfo = MethodInfo {
         probe(Metropolis::Pssmlt(Pssmlt::new(d)), d, scene, frame, k)
     })),
     per_ray: None,
+    payloads: |p| {
+        p.method::<MetropolisMethod>();
+    },
     plan: |job| {
         let m = Metropolis::Pssmlt(Pssmlt::new(&job.desc));
         Ok(Box::new(MetropolisMethod::plan(job, PSSMLT.name, m)?) as Box<dyn Plan>)
@@ -96,6 +99,9 @@ pub static MLT: MethodInfo = MethodInfo {
         probe(Metropolis::Mlt(Mlt::new(d)), d, scene, frame, k)
     })),
     per_ray: None,
+    payloads: |p| {
+        p.method::<MetropolisMethod>();
+    },
     plan: |job| {
         let m = Metropolis::Mlt(Mlt::new(&job.desc));
         Ok(Box::new(MetropolisMethod::plan(job, MLT.name, m)?) as Box<dyn Plan>)

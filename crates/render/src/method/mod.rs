@@ -21,7 +21,6 @@ pub mod auto;
 mod bdpt;
 pub mod film;
 mod info;
-#[cfg(test)]
 mod layouts;
 pub mod local;
 mod metropolis;
@@ -50,6 +49,7 @@ pub use crate::wire::TaskSpec;
 use crate::wire::{self, Header, Sizes, WireError};
 
 pub use info::{MethodInfo, Model, PerRay, PilotInfo, Probe, Sight, Transport};
+pub use layouts::Payloads;
 pub use registry::{methods, register};
 pub use tiles::{Adaptive, TilePartial};
 

@@ -36,6 +36,10 @@ pub static PATH: MethodInfo = MethodInfo {
         probe: None,
     }),
     per_ray: Some(|desc, scene| per_ray(Transport::Full, desc, scene)),
+    payloads: |p| {
+        p.method::<PathMethod>()
+            .pass::<SubsurfacePass>("subsurface");
+    },
     plan: |job| Ok(Box::new(PathMethod::plan(job, &PATH)?) as Box<dyn Plan>),
 };
 
@@ -50,6 +54,10 @@ pub static DIRECT: MethodInfo = MethodInfo {
     // Chosen without a pilot where it is exact, never measured.
     pilot: None,
     per_ray: Some(|desc, scene| per_ray(Transport::Direct, desc, scene)),
+    payloads: |p| {
+        p.method::<PathMethod>()
+            .pass::<SubsurfacePass>("subsurface");
+    },
     plan: |job| Ok(Box::new(PathMethod::plan(job, &DIRECT)?) as Box<dyn Plan>),
 };
 

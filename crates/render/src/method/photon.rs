@@ -51,6 +51,11 @@ pub static PHOTON: MethodInfo = MethodInfo {
         let (p, why) = PhotonIntegrator::prepare(desc, scene, &analyze(desc), 1..=1);
         (Box::new(p), why)
     }),
+    payloads: |p| {
+        p.method::<PhotonMethod>()
+            .pass::<PhotonsPass>("photons")
+            .pass::<RecordsPass>("records");
+    },
     plan: |job| Ok(Box::new(PhotonMethod::plan(job)?) as Box<dyn Plan>),
 };
 

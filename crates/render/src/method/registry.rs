@@ -19,6 +19,12 @@ static BUILT_IN: &[&MethodInfo] = &[
     &super::metropolis::MLT,
 ];
 
+/// The methods built in (without those registered).
+#[cfg(test)]
+pub(super) fn built_in() -> &'static [&'static MethodInfo] {
+    BUILT_IN
+}
+
 /// Methods registered by the program after it started (a plug-in, a test's method).
 static REGISTERED: RwLock<Vec<&'static MethodInfo>> = RwLock::new(Vec::new());
 

@@ -43,6 +43,10 @@ pub static SPPM: MethodInfo = MethodInfo {
         probe: None,
     }),
     per_ray: None,
+    payloads: |p| {
+        p.method::<SppmMethod>()
+            .input::<Vec<f32>>("step input (squared radii)");
+    },
     plan: |job| Ok(Box::new(SppmMethod::plan(job)?) as Box<dyn Plan>),
 };
 

@@ -28,6 +28,9 @@ pub static VCM: MethodInfo = MethodInfo {
         probe: None,
     }),
     per_ray: None,
+    payloads: |p| {
+        p.method::<VcmMethod>();
+    },
     plan: |job| Ok(Box::new(VcmMethod::plan(job)?) as Box<dyn Plan>),
 };
 

@@ -29,6 +29,8 @@ pub static AUTO: MethodInfo = MethodInfo {
     transport: Transport::Full,
     pilot: None,
     per_ray: None,
+    // It plans the method it chooses, whose payloads those methods declare.
+    payloads: |_| {},
     plan: plan_auto,
 };
 
