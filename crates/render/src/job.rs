@@ -315,9 +315,8 @@ pub fn compile(
     let unread = job
         .desc
         .integrator
-        .photon
-        .given()
-        .into_iter()
+        .given
+        .iter()
         .filter(|s| !planned.reads(s))
         .map(|s| {
             format!(
@@ -707,33 +706,58 @@ pub(crate) mod tests {
     }
 
     /// A setting the scene gives that the planned method does not read is named, with the
-    /// method and what it reads; one it reads is not.
+    /// method and what it reads; one it reads is not, nor one the scene leaves out.
     #[test]
     fn settings_the_method_does_not_read_are_named() {
+        use tessera_scene::setting::{ALPHA, CAUSTIC_FILTER, SAMPLER, SUBSURFACE};
         let limits = Limits::default();
         let mut desc = scene("cornell-box", 2);
         desc.integrator.photon.alpha = Some(0.5);
-        let on = |method: &str| {
+        desc.integrator.given = vec![&SAMPLER, &SUBSURFACE, &CAUSTIC_FILTER, &ALPHA];
+        let unread = |desc: &SceneDesc, method: &str| {
             let settings = RenderSettings {
                 integrator: Some(method.into()),
                 ..Default::default()
             };
-            compile(
-                desc.clone(),
-                &settings,
-                FrameRange::single(1),
-                Options::new(&limits),
-            )
-            .unwrap()
-            .unread
+            let options = Options::new(&limits);
+            compile(desc.clone(), &settings, FrameRange::single(1), options)
+                .unwrap()
+                .unread
         };
-        let unread = on("path");
-        assert_eq!(unread.len(), 1, "{unread:?}");
-        assert!(
-            unread[0].starts_with("integrator.photon_map.alpha: given, but path does not read it")
-                && unread[0].contains("integrator.subsurface"),
-            "{unread:?}"
+        // The settings named, by their paths.
+        let on = |method: &str| -> Vec<String> {
+            let lines = unread(&desc, method);
+            lines
+                .iter()
+                .map(|u| u.split(':').next().unwrap_or("").to_string())
+                .collect()
+        };
+        let named = |names: &[&str]| -> Vec<String> {
+            names.iter().map(|n| format!("integrator.{n}")).collect()
+        };
+        assert_eq!(
+            on("path"),
+            named(&["photon_map.caustic_filter", "photon_map.alpha"])
         );
-        assert_eq!(on("sppm"), Vec::<String>::new());
+        assert_eq!(
+            on("sppm"),
+            named(&["subsurface", "photon_map.caustic_filter"])
+        );
+        let all = [
+            "sampler",
+            "subsurface",
+            "photon_map.caustic_filter",
+            "photon_map.alpha",
+        ];
+        assert_eq!(on("mlt"), named(&all));
+        let lines = unread(&desc, "path");
+        assert!(
+            lines[1].starts_with("integrator.photon_map.alpha: given, but path does not read it")
+                && lines[1].contains("it reads integrator.subsurface, integrator.sampler"),
+            "{lines:?}"
+        );
+        // Left out, they are not named.
+        desc.integrator.given.clear();
+        assert_eq!(unread(&desc, "mlt"), Vec::<String>::new());
     }
 }

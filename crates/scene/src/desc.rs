@@ -88,31 +88,6 @@ pub struct PhotonDesc {
     pub alpha: Option<f32>,
 }
 
-impl PhotonDesc {
-    /// The settings the scene gave a value (those it may leave out).
-    pub fn given(&self) -> Vec<&'static crate::setting::Setting> {
-        use crate::setting::*;
-        let ic = self.irradiance_cache.unwrap_or_default();
-        [
-            (&PHOTONS, self.photons.is_some()),
-            (&CAUSTIC_PHOTONS, self.caustic_photons.is_some()),
-            (&PHOTON_K, self.k.is_some()),
-            (&CAUSTIC_K, self.caustic_k.is_some()),
-            (&RADIUS, self.radius.is_some()),
-            (&CAUSTIC_RADIUS, self.caustic_radius.is_some()),
-            (&GATHER_RAYS, self.gather_rays.is_some()),
-            (&ALPHA, self.alpha.is_some()),
-            (&IC_ACCURACY, ic.accuracy.is_some()),
-            (&IC_SPACING, ic.spacing.is_some()),
-            (&IC_KEYFRAME_STEP, ic.keyframe_step.is_some()),
-            (&IC_GATHER_RAYS, ic.gather_rays.is_some()),
-        ]
-        .into_iter()
-        .filter_map(|(s, given)| given.then_some(s))
-        .collect()
-    }
-}
-
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct IrradianceCacheDesc {
     pub accuracy: Option<f32>,
@@ -134,6 +109,9 @@ pub struct IntegratorDesc {
     pub sampler: SamplerType,
     pub photon: PhotonDesc,
     pub subsurface: SubsurfaceMethod,
+    /// The settings the scene file gave a value ([`crate::setting::ALL`]), in its order; those
+    /// it left out take their defaults.
+    pub given: Vec<&'static crate::setting::Setting>,
 }
 
 #[derive(Debug, Clone, PartialEq)]

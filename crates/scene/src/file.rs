@@ -339,11 +339,11 @@ pub struct IntegratorFile {
     #[serde(default)]
     pub seed: u64,
     #[serde(default)]
-    pub sampler: SamplerType,
+    pub sampler: Option<SamplerType>,
     #[serde(default)]
     pub photon_map: PhotonMapFile,
     #[serde(default)]
-    pub subsurface: SubsurfaceMethod,
+    pub subsurface: Option<SubsurfaceMethod>,
 }
 
 impl Default for IntegratorFile {
@@ -354,9 +354,9 @@ impl Default for IntegratorFile {
             max_depth: default_max_depth(),
             rr_depth: default_rr_depth(),
             seed: 0,
-            sampler: SamplerType::default(),
+            sampler: None,
             photon_map: PhotonMapFile::default(),
-            subsurface: SubsurfaceMethod::default(),
+            subsurface: None,
         }
     }
 }

@@ -213,8 +213,9 @@ mod tests {
         v
     }
 
-    /// Loads the Cornell box with `integrator` merged into its own.
-    fn load(integrator: Value) -> Result<(), String> {
+    /// Loads the Cornell box with `integrator` merged into its own; the settings it then
+    /// says the scene gave.
+    fn load(integrator: Value) -> Result<Vec<&'static Setting>, String> {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box");
         let text = std::fs::read_to_string(dir.join("scene.json")).unwrap();
         let mut scene: Value = serde_json::from_str(&text).unwrap();
@@ -236,12 +237,13 @@ mod tests {
         }
         std::fs::write(tmp.path().join("scene.json"), scene.to_string()).unwrap();
         crate::load(&tmp.path().join("scene.json"))
-            .map(|_| ())
+            .map(|d| d.integrator.given)
             .map_err(|e| e.to_string())
     }
 
     /// What each setting says it admits is what the scene format admits: its bounds load, a
     /// step past them is refused naming the setting, and each word is one the format parses.
+    /// A scene that gives one setting is said to give it (and the group it is in), no other.
     #[test]
     fn the_declared_values_are_the_ones_the_scene_format_checks() {
         for s in ALL {
@@ -251,9 +253,16 @@ mod tests {
                     .expect_err(&format!("{field} = {v} loaded"));
                 assert!(err.contains(&field), "{field} = {v}: {err}");
             };
+            let within: Vec<&Setting> = ALL
+                .iter()
+                .copied()
+                .filter(|t| *t == *s || s.name.starts_with(&format!("{}.", t.name)))
+                .collect();
             let loads = |v: Value| {
-                load(integrator_with(s.name, v.clone()))
-                    .unwrap_or_else(|e| panic!("{field} = {v}: {e}"))
+                let given = load(integrator_with(s.name, v.clone()))
+                    .unwrap_or_else(|e| panic!("{field} = {v}: {e}"));
+                let names = |l: &[&Setting]| l.iter().map(|t| t.name).collect::<Vec<_>>();
+                assert_eq!(names(&given), names(&within), "{field} = {v}");
             };
             match s.kind {
                 Kind::Count { min, max } => {

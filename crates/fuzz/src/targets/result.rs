@@ -1,11 +1,14 @@
 //! `result`: a task's result stream as `PUT /v1/tasks/{id}/result` receives it, checked
 //! against the task it names by [`check_result`] (the coordinator's check), one job per
 //! method of the registry (a 16×16 Cornell box in 8×8 tiles). A result the check accepts
-//! must then fold into a fresh frame or pass: what fits is what the fold takes.
+//! must then fold into a fresh frame or pass: what fits is what the fold takes. A pilot's
+//! result (`auto`'s choice, [`job::read_choice`]) that is accepted must then compile its job,
+//! or be refused by it with an error, as the coordinator's fold of the pilot does.
 
 use std::sync::OnceLock;
 
 use tessera_farm::job::{self, FrameRange, RenderSettings, check_result};
+use tessera_render::method::auto::Choice;
 use tessera_render::method::{LoadFn, Loaded, Plan, Resources, TaskCtx, TaskSpec};
 use tessera_render::wire::{Header, Reader};
 use tessera_scene::SceneDesc;
@@ -26,8 +29,21 @@ struct Job {
 }
 
 struct Jobs {
+    /// The scene as loaded, before any method's settings.
+    base: SceneDesc,
     desc: SceneDesc,
     jobs: Vec<Job>,
+}
+
+/// The settings of the jobs, with `method`.
+fn settings(method: &str) -> RenderSettings {
+    RenderSettings {
+        size: Some([16, 16]),
+        tile: Some(8),
+        spp: Some(1),
+        integrator: Some(method.into()),
+        ..Default::default()
+    }
 }
 
 fn jobs() -> &'static Jobs {
@@ -42,16 +58,9 @@ fn jobs() -> &'static Jobs {
             .into_iter()
             .filter(|m| *m != "auto")
             .filter_map(|method| {
-                let settings = RenderSettings {
-                    size: Some([16, 16]),
-                    tile: Some(8),
-                    spp: Some(1),
-                    integrator: Some(method.into()),
-                    ..Default::default()
-                };
                 let compiled = job::compile(
                     base.clone(),
-                    &settings,
+                    &settings(method),
                     FrameRange::single(1),
                     job::Options::admitted(),
                 )
@@ -66,7 +75,7 @@ fn jobs() -> &'static Jobs {
                 Some(Job { plan, tasks })
             })
             .collect();
-        Jobs { desc, jobs }
+        Jobs { base, desc, jobs }
     })
 }
 
@@ -77,6 +86,25 @@ fn run(data: &[u8]) -> bool {
     let Some(task) = header.task else {
         return false;
     };
+    if job::is_pilot(&task) {
+        let Ok((choice, _)) = job::read_choice(&task, data) else {
+            return false;
+        };
+        let settings = RenderSettings {
+            choice: Some(choice),
+            ..settings("auto")
+        };
+        let limits = job::Limits::default();
+        let options = job::Options::new(&limits);
+        // Planned, or refused with an error: never a panic.
+        let _ = job::compile(
+            jobs().base.clone(),
+            &settings,
+            FrameRange::single(1),
+            options,
+        );
+        return true;
+    }
     let Some(job) = jobs().jobs.iter().find(|j| {
         j.tasks.contains(&task)
             && (j.plan.schema() == header.schema
@@ -137,7 +165,7 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
         desc: &jobs.desc,
         resources: &Bare,
     };
-    let mut out = Vec::new();
+    let mut out = pilot_seeds();
     for job in &jobs.jobs {
         let mut seen = Vec::new();
         for task in &job.tasks {
@@ -166,4 +194,52 @@ fn seeds() -> Vec<(String, Vec<u8>)> {
         }
     }
     out
+}
+
+/// A pilot's result holding `choice`, as a worker writes it.
+fn pilot_result(choice: &Choice) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    job::write_choice(&mut bytes, &job::pilot_task(), choice).expect("a choice writes");
+    bytes
+}
+
+/// Pilots' choices of a method without passes and of one with.
+fn pilot_seeds() -> Vec<(String, Vec<u8>)> {
+    [("path", None), ("photon", Some(20_000))]
+        .into_iter()
+        .map(|(method, photons)| {
+            let choice = Choice {
+                method: method.into(),
+                subsurface: None,
+                photons,
+                spp: 4,
+                target_error: None,
+                report: vec![format!("auto: chose {method} at 4 spp")],
+            };
+            (format!("pilot-{method}.tswf"), pilot_result(&choice))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pilot's choice is read and its job compiled; one naming no method `auto` may choose
+    /// is refused before.
+    #[test]
+    fn a_pilots_choice_is_checked_then_compiled() {
+        for (name, bytes) in pilot_seeds() {
+            assert!(run(&bytes), "{name} refused");
+        }
+        let auto = Choice {
+            method: "auto".into(),
+            subsurface: None,
+            photons: None,
+            spp: 4,
+            target_error: None,
+            report: vec![],
+        };
+        assert!(!run(&pilot_result(&auto)));
+    }
 }

@@ -297,9 +297,10 @@ impl Ctx<'_> {
             max_depth: i.max_depth,
             rr_depth: i.rr_depth,
             seed: i.seed,
-            sampler: i.sampler,
+            sampler: i.sampler.unwrap_or_default(),
             photon: self.photon_map(&i.photon_map),
-            subsurface: i.subsurface,
+            subsurface: i.subsurface.unwrap_or_default(),
+            given: given(i),
         }
     }
 
@@ -337,4 +338,45 @@ impl Ctx<'_> {
             alpha: self.setting(&setting::ALPHA, f.alpha),
         }
     }
+}
+
+/// The settings of [`setting::ALL`] that `i` gives a value (an irradiance cache's group when
+/// the file has the object, whatever it holds).
+fn given(i: &IntegratorFile) -> Vec<&'static Setting> {
+    let f = &i.photon_map;
+    let ic = f.irradiance_cache;
+    let is = |present: bool, s: &'static Setting| present.then_some(s);
+    [
+        is(i.sampler.is_some(), &setting::SAMPLER),
+        is(i.subsurface.is_some(), &setting::SUBSURFACE),
+        is(f.photons.is_some(), &setting::PHOTONS),
+        is(f.caustic_photons.is_some(), &setting::CAUSTIC_PHOTONS),
+        is(f.k.is_some(), &setting::PHOTON_K),
+        is(f.caustic_k.is_some(), &setting::CAUSTIC_K),
+        is(f.radius.is_some(), &setting::RADIUS),
+        is(f.caustic_radius.is_some(), &setting::CAUSTIC_RADIUS),
+        is(f.gather_rays.is_some(), &setting::GATHER_RAYS),
+        is(f.caustic_filter.is_some(), &setting::CAUSTIC_FILTER),
+        is(f.alpha.is_some(), &setting::ALPHA),
+        is(ic.is_some(), &setting::IRRADIANCE_CACHE),
+        is(
+            ic.is_some_and(|c| c.accuracy.is_some()),
+            &setting::IC_ACCURACY,
+        ),
+        is(
+            ic.is_some_and(|c| c.spacing.is_some()),
+            &setting::IC_SPACING,
+        ),
+        is(
+            ic.is_some_and(|c| c.keyframe_step.is_some()),
+            &setting::IC_KEYFRAME_STEP,
+        ),
+        is(
+            ic.is_some_and(|c| c.gather_rays.is_some()),
+            &setting::IC_GATHER_RAYS,
+        ),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
 }
