@@ -222,6 +222,14 @@ pub(crate) fn duration(ms: i64) -> String {
     }
 }
 
+/// The method a job runs, as the jobs list and a job's page show it (the dashboard's words).
+fn method_of(j: &JobStatus) -> String {
+    match j.measuring {
+        true => format!("{} (measuring)", j.method),
+        false => j.method.clone(),
+    }
+}
+
 /// Elapsed and estimated time left of a job at `now`.
 fn timing(j: &JobStatus, now: i64) -> (String, String) {
     let Some(start) = j.started_ms else {
@@ -266,7 +274,7 @@ pub async fn jobs(args: JobsArgs) -> anyhow::Result<()> {
                 j.state.as_str().to_string(),
                 format!("{:.0}%", 100.0 * j.progress),
                 j.priority.to_string(),
-                j.method.clone(),
+                method_of(j),
                 j.frames.to_string(),
                 format!("{}×{}", j.width, j.height),
                 elapsed,
@@ -349,7 +357,11 @@ pub async fn job(args: JobArgs) -> anyhow::Result<()> {
     );
     t += &format!(
         "{} at {}×{}, {} spp, frames {}; elapsed {elapsed}, eta {eta}\n",
-        j.method, j.width, j.height, j.spp, j.frames
+        method_of(&j),
+        j.width,
+        j.height,
+        j.spp,
+        j.frames
     );
     if !j.require_tags.is_empty() {
         t += &format!("requires worker tags: {}\n", j.require_tags.join(", "));
