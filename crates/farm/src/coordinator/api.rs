@@ -490,10 +490,14 @@ async fn frame_preview(
             .await??
             .ok_or_else(|| AppError::internal("the frame's PNG is not in the object store"))?
             .to_vec()
-    } else if state == "queued" {
-        // Nothing folded yet (and, for a job awaiting `auto`'s choice, nothing planned): a
-        // black frame of the film's size.
-        let job = app.store.job(id)?.ok_or_else(|| AppError::no_job(id))?;
+    } else if let Some(job) = (state == "queued")
+        .then(|| app.store.job(id))
+        .transpose()?
+        .flatten()
+        .filter(|j| j.measuring)
+    {
+        // A job awaiting `auto`'s choice has nothing planned to fold: a black frame of the
+        // film's size.
         let image = tessera_render::Image::new(job.width, job.height);
         tokio::task::spawn_blocking(move || tessera_render::output::encode_png(&image))
             .await?
